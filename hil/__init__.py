@@ -1,0 +1,1 @@
+"""CAN bridge: DBC, codec, chassis port over python-can, ECU emulator."""

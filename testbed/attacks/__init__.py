@@ -1,0 +1,1 @@
+"""Attacks on localization (FusionRipper, trace injection, stealthy) and on lane detection (DRP)."""

@@ -1,0 +1,1 @@
+"""LD3 detection and response, the NaiveAR and SAVIOR baselines. No PyBullet, no torch."""

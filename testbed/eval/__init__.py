@@ -1,0 +1,1 @@
+"""Scenarios, campaigns, metrics, plots and reports."""

@@ -1,0 +1,1 @@
+"""Sensor models (GNSS, LiDAR locator, IMU) and multi-sensor fusion. No PyBullet, no torch."""

@@ -1,0 +1,1 @@
+"""Lane detectors (torch net, classical OpenCV, map oracle), their training and shipped weights."""

@@ -1,0 +1,1 @@
+"""Road geometry, lanes, markings, procedural textures, the semantic map and named presets."""

@@ -1,0 +1,1 @@
+"""Vehicle parameters, URDF generation, the PyBullet vehicle and its camera rig."""
