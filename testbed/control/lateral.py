@@ -1,0 +1,117 @@
+"""Gain-scheduled discrete LQR lateral controller on the path-error bicycle model, with curvature feed-forward.
+
+δ = δ_ss(v, κ) − K(v)·[e_y, v·sin e_ψ − v·e_ψss, e_ψ − e_ψss, r − v·κ_local], clamped to ±max_steer.
+δ_ss and e_ψss are the steady-state cornering steer (kinematic + understeer) and sideslip heading error,
+so the loop regulates around the cornering equilibrium and holds e_y → 0 on arcs. K(v) comes from
+control.dlqr on the ZOH-discretised model at speeds 1..40 m/s and is linearly interpolated per tick.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import control
+import numpy as np
+from scipy.linalg import expm
+
+from testbed.control.lateral_model import LateralModel
+from testbed.control.plan import Plan
+
+SCHEDULE_MIN_SPEED = 1.0
+SCHEDULE_MAX_SPEED = 40.0
+SCHEDULE_STEP = 0.5
+
+
+def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation of (A, B) over `dt`."""
+    n, m = a.shape[0], b.shape[1]
+    block = np.zeros((n + m, n + m))
+    block[:n, :n], block[:n, n:] = a, b
+    phi = expm(block * dt)
+    return phi[:n, :n], phi[:n, n:]
+
+
+class LqrLateralController:
+    """Steer command (rad, + left) from a `Plan`; LQR gains scheduled on speed, feed-forward on curvature."""
+
+    def __init__(
+        self,
+        model: LateralModel,
+        max_steer: float,
+        dt: float,
+        q: tuple[float, float, float, float] = (0.1, 0.0, 1.0, 0.0),
+        r: float = 25.0,
+        hold_speed: float = 0.1,
+    ) -> None:
+        self.model = model
+        self.max_steer = max_steer
+        self.dt = dt
+        self.hold_speed = hold_speed
+        self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
+        q_mat, r_mat = np.diag(q), np.array([[r]])
+        gains = []
+        for v in self.speeds:
+            ad, bd = discretise(*model.error_dynamics(float(v)), dt)
+            k, _, _ = control.dlqr(ad, bd, q_mat, r_mat)
+            gains.append(np.asarray(k, dtype=float).ravel())
+        self.gains = np.array(gains)
+        self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
+        self._kv = model.understeer_gradient
+        self._lr = model.lr
+        self._lf_over_crl = model.lf * model.mass / (model.cr * model.wheelbase)
+        self._last = 0.0
+
+    @classmethod
+    def from_vehicle(cls, vehicle: Any, dt: float, **tuning: Any) -> LqrLateralController:
+        """Build from any object with `wheelbase`, `mass`, `max_steer` and optionally `lf` (CG to front axle),
+        `yaw_inertia`, `cornering_stiffness_front`, `cornering_stiffness_rear` (per axle, N/rad)."""
+        model = LateralModel.from_geometry(
+            vehicle.wheelbase,
+            vehicle.mass,
+            lf=getattr(vehicle, "lf", None),
+            yaw_inertia=getattr(vehicle, "yaw_inertia", None),
+            cf=getattr(vehicle, "cornering_stiffness_front", None),
+            cr=getattr(vehicle, "cornering_stiffness_rear", None),
+        )
+        return cls(model, vehicle.max_steer, dt, **tuning)
+
+    def gain(self, speed: float) -> tuple[float, float, float, float]:
+        """K(v) linearly interpolated in the schedule (clamped to its speed range)."""
+        pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
+        i = min(int(pos), len(self._gain_rows) - 2)
+        f = pos - i
+        lo, hi = self._gain_rows[i], self._gain_rows[i + 1]
+        return (
+            lo[0] + f * (hi[0] - lo[0]),
+            lo[1] + f * (hi[1] - lo[1]),
+            lo[2] + f * (hi[2] - lo[2]),
+            lo[3] + f * (hi[3] - lo[3]),
+        )
+
+    def reset(self) -> None:
+        self._last = 0.0
+
+    def update(self, plan: Plan, speed: float, yaw_rate: float | None = None) -> float:
+        """Steer angle for this tick. `yaw_rate` (rad/s, gyro) is optional: without it the yaw rate is
+        estimated from the last command through the steady-state yaw-rate gain. Holds the last command
+        below `hold_speed` (no steering at standstill)."""
+        if speed < self.hold_speed:
+            return self._last
+        v = speed
+        if yaw_rate is None:
+            yaw_rate = v * self._last / (self.model.wheelbase + self._kv * v * v)
+        kappa = plan.curvature
+        v2k = v * v * kappa
+        steer_ss = self.model.wheelbase * kappa + self._kv * v2k
+        heading_ss = -self._lr * kappa + self._lf_over_crl * v2k
+        k1, k2, k3, k4 = self.gain(v)
+        steer = (
+            steer_ss
+            - k1 * plan.lateral_error
+            - k2 * v * (math.sin(plan.heading_error) - heading_ss)
+            - k3 * (plan.heading_error - heading_ss)
+            - k4 * (yaw_rate - v * plan.local_curvature)
+        )
+        self._last = min(max(steer, -self.max_steer), self.max_steer)
+        return self._last

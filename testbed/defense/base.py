@@ -1,0 +1,67 @@
+"""The defense contract the loop drives: fed lane detections, GNSS fixes and commands, it answers
+which pose the controller uses and whether (and how hard) to stop.
+
+No method lets an exception escape on bad input (NaN poses, missing lane lines, off-map queries):
+implementations log the case and handle it as their algorithm says.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from testbed.localization.estimate import LocalizationEstimate
+from testbed.perception.detection import LaneDetection
+from tracks.map_api import SemanticMap
+from tracks.pose import Pose
+
+Mode = Literal["normal", "ar"]
+
+
+@dataclass(frozen=True)
+class DefenseStatus:
+    """A snapshot for logs and plots; None where the defense has no such quantity (yet)."""
+
+    detected: bool
+    detection_time: float | None = None
+    cusum: float | None = None
+    d_msf: float | None = None
+    d_ld: float | None = None
+    fused_dev: float | None = None
+    kalman_gain_msf: float | None = None
+    kalman_gain_ld: float | None = None
+
+
+class Defense(ABC):
+    """One defense: normal mode until its detector alarms, then attack response ("ar") for good."""
+
+    name: str
+
+    @property
+    @abstractmethod
+    def mode(self) -> Mode: ...
+
+    @property
+    @abstractmethod
+    def stop_decel(self) -> float | None:
+        """None while normal; the attack-response deceleration (m/s², > 0) once alarmed."""
+
+    @abstractmethod
+    def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
+        """A new lane detection (20 Hz) with the latest MSF estimate."""
+
+    def on_gnss(self, t: float, xy: np.ndarray, cov: np.ndarray) -> None:  # noqa: B027 - optional hook
+        """A raw (possibly spoofed) GNSS fix (10 Hz): world (x, y) and its 2×2 covariance."""
+
+    def on_command(self, t: float, steer: float, accel: float, speed: float) -> None:  # noqa: B027
+        """The command just sent (100 Hz): road-wheel steer (rad), accel (m/s²), measured speed (m/s)."""
+
+    @abstractmethod
+    def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
+        """The pose the controller tracks with: MSF normally, the defense's own estimate in AR."""
+
+    @abstractmethod
+    def status(self) -> DefenseStatus: ...

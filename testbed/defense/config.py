@@ -1,0 +1,99 @@
+"""Defense parameters: the scenario TOML `[defense]` table, validated.
+
+Defaults follow the paper where it gives a number: CUSUM b = 0.6, τ = 0.1 (§5.2), AR deceleration
+4 m/s² (§4.3). The paper gives no window size w or weight λ for Alg. 4; the defaults here (w = 20
+detections, i.e. 1 s of LD at 20 Hz, and λ = 0.8) are this testbed's choice.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+# (check, message) per field; every check takes the already type-checked value.
+_RULES: dict[str, tuple[Any, str]] = {
+    "b": (lambda v: v >= 0.0, "must be >= 0"),
+    "tau": (lambda v: v >= 0.0, "must be >= 0"),
+    "window": (lambda v: v >= 1, "must be an integer >= 1"),
+    "lam": (lambda v: 0.0 <= v <= 1.0, "must lie in [0, 1]"),
+    "p_msf": (lambda v: v > 0.0, "must be > 0"),
+    "p_ld": (lambda v: v > 0.0, "must be > 0"),
+    "kf_q": (lambda v: v >= 0.0, "must be >= 0"),
+    "kf_p0": (lambda v: v > 0.0, "must be > 0"),
+    "ar_decel": (lambda v: v > 0.0, "must be > 0"),
+    "max_decel": (lambda v: v > 0.0, "must be > 0"),
+    "existence_threshold": (lambda v: 0.0 <= v <= 1.0, "must lie in [0, 1]"),
+    "savior_b": (lambda v: v >= 0.0, "must be >= 0"),
+    "savior_tau": (lambda v: v >= 0.0, "must be >= 0"),
+    "savior_speed_std": (lambda v: v > 0.0, "must be > 0"),
+    "savior_accel_std": (lambda v: v > 0.0, "must be > 0"),
+    "savior_yaw_rate_std": (lambda v: v > 0.0, "must be > 0"),
+}
+
+
+@dataclass(frozen=True)
+class DefenseConfig:
+    """LD3 detection (b, tau), safety-driven fusion (window, lam, p_*, kf_*), response decelerations,
+    LD line validity, and the SAVIOR baseline's CUSUM and EKF noise. SI units."""
+
+    b: float = 0.6
+    """CUSUM weight on |D_MSF - D_LD| (m)."""
+    tau: float = 0.1
+    """CUSUM alarm threshold (m)."""
+    window: int = 20
+    """Alg. 4 deviation-history window w (lane detections)."""
+    lam: float = 0.8
+    """Alg. 4 weight λ of the deviation-history uncertainty against the sources' own."""
+    p_msf: float = 0.1
+    """P^MSF: MSF's own lateral uncertainty fed to Alg. 4 (m²)."""
+    p_ld: float = 0.1
+    """P^LD: LD's own lateral uncertainty fed to Alg. 4 (m²)."""
+    kf_q: float = 0.05
+    """Process noise of the 1-D fusion Kalman filter, added on each predict (m²)."""
+    kf_p0: float = 1.0
+    """Initial variance of the 1-D fusion Kalman filter at AR onset (m²); its state starts on the centreline."""
+    ar_decel: float = 4.0
+    """LD3 (and SAVIOR) attack-response deceleration (m/s²)."""
+    max_decel: float = 8.0
+    """NaiveAR's maximum deceleration (m/s²)."""
+    existence_threshold: float = 0.5
+    """A detected lane line with existence probability below this is not valid."""
+    savior_b: float = 1.0
+    """SAVIOR CUSUM weight on the GNSS residual (m)."""
+    savior_tau: float = 3.0
+    """SAVIOR CUSUM threshold (m)."""
+    savior_speed_std: float = 0.1
+    """SAVIOR EKF: wheel-speed measurement noise (m/s)."""
+    savior_accel_std: float = 0.5
+    """SAVIOR EKF: longitudinal process noise (m/s²)."""
+    savior_yaw_rate_std: float = 0.05
+    """SAVIOR EKF: yaw-rate process noise (rad/s)."""
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> DefenseConfig:
+        """Build from a TOML table; unknown keys and bad values raise ValueError naming the key."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"unknown [defense] keys {unknown}; allowed: {sorted(known)}")
+        values: dict[str, Any] = {}
+        for key, raw in d.items():
+            value = _coerce(key, raw)
+            check, message = _RULES[key]
+            if not check(value):
+                raise ValueError(f"[defense] {key} = {raw!r} {message}")
+            values[key] = value
+        return cls(**values)
+
+
+def _coerce(key: str, raw: Any) -> float | int:
+    if isinstance(raw, bool):
+        raise ValueError(f"[defense] {key} must be a number, got a boolean")
+    if key == "window":
+        if not isinstance(raw, int):
+            raise ValueError(f"[defense] window must be an integer, got {raw!r}")
+        return raw
+    if not isinstance(raw, int | float) or not math.isfinite(raw):
+        raise ValueError(f"[defense] {key} must be a finite number, got {raw!r}")
+    return float(raw)

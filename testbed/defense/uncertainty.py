@@ -1,0 +1,53 @@
+"""Cumulative-lateral-deviation uncertainties (paper Alg. 4).
+
+Windows of the last w values of |D_MSF| and |D_LD|; s = window sums, g = sqrt(s_MSF · s_LD),
+f = s / g, R = λ f + (1 - λ) P. The side that has deviated more gets the larger R. Sums are floored at
+`SUM_FLOOR` so that a source sitting exactly on the centreline cannot make g zero.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import NamedTuple
+
+SUM_FLOOR = 1e-3
+"""Smallest window sum used (m): keeps f finite when one source reports D = 0 throughout the window."""
+
+
+class Uncertainties(NamedTuple):
+    r_msf: float
+    r_ld: float
+
+
+class DeviationUncertainty:
+    """Alg. 4's two deviation histories and the uncertainties derived from them."""
+
+    def __init__(self, window: int, lam: float, p_msf: float, p_ld: float) -> None:
+        self.lam = lam
+        self.p_msf = p_msf
+        self.p_ld = p_ld
+        self._msf: deque[float] = deque(maxlen=window)
+        self._ld: deque[float] = deque(maxlen=window)
+        self._sum_msf = 0.0
+        self._sum_ld = 0.0
+
+    def update(self, d_msf: float, d_ld: float) -> Uncertainties:
+        """Append |D_MSF| and |D_LD| (dropping the oldest beyond w) and return (R_MSF, R_LD)."""
+        self._sum_msf += self._push(self._msf, abs(d_msf))
+        self._sum_ld += self._push(self._ld, abs(d_ld))
+        s_msf = max(self._sum_msf, SUM_FLOOR)
+        s_ld = max(self._sum_ld, SUM_FLOOR)
+        geo = math.sqrt(s_msf * s_ld)
+        lam = self.lam
+        return Uncertainties(
+            lam * s_msf / geo + (1.0 - lam) * self.p_msf,
+            lam * s_ld / geo + (1.0 - lam) * self.p_ld,
+        )
+
+    @staticmethod
+    def _push(window: deque[float], value: float) -> float:
+        """Append `value`; return the change of the window sum."""
+        dropped = window[0] if len(window) == window.maxlen else 0.0
+        window.append(value)
+        return value - dropped

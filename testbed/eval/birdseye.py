@@ -1,0 +1,64 @@
+"""birdseye.png of a run: the road seen from above with the true and believed paths, and the same run
+in road coordinates (arc length vs lateral deviation, lateral scale exaggerated) where deviations of
+a few decimetres are visible.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from testbed.loop import TickRecord  # noqa: E402
+from tracks.plot import draw_track  # noqa: E402
+
+
+def _col(rows: Sequence[TickRecord], name: str) -> np.ndarray:
+    return np.array([np.nan if getattr(r, name) is None else getattr(r, name) for r in rows], dtype=float)
+
+
+def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
+                  believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str) -> None:
+    t = _col(rows, "t")
+    x, y = _col(rows, "x"), _col(rows, "y")
+    phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
+    fig, (ax_map, ax_dev) = plt.subplots(2, 1, figsize=(10, 9), gridspec_kw={"height_ratios": [3, 2]})
+    draw_track(ax_map, track)
+    pad = 25.0
+    ax_map.set_xlim(np.nanmin(x) - pad, np.nanmax(x) + pad)
+    ax_map.set_ylim(np.nanmin(y) - pad, np.nanmax(y) + pad)
+    ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
+    ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
+    for when, marker, label in ((detection_t, "*", "detection"), (stop_t, "s", "stop")):
+        if when is not None:
+            i = int(np.searchsorted(t, when).clip(0, len(t) - 1))
+            ax_map.plot(x[i], y[i], marker=marker, color="k", ms=12, ls="", label=label)
+    ax_map.set_aspect("equal", adjustable="datalim")
+    ax_map.legend(loc="best", fontsize=8)
+    ax_map.set_title(title)
+
+    half = lane_width / 2.0
+    ax_dev.axhspan(-straddle_dev, straddle_dev, color="0.92", label="no lane straddle")
+    for edge in (-half, half):
+        ax_dev.axhline(edge, color="0.3", lw=1.5)
+    ax_dev.plot(t, phys, color="tab:blue", label="physical D")
+    ax_dev.plot(t, msf, color="tab:red", ls="--", label="MSF D")
+    if np.isfinite(ld).any():
+        ax_dev.plot(t, ld, color="tab:green", lw=0.8, label="LD D")
+    for when, style, label in ((detection_t, "k:", "detection"), (stop_t, "k-.", "stop")):
+        if when is not None:
+            ax_dev.axvline(when, color=style[0], ls=style[1:], label=label)
+    ax_dev.set_xlabel("time (s)")
+    ax_dev.set_ylabel("lateral deviation D (m, + left)")
+    lim = max(half + 0.5, float(np.nanmax(np.abs(np.concatenate([phys, msf])))) + 0.3 if len(t) else half + 0.5)
+    ax_dev.set_ylim(-lim, lim)
+    ax_dev.legend(loc="best", fontsize=8, ncols=3)
+    ax_dev.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,52 @@
+"""Writers of a run's outputs (DESIGN.md output contract): trajectory.csv and summary.json."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from testbed.loop import TickRecord
+
+TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "cusum", "mode", "steer",
+                      "accel", "attack_stage", "attack_offset")
+SUMMARY_KEYS = ("scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
+                "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
+                "final_dev_m", "consequence", "detected", "detection_time_s", "detection_dev_m", "ar_max_dev_m",
+                "ar_stop_dev_m")
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if not math.isfinite(value) else f"{value:.6f}"
+    return str(value)
+
+
+def write_trajectory(path: Path, rows: Iterable[TickRecord]) -> None:
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(TRAJECTORY_COLUMNS)
+        for r in rows:
+            writer.writerow([_cell(getattr(r, c)) for c in TRAJECTORY_COLUMNS])
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def write_summary(path: Path, summary: dict[str, Any]) -> None:
+    missing = [k for k in SUMMARY_KEYS if k not in summary]
+    if missing:
+        raise ValueError(f"summary lacks contract keys {missing}")
+    path.write_text(json.dumps(_json_safe(summary), indent=2, sort_keys=False) + "\n")

@@ -1,0 +1,106 @@
+"""Scenarios: TOML files naming the track, vehicle, speed, duration, condition, seed, detector,
+localization, attack and defense of one run. A few ship with the package, one per preset.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+LOCALIZATIONS = ("truth", "msf")
+DETECTORS = ("oracle", "neural", "classical", "none")
+DEFENSES = ("none", "ld3", "ld3-naive-ar", "savior")
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be loaded or run; the message is one line for the user."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    track: str
+    vehicle: str = "sedan"
+    speed: float = 12.0
+    duration: float = 60.0
+    condition: str = "day"
+    seed: int = 0
+    lane: int | None = None
+    start_s: float = 20.0
+    detector: str = "oracle"
+    localization: str = "truth"
+    defense: str = "none"
+    defense_params: dict[str, Any] = field(default_factory=dict)
+    attack: dict[str, Any] | None = None
+    rates: dict[str, float] = field(default_factory=dict)
+
+    def with_overrides(self, **overrides: Any) -> Scenario:
+        """A copy with the given non-None fields replaced, validated."""
+        changes = {k: v for k, v in overrides.items() if v is not None}
+        return validate(dataclasses.replace(self, **changes))
+
+
+def _check(cond: bool, msg: str) -> None:
+    if not cond:
+        raise ScenarioError(msg)
+
+
+def validate(sc: Scenario) -> Scenario:
+    _check(sc.speed > 0, f"speed must be > 0 m/s, got {sc.speed}")
+    _check(sc.duration > 0, f"duration must be > 0 s, got {sc.duration}")
+    _check(sc.seed >= 0, f"seed must be >= 0, got {sc.seed}")
+    _check(sc.localization in LOCALIZATIONS, f"localization must be one of {LOCALIZATIONS}, got {sc.localization!r}")
+    _check(sc.detector in DETECTORS, f"detector must be one of {DETECTORS}, got {sc.detector!r}")
+    _check(sc.defense in DEFENSES, f"defense must be one of {DEFENSES}, got {sc.defense!r}")
+    return sc
+
+
+_TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params"}
+
+
+def scenario_from_dict(data: dict[str, Any], name: str) -> Scenario:
+    """Build a scenario from a parsed TOML document; `[defense]` may be a table with `kind` and parameters."""
+    data = dict(data)
+    defense = data.pop("defense", "none")
+    params: dict[str, Any] = {}
+    if isinstance(defense, dict):
+        params = dict(defense)
+        defense = params.pop("kind", "ld3")
+    unknown = set(data) - _TOP_KEYS
+    _check(not unknown, f"scenario {name}: unknown keys {sorted(unknown)}")
+    _check("track" in data, f"scenario {name}: 'track' is required")
+    data.setdefault("name", name)
+    try:
+        sc = Scenario(defense=defense, defense_params=params, **data)
+    except TypeError as exc:
+        raise ScenarioError(f"scenario {name}: {exc}") from None
+    for key, typ in (("speed", (int, float)), ("duration", (int, float)), ("seed", int), ("track", str)):
+        _check(isinstance(getattr(sc, key), typ), f"scenario {name}: {key} has the wrong type")
+    return validate(sc)
+
+
+def shipped_scenarios() -> list[str]:
+    root = resources.files("testbed.eval") / "scenarios"
+    return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(name_or_path: str) -> Scenario:
+    """A shipped scenario by name, or a TOML file by path."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        _check(path.is_file(), f"scenario file not found: {path}")
+        text, name = path.read_text(), path.stem
+    else:
+        res = resources.files("testbed.eval") / "scenarios" / f"{name_or_path}.toml"
+        _check(res.is_file(),
+               f"unknown scenario {name_or_path!r}; shipped: {', '.join(shipped_scenarios())} (or a .toml path)")
+        text, name = res.read_text(), name_or_path
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"malformed TOML in {name_or_path}: {exc}") from None
+    return scenario_from_dict(data, name)

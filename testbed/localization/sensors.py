@@ -1,0 +1,238 @@
+"""Seeded sensor models that feed the MSF: GNSS receiver, LiDAR map locator and IMU.
+
+GNSS (10 Hz): truth + a slowly wandering bias (2-D first-order Gauss-Markov, time constant `bias_tau`)
++ white noise + multipath bursts (Poisson onsets, a few seconds each, a fixed offset of 0.5–2.5 m in a
+random direction); the receiver reports a covariance that grows only partly during a burst.
+
+LiDAR locator (10 Hz): a map matcher whose search starts at the MSF predicted pose. Where the map has
+few features (the track's `feature_quality`, further reduced by random traffic-occlusion episodes) the
+cost surface is flat, so the match converges only part of the way from the prior to the truth
+(`pull` ∈ [pull_poor, 1]), and not at all once the prior is beyond the capture radius. Its noise and its
+reported covariance grow in those stretches. The residual dependence of the match on the prior is not
+in the reported covariance: a fused estimate that drifts drags the locator with it.
+
+IMU (100 Hz): longitudinal accelerometer and yaw gyro with white noise and random-walk biases.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracks.pose import Pose
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class GnssFix:
+    """A GNSS position fix in the world frame with the receiver's reported 2×2 covariance."""
+
+    t: float
+    xy: np.ndarray
+    cov: np.ndarray
+
+
+@dataclass(frozen=True)
+class LidarFix:
+    """A LiDAR-locator pose (x, y, yaw) with its reported 3×3 covariance."""
+
+    t: float
+    xy: np.ndarray
+    yaw: float
+    cov: np.ndarray
+
+
+@dataclass(frozen=True)
+class ImuSample:
+    """Longitudinal specific force (m/s²) and yaw rate (rad/s) as the IMU measures them."""
+
+    t: float
+    accel_long: float
+    yaw_rate: float
+
+
+class _Schedule:
+    """Fixed-rate sampling: `due(t)` is true once per period, on the first tick at or after each slot."""
+
+    def __init__(self, rate_hz: float) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"sensor rate must be > 0 Hz, got {rate_hz}")
+        self.period = 1.0 / rate_hz
+        self._next: float | None = None
+
+    def due(self, t: float) -> bool:
+        return self._next is None or t >= self._next - 1e-9
+
+    def consume(self, t: float) -> None:
+        if self._next is None:
+            self._next = t
+        while self._next <= t + 1e-9:
+            self._next += self.period
+
+
+@dataclass(frozen=True)
+class GnssModel:
+    """GNSS error model parameters (m, s)."""
+
+    bias_std: float = 0.25
+    bias_tau: float = 120.0
+    noise_std: float = 0.12
+    reported_std: float = 0.5
+    multipath_rate: float = 1.0 / 90.0
+    multipath_duration: tuple[float, float] = (2.0, 6.0)
+    multipath_offset: tuple[float, float] = (0.5, 2.5)
+    multipath_reported_gain: float = 0.4
+
+
+class GnssSensor:
+    """GNSS receiver: biased, noisy, occasionally multipath-corrupted position fixes."""
+
+    def __init__(self, rng: np.random.Generator, rate_hz: float = 10.0, model: GnssModel | None = None) -> None:
+        self.rng = rng
+        self.model = model or GnssModel()
+        self._schedule = _Schedule(rate_hz)
+        self.bias = rng.normal(0.0, self.model.bias_std, 2)
+        self._burst_until = -math.inf
+        self._burst_offset = np.zeros(2)
+        self._last_t: float | None = None
+
+    def due(self, t: float) -> bool:
+        return self._schedule.due(t)
+
+    def _advance(self, t: float) -> None:
+        m = self.model
+        dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
+        self._last_t = t
+        phi = math.exp(-dt / m.bias_tau)
+        self.bias = phi * self.bias + math.sqrt(1.0 - phi * phi) * m.bias_std * self.rng.normal(size=2)
+        if t >= self._burst_until and self.rng.random() < 1.0 - math.exp(-m.multipath_rate * dt):
+            self._burst_until = t + self.rng.uniform(*m.multipath_duration)
+            ang = self.rng.uniform(-math.pi, math.pi)
+            self._burst_offset = self.rng.uniform(*m.multipath_offset) * np.array([math.cos(ang), math.sin(ang)])
+
+    def in_multipath(self, t: float) -> bool:
+        return t < self._burst_until
+
+    def measure(self, t: float, true_pose: Pose) -> GnssFix:
+        m = self.model
+        self._schedule.consume(t)
+        self._advance(t)
+        err = self.bias + m.noise_std * self.rng.normal(size=2)
+        std = m.reported_std
+        if self.in_multipath(t):
+            err = err + self._burst_offset
+            std = math.hypot(std, m.multipath_reported_gain * float(np.linalg.norm(self._burst_offset)))
+        xy = np.array([true_pose.x, true_pose.y]) + err
+        return GnssFix(t, xy, np.eye(2) * std * std)
+
+
+@dataclass(frozen=True)
+class LidarModel:
+    """LiDAR-locator error model: std and reported std at feature quality 1 (rich) and 0 (poor)."""
+
+    noise_std_rich: float = 0.02
+    noise_std_poor: float = 0.12
+    reported_std_rich: float = 0.04
+    reported_std_poor: float = 0.3
+    yaw_std_rich: float = 0.002
+    yaw_std_poor: float = 0.01
+    pull_poor: float = 0.15
+    capture_radius: float = 1.2
+    occlusion_rate: float = 1.0 / 30.0
+    occlusion_duration: tuple[float, float] = (4.0, 12.0)
+    occlusion_depth: tuple[float, float] = (0.3, 0.9)
+
+
+class LidarLocator:
+    """Map-matching locator seeded at the MSF prediction; weak where features are poor (module docstring)."""
+
+    def __init__(self, rng: np.random.Generator, feature_quality: Callable[[float, float], float],
+                 rate_hz: float = 10.0, model: LidarModel | None = None) -> None:
+        self.rng = rng
+        self.feature_quality = feature_quality
+        self.model = model or LidarModel()
+        self._schedule = _Schedule(rate_hz)
+        self._occluded_until = -math.inf
+        self._occlusion_depth = 0.0
+        self._last_t: float | None = None
+
+    def due(self, t: float) -> bool:
+        return self._schedule.due(t)
+
+    def quality(self, t: float, x: float, y: float) -> float:
+        """Effective feature quality in [0, 1]: the map's, reduced during a traffic-occlusion episode."""
+        q = min(1.0, max(0.0, float(self.feature_quality(x, y))))
+        if t < self._occluded_until:
+            q *= 1.0 - self._occlusion_depth
+        return q
+
+    def _advance(self, t: float) -> None:
+        m = self.model
+        dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
+        self._last_t = t
+        if t >= self._occluded_until and self.rng.random() < 1.0 - math.exp(-m.occlusion_rate * dt):
+            self._occluded_until = t + self.rng.uniform(*m.occlusion_duration)
+            self._occlusion_depth = self.rng.uniform(*m.occlusion_depth)
+
+    def measure(self, t: float, true_pose: Pose, prior: Pose) -> LidarFix:
+        """Match the scan against the map, starting the search from `prior` (the MSF prediction)."""
+        m = self.model
+        self._schedule.consume(t)
+        self._advance(t)
+        q = self.quality(t, true_pose.x, true_pose.y)
+        poor = 1.0 - q
+        offset = np.array([prior.x - true_pose.x, prior.y - true_pose.y])
+        dist = float(np.linalg.norm(offset))
+        pull = (m.pull_poor + (1.0 - m.pull_poor) * q) * math.exp(-0.5 * (dist / m.capture_radius) ** 2)
+        std = m.noise_std_rich + (m.noise_std_poor - m.noise_std_rich) * poor
+        yaw_std = m.yaw_std_rich + (m.yaw_std_poor - m.yaw_std_rich) * poor
+        rep = m.reported_std_rich + (m.reported_std_poor - m.reported_std_rich) * poor
+        xy = np.array([true_pose.x, true_pose.y]) + (1.0 - pull) * offset + std * self.rng.normal(size=2)
+        yaw = true_pose.yaw + (1.0 - pull) * _wrap(prior.yaw - true_pose.yaw) + yaw_std * self.rng.normal()
+        cov = np.diag([rep * rep, rep * rep, (2.0 * yaw_std) ** 2])
+        return LidarFix(t, xy, _wrap(yaw), cov)
+
+
+@dataclass(frozen=True)
+class ImuModel:
+    """IMU noise: per-sample white noise and bias random-walk densities, initial bias spreads."""
+
+    accel_std: float = 0.05
+    gyro_std: float = 0.003
+    accel_bias_std: float = 0.05
+    gyro_bias_std: float = 0.0005
+    accel_bias_walk: float = 0.002
+    gyro_bias_walk: float = 0.00005
+
+
+class Imu:
+    """Strapdown IMU reduced to the planar channels the MSF uses."""
+
+    def __init__(self, rng: np.random.Generator, rate_hz: float = 100.0, model: ImuModel | None = None) -> None:
+        self.rng = rng
+        self.model = model or ImuModel()
+        self._schedule = _Schedule(rate_hz)
+        self.accel_bias = float(rng.normal(0.0, self.model.accel_bias_std))
+        self.gyro_bias = float(rng.normal(0.0, self.model.gyro_bias_std))
+        self._last_t: float | None = None
+
+    def due(self, t: float) -> bool:
+        return self._schedule.due(t)
+
+    def measure(self, t: float, accel: float, yaw_rate: float) -> ImuSample:
+        m = self.model
+        self._schedule.consume(t)
+        dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
+        self._last_t = t
+        sq = math.sqrt(dt)
+        self.accel_bias += m.accel_bias_walk * sq * float(self.rng.normal())
+        self.gyro_bias += m.gyro_bias_walk * sq * float(self.rng.normal())
+        a = accel + self.accel_bias + m.accel_std * float(self.rng.normal())
+        w = yaw_rate + self.gyro_bias + m.gyro_std * float(self.rng.normal())
+        return ImuSample(t, a, w)

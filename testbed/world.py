@@ -1,0 +1,162 @@
+"""The PyBullet world: a physics client (ground, roadside collision bodies, the vehicle) stepped at a
+fixed rate, and a separate render client that streams the track's textured tiles around the car.
+
+Two clients, because TinyRenderer never frees a loaded texture: the render client is reset whenever
+its texture budget is spent and reloads only the tiles near the car, so a road of any length runs
+in bounded memory while the physics client (and the car in it) is never touched.
+"""
+
+from __future__ import annotations
+
+import logging
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pybullet as pb
+
+from tracks.pose import Pose
+from vehicles.params import VehicleParams
+from vehicles.pybullet_vehicle import PyBulletVehicle
+
+log = logging.getLogger(__name__)
+
+OBSTACLE_COLOURS: dict[str, tuple[float, float, float, float]] = {
+    "curb": (0.72, 0.72, 0.70, 1.0),
+    "barrier": (0.80, 0.78, 0.74, 1.0),
+    "guardrail": (0.75, 0.77, 0.80, 1.0),
+    "divider": (0.85, 0.85, 0.82, 1.0),
+    "tree": (0.20, 0.38, 0.16, 1.0),
+}
+GROUND_RGBA = (0.33, 0.42, 0.26, 1.0)
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    physics_hz: float = 240.0
+    render: bool = True
+    tile_radius_m: float = 90.0
+    texture_budget: int = 40
+
+
+class PhysicsWorld:
+    """Physics client: flat ground with the track's static collision bodies and one vehicle."""
+
+    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = 240.0) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        self.dt = 1.0 / physics_hz
+        self.t = 0.0
+        pb.setGravity(0, 0, -9.81, physicsClientId=self.client)
+        pb.setTimeStep(self.dt, physicsClientId=self.client)
+        plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self.client)
+        self.ground_id = pb.createMultiBody(0, plane, physicsClientId=self.client)
+        pb.changeDynamics(self.ground_id, -1, lateralFriction=1.0, physicsClientId=self.client)
+        self.obstacle_kind: dict[int, str] = {}
+        for box in track.obstacles():
+            self._add_box(box)
+        self.vehicle = PyBulletVehicle(self.client, params, start)
+
+    def _add_box(self, box) -> None:
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(box.half_extents),
+                                        physicsClientId=self.client)
+        quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
+        body = pb.createMultiBody(0, shape, basePosition=list(box.centre), baseOrientation=quat,
+                                  physicsClientId=self.client)
+        self.obstacle_kind[body] = box.kind
+
+    def step(self) -> None:
+        self.vehicle.pre_step(self.dt)
+        pb.stepSimulation(physicsClientId=self.client)
+        self.t += self.dt
+
+    def contact_kinds(self) -> set[str]:
+        """Kinds of roadside bodies the vehicle touches now (curb, barrier, guardrail, divider, tree)."""
+        kinds = set()
+        for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client):
+            kind = self.obstacle_kind.get(c[2])
+            if kind is not None:
+                kinds.add(kind)
+        return kinds
+
+    def close(self) -> None:
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+
+
+class TileStreamer:
+    """Render client holding the road tiles near the car; reset when its texture budget is spent."""
+
+    def __init__(self, track, rng_seed: int, radius_m: float = 90.0, texture_budget: int = 40) -> None:
+        self.track = track
+        self.seed = rng_seed
+        self.radius = radius_m
+        self.budget = texture_budget
+        self.client = pb.connect(pb.DIRECT)
+        self._tmp = tempfile.TemporaryDirectory(prefix="ld3-tiles-")
+        self.loaded: dict[int, list[int]] = {}
+        self.textures_loaded = 0
+        self.resets = 0
+        self._obstacles_by_tile = self._bucket_obstacles()
+        self._reset_scene()
+
+    def _bucket_obstacles(self) -> dict[int, list]:
+        buckets: dict[int, list] = {}
+        for box in self.track.obstacles():
+            cx, cy = box.centre[0], box.centre[1]
+            near = self.track.tiles_near(cx, cy, 0.0)
+            if near:
+                buckets.setdefault(near[0], []).append(box)
+        return buckets
+
+    def _reset_scene(self) -> None:
+        pb.resetSimulation(physicsClientId=self.client)
+        vs = pb.createVisualShape(pb.GEOM_BOX, halfExtents=[5000, 5000, 0.01], rgbaColor=list(GROUND_RGBA),
+                                  physicsClientId=self.client)
+        pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=[0, 0, -0.03], physicsClientId=self.client)
+        self.loaded.clear()
+        self.textures_loaded = 0
+
+    def update(self, x: float, y: float) -> None:
+        """Load the tiles within the radius of (x, y), drop the others."""
+        wanted = set(self.track.tiles_near(x, y, self.radius))
+        missing = wanted - self.loaded.keys()
+        if self.textures_loaded + len(missing) > self.budget:
+            self.resets += 1
+            self._reset_scene()
+            missing = wanted
+        for i in sorted(self.loaded.keys() - wanted):
+            for body in self.loaded.pop(i):
+                pb.removeBody(body, physicsClientId=self.client)
+        for i in sorted(missing):
+            self.loaded[i] = self._load_tile(i)
+
+    def _load_tile(self, i: int) -> list[int]:
+        verts, uvs, idx = self.track.tile_mesh(i)
+        img = self.track.tile_texture(i, np.random.default_rng([self.seed, i]))
+        path = Path(self._tmp.name) / f"tile{i}.png"
+        cv2.imwrite(str(path), np.ascontiguousarray(img[:, :, ::-1]))
+        tex = pb.loadTexture(str(path), physicsClientId=self.client)
+        path.unlink()
+        self.textures_loaded += 1
+        normals = [[0.0, 0.0, 1.0]] * len(verts)
+        vs = pb.createVisualShape(pb.GEOM_MESH, vertices=np.asarray(verts).tolist(),
+                                  indices=np.asarray(idx).astype(int).tolist(), uvs=np.asarray(uvs).tolist(),
+                                  normals=normals, physicsClientId=self.client)
+        body = pb.createMultiBody(baseVisualShapeIndex=vs, physicsClientId=self.client)
+        pb.changeVisualShape(body, -1, textureUniqueId=tex, rgbaColor=[1, 1, 1, 1], physicsClientId=self.client)
+        return [body] + [self._add_box_visual(box) for box in self._obstacles_by_tile.get(i, [])]
+
+    def _add_box_visual(self, box) -> int:
+        colour = OBSTACLE_COLOURS.get(box.kind, (0.6, 0.6, 0.6, 1.0))
+        vs = pb.createVisualShape(pb.GEOM_BOX, halfExtents=list(box.half_extents), rgbaColor=list(colour),
+                                  physicsClientId=self.client)
+        quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
+        return pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=list(box.centre),
+                                  baseOrientation=quat, physicsClientId=self.client)
+
+    def close(self) -> None:
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self._tmp.cleanup()

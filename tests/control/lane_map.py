@@ -1,0 +1,115 @@
+"""Test-only SemanticMap: parallel lanes around a centreline built from a piecewise curvature profile.
+
+Straight, circular and clothoid pieces are integrated into a dense polyline (0.1 m); projections are
+exact onto its segments near the KD-tree's nearest vertex.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from tracks.map_api import LaneCoord, OffMapError
+from tracks.pose import Pose
+
+SAMPLE = 0.1
+
+
+class PolylineLaneMap:
+    """`n_lanes` lanes of `lane_width`, lane 0 on the reference centreline, higher lanes to its left."""
+
+    def __init__(self, pieces: list[tuple[float, float, float]], n_lanes: int = 2, lane_width: float = 3.5):
+        """`pieces`: (length, curvature at start, curvature at end); curvature varies linearly (clothoid)."""
+        kappa = [pieces[0][1]]
+        for length, k0, k1 in pieces:
+            n = max(1, round(length / SAMPLE))
+            kappa.extend(k0 + (k1 - k0) * (np.arange(1, n + 1) / n))
+        self.kappa = np.array(kappa)
+        heading = np.concatenate([[0.0], np.cumsum(0.5 * (self.kappa[1:] + self.kappa[:-1]) * SAMPLE)])
+        mid = heading[:-1] + 0.5 * np.diff(heading)
+        xy = np.zeros((len(self.kappa), 2))
+        xy[1:, 0] = np.cumsum(np.cos(mid) * SAMPLE)
+        xy[1:, 1] = np.cumsum(np.sin(mid) * SAMPLE)
+        self.xy, self.heading = xy, heading
+        self.s = np.arange(len(self.kappa)) * SAMPLE
+        self.n_lanes, self.width = n_lanes, lane_width
+        self.tree = cKDTree(xy)
+
+    def _centreline(self, x: float, y: float) -> tuple[float, float, int]:
+        """Arc length and signed offset (+ left) of (x, y) from the reference centreline, segment index."""
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise OffMapError("pose is not finite")
+        _, i = self.tree.query((x, y))
+        i = int(min(max(i, 1), len(self.s) - 2))
+        best = None
+        for j in (i - 1, i):
+            p0, p1 = self.xy[j], self.xy[j + 1]
+            d = p1 - p0
+            u = float(np.clip(((x - p0[0]) * d[0] + (y - p0[1]) * d[1]) / (SAMPLE * SAMPLE), 0.0, 1.0))
+            px, py = p0[0] + u * d[0], p0[1] + u * d[1]
+            dist2 = (x - px) ** 2 + (y - py) ** 2
+            if best is None or dist2 < best[0]:
+                cross = d[0] * (y - p0[1]) - d[1] * (x - p0[0])
+                best = (dist2, self.s[j] + u * SAMPLE, math.copysign(math.sqrt(dist2), cross), j)
+        _, s, l, j = best
+        if s <= 0.0 or s >= self.s[-1]:
+            raise OffMapError("pose beyond the ends of the road")
+        return s, l, j
+
+    def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
+        s, l, _ = self._centreline(pose.x, pose.y)
+        if lane is None:
+            lane = int(round(l / self.width))
+        if not 0 <= lane < self.n_lanes or abs(l - lane * self.width) > self.width:
+            raise OffMapError("pose is not on the lane")
+        return LaneCoord(lane, s, l - lane * self.width)
+
+    def lane_dev(self, pose: Pose, lane: int | None = None) -> float:
+        return self.project(pose, lane).l
+
+    def lane_width(self, pose: Pose, lane: int | None = None) -> float:
+        return self.width
+
+    def _at(self, s: float) -> tuple[float, float, float, float]:
+        i = min(int(s / SAMPLE), len(self.s) - 2)
+        f = s / SAMPLE - i
+        x, y = self.xy[i] + f * (self.xy[i + 1] - self.xy[i])
+        h = self.heading[i] + f * (self.heading[i + 1] - self.heading[i])
+        k = self.kappa[i] + f * (self.kappa[i + 1] - self.kappa[i])
+        return float(x), float(y), float(h), float(k)
+
+    def lane_point(self, pose: Pose, lane: int | None = None) -> tuple[np.ndarray, float]:
+        coord = self.project(pose, lane)
+        x, y, h, _ = self._at(coord.s)
+        off = coord.lane * self.width
+        return np.array([x - off * math.sin(h), y + off * math.cos(h)]), h
+
+    def lane_curvature(self, pose: Pose, lane: int | None = None) -> float:
+        coord = self.project(pose, lane)
+        k = self._at(coord.s)[3]
+        return k / (1.0 - coord.lane * self.width * k)
+
+    def is_intersection(self, pose: Pose) -> bool:
+        return False
+
+
+def straight(length: float = 1000.0) -> PolylineLaneMap:
+    return PolylineLaneMap([(length, 0.0, 0.0)])
+
+
+def curvy_urban() -> PolylineLaneMap:
+    """Straight, clothoid into a left R = 60 m arc, clothoid out, then the same to the right."""
+    k = 1.0 / 60.0
+    return PolylineLaneMap(
+        [(30, 0, 0), (30, 0, k), (80, k, k), (30, k, 0), (20, 0, 0), (30, 0, -k), (80, -k, -k), (30, -k, 0), (60, 0, 0)]
+    )
+
+
+def highway() -> PolylineLaneMap:
+    """Straight, clothoids into R = 600 m left and right arcs."""
+    k = 1.0 / 600.0
+    return PolylineLaneMap(
+        [(100, 0, 0), (150, 0, k), (300, k, k), (150, k, -k), (300, -k, -k), (150, -k, 0), (300, 0, 0)]
+    )

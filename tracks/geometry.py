@@ -1,0 +1,239 @@
+"""Planar reference lines built from curvature-linear segments: straights, circular arcs and clothoids.
+
+Every segment has curvature linear in its own arc length u, k(u) = k0 + (k1 - k0) u / L, so heading is
+quadratic in u and joining a clothoid between a straight and an arc keeps curvature continuous. The
+reference line is sampled densely (exact s, x, y, heading, curvature arrays, positions integrated by
+Gauss-Legendre quadrature) and answers point, frame and projection queries by interpolation plus an
+exact Newton refinement on the segment formulas.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from tracks.pose import Pose
+
+_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
+
+
+@dataclass(frozen=True)
+class Straight:
+    """A straight segment of `length` metres."""
+
+    length: float
+
+    @property
+    def k0(self) -> float:
+        return 0.0
+
+    @property
+    def k1(self) -> float:
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Arc:
+    """A circular arc; `radius` is signed, + turning left (counter-clockwise), - turning right."""
+
+    radius: float
+    length: float
+
+    @property
+    def k0(self) -> float:
+        return 1.0 / self.radius
+
+    @property
+    def k1(self) -> float:
+        return 1.0 / self.radius
+
+
+@dataclass(frozen=True)
+class Clothoid:
+    """A clothoid (Euler spiral): curvature varies linearly from `k0` to `k1` over `length`."""
+
+    k0: float
+    k1: float
+    length: float
+
+
+Segment = Straight | Arc | Clothoid
+
+
+def bend(radius: float, angle: float, transition: float) -> list[Segment]:
+    """A curvature-continuous bend: clothoid in, arc of `radius` (signed), clothoid out; turns |angle| rad."""
+    k = 1.0 / radius
+    arc_angle = abs(angle) - abs(k) * transition
+    if arc_angle < 0.0:
+        raise ValueError(f"transition {transition} m too long for a {angle:.3f} rad bend of radius {radius} m")
+    return [Clothoid(0.0, k, transition), Arc(radius, arc_angle * abs(radius)), Clothoid(k, 0.0, transition)]
+
+
+class ReferenceLine:
+    """A continuous road reference line: start pose plus segments, sampled every ~`step` metres.
+
+    Offsets t are lateral (+ left of the direction of travel); (s, t) are its Frenet coordinates.
+    Beyond either end the line continues straight along the end tangent.
+    """
+
+    def __init__(self, start: Pose, segments: list[Segment], step: float = 0.5) -> None:
+        if not segments:
+            raise ValueError("a reference line needs at least one segment")
+        self.start = start
+        self.segments = list(segments)
+        lengths = [float(seg.length) for seg in self.segments]
+        if min(lengths) <= 0.0:
+            raise ValueError("segment lengths must be positive")
+        self._seg_s0 = [0.0, *np.cumsum(lengths)[:-1].tolist()]
+        self._seg_k0 = [float(seg.k0) for seg in self.segments]
+        self._seg_dk = [(float(seg.k1) - float(seg.k0)) / seg.length for seg in self.segments]
+        self.length = float(sum(lengths))
+        heading0 = [start.yaw]
+        for seg, ln in zip(self.segments, lengths, strict=True):
+            heading0.append(heading0[-1] + 0.5 * (seg.k0 + seg.k1) * ln)
+        self._seg_h0 = heading0[:-1]
+
+        n = max(1, math.ceil(self.length / step))
+        self.ds = self.length / n
+        self.s = np.linspace(0.0, self.length, n + 1)
+        self.heading = self._heading_array(self.s)
+        self.curvature = self._curvature_array(self.s)
+        self.x, self.y = self._integrate_positions(self.s)
+        self._xs, self._ys, self._curv = self.x.tolist(), self.y.tolist(), self.curvature.tolist()
+        self._cos, self._sin = np.cos(self.heading).tolist(), np.sin(self.heading).tolist()
+        self._tree = cKDTree(np.column_stack([self.x, self.y]))
+        self._hint: int | None = None
+
+    # ---- exact segment formulas -------------------------------------------------------------
+    def _seg_index(self, s: float) -> int:
+        return max(0, bisect.bisect_right(self._seg_s0, s) - 1)
+
+    def heading_at(self, s: float) -> float:
+        """Heading (rad) at arc length s; constant beyond the ends."""
+        s = min(max(s, 0.0), self.length)
+        i = self._seg_index(s)
+        u = s - self._seg_s0[i]
+        return self._seg_h0[i] + self._seg_k0[i] * u + 0.5 * self._seg_dk[i] * u * u
+
+    def curvature_at(self, s: float) -> float:
+        """Signed curvature (1/m, + left) at arc length s; zero beyond the ends."""
+        if s < 0.0 or s > self.length:
+            return 0.0
+        i = self._seg_index(s)
+        return self._seg_k0[i] + self._seg_dk[i] * (s - self._seg_s0[i])
+
+    def _heading_array(self, s: np.ndarray) -> np.ndarray:
+        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
+        u = s - np.asarray(self._seg_s0)[idx]
+        return np.asarray(self._seg_h0)[idx] + np.asarray(self._seg_k0)[idx] * u + (
+            0.5 * np.asarray(self._seg_dk)[idx] * u * u
+        )
+
+    def _curvature_array(self, s: np.ndarray) -> np.ndarray:
+        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
+        return np.asarray(self._seg_k0)[idx] + np.asarray(self._seg_dk)[idx] * (s - np.asarray(self._seg_s0)[idx])
+
+    def _integrate_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate cos/sin(heading) over sub-intervals split at segment joins (heading is smooth inside)."""
+        knots = np.union1d(s, np.asarray([*self._seg_s0, self.length]))
+        a, b = knots[:-1], knots[1:]
+        half, mid = 0.5 * (b - a), 0.5 * (a + b)
+        # evaluate inside each sub-interval using the segment that holds its midpoint
+        nodes = mid[:, None] + half[:, None] * _GL_NODES[None, :]
+        idx = np.clip(np.searchsorted(self._seg_s0, mid, side="right") - 1, 0, len(self.segments) - 1)
+        u = nodes - np.asarray(self._seg_s0)[idx][:, None]
+        h = (np.asarray(self._seg_h0)[idx][:, None] + np.asarray(self._seg_k0)[idx][:, None] * u
+             + 0.5 * np.asarray(self._seg_dk)[idx][:, None] * u * u)
+        dx = half * (np.cos(h) @ _GL_WEIGHTS)
+        dy = half * (np.sin(h) @ _GL_WEIGHTS)
+        xk = self.start.x + np.concatenate([[0.0], np.cumsum(dx)])
+        yk = self.start.y + np.concatenate([[0.0], np.cumsum(dy)])
+        pick = np.searchsorted(knots, s)
+        return xk[pick], yk[pick]
+
+    # ---- point queries ----------------------------------------------------------------------
+    def frame(self, s: float) -> tuple[float, float, float]:
+        """(x, y, heading) of the reference point at arc length s (extrapolated straight beyond the ends)."""
+        sc = min(max(s, 0.0), self.length)
+        i = min(int(sc / self.ds), len(self._xs) - 1)
+        d = sc - i * self.ds
+        h_mid = self.heading_at(sc - 0.5 * d)
+        k = self._curv[i] if d > 0.0 else 0.0
+        chord = d * (1.0 - k * k * d * d / 24.0)
+        x = self._xs[i] + chord * math.cos(h_mid)
+        y = self._ys[i] + chord * math.sin(h_mid)
+        h = self.heading_at(sc)
+        if s != sc:
+            x += (s - sc) * math.cos(h)
+            y += (s - sc) * math.sin(h)
+        return x, y, h
+
+    def point(self, s: float, t: float = 0.0) -> tuple[float, float]:
+        """World point at arc length s and lateral offset t (+ left)."""
+        x, y, h = self.frame(s)
+        return x - t * math.sin(h), y + t * math.cos(h)
+
+    def points(self, s: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
+        """Vectorised `point` for s in [0, length]: (N, 2) world points."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        i = np.minimum((s / self.ds).astype(int), len(self.s) - 1)
+        d = s - self.s[i]
+        h_mid = self._heading_array(s - 0.5 * d)
+        chord = d * (1.0 - self.curvature[i] ** 2 * d * d / 24.0)
+        h = self._heading_array(s)
+        x = self.x[i] + chord * np.cos(h_mid) - t * np.sin(h)
+        y = self.y[i] + chord * np.sin(h_mid) + t * np.cos(h)
+        return np.column_stack([x, y])
+
+    # ---- projection -------------------------------------------------------------------------
+    def project(self, x: float, y: float, max_offset: float = 40.0) -> tuple[float, float]:
+        """Nearest-point Frenet coordinates (s, t) of a world point.
+
+        Searches locally from the previous answer first (consecutive queries of a moving vehicle), falls
+        back to a k-d tree over the samples when the local answer lies farther than `max_offset` laterally,
+        then refines s exactly with Newton steps on the segment formulas. s < 0 or s > length means the
+        point lies beyond an end.
+        """
+        i = self._hint
+        if i is not None:
+            i = self._walk(x, y, i)
+            s, t = self._refine(x, y, i)
+            if abs(t) <= max_offset:
+                self._hint = i
+                return s, t
+        _, i = self._tree.query((x, y))
+        i = self._walk(x, y, int(i))
+        self._hint = i
+        return self._refine(x, y, i)
+
+    def _walk(self, x: float, y: float, i: int) -> int:
+        last = len(self._xs) - 1
+        for _ in range(12):
+            a = (x - self._xs[i]) * self._cos[i] + (y - self._ys[i]) * self._sin[i]
+            step = math.floor(a / self.ds)
+            j = min(max(i + step, 0), last)
+            if j == i:
+                break
+            i = j
+        return i
+
+    def _refine(self, x: float, y: float, i: int) -> tuple[float, float]:
+        s = i * self.ds + (x - self._xs[i]) * self._cos[i] + (y - self._ys[i]) * self._sin[i]
+        t = 0.0
+        for _ in range(3):
+            px, py, h = self.frame(s)
+            c, sn = math.cos(h), math.sin(h)
+            dx, dy = x - px, y - py
+            a = dx * c + dy * sn
+            t = -dx * sn + dy * c
+            inside = 0.0 <= s <= self.length
+            k = self.curvature_at(s) if inside else 0.0
+            denom = 1.0 - k * t
+            s += a / denom if denom > 0.1 else a
+            if abs(a) < 1e-9:
+                break
+        return s, t
