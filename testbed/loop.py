@@ -17,6 +17,7 @@ from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.localization.estimate import LocalizationEstimate
 from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
@@ -68,8 +69,8 @@ class ControlLoop:
     def __init__(self, *, chassis: ChassisPort, localization, smap: SemanticMap, lane: int, planner: LanePlanner,
                  lateral, longitudinal, defense: Defense, detector: LaneDetector | None,
                  camera: Callable[[float, Pose], CameraFrame] | None, attack: Attack | None = None,
-                 rates: LoopRates = LoopRates(), on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None
-                 ) -> None:
+                 rates: LoopRates = LoopRates(), on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None,
+                 existence_threshold: float = 0.5) -> None:
         self.chassis = chassis
         self.localization = localization
         self.smap = smap
@@ -85,10 +86,11 @@ class ControlLoop:
         self.on_frame = on_frame
         self.dt = 1.0 / rates.control_hz
         self.ticks = 0
-        self.ld_dev = LdDeviation()
+        self.ld_dev = LdDeviation(existence_threshold)
         self.last_ld_dev: float | None = None
         self.stopping = False
         self.last_state: ChassisState | None = None
+        self.last_estimate: LocalizationEstimate | None = None
 
     def _attacker_view(self, state: ChassisState) -> AttackerView | None:
         pose = state.true_pose
@@ -111,6 +113,7 @@ class ControlLoop:
         est = self.localization.step(t, state, spoof)
         if view is not None:
             est = self.attack.tamper_msf(est, view)
+        self.last_estimate = est
         gnss = getattr(self.localization, "last_gnss", None)
         if gnss is not None:
             self.defense.on_gnss(gnss.t, gnss.xy, gnss.cov)

@@ -14,11 +14,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from tracks.pose import Pose
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
+_COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-point search
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,8 @@ class ReferenceLine:
         self.x, self.y = self._integrate_positions(self.s)
         self._xs, self._ys, self._curv = self.x.tolist(), self.y.tolist(), self.curvature.tolist()
         self._cos, self._sin = np.cos(self.heading).tolist(), np.sin(self.heading).tolist()
-        self._tree = cKDTree(np.column_stack([self.x, self.y]))
+        self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
+        self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
         self._hint: int | None = None
 
     # ---- exact segment formulas -------------------------------------------------------------
@@ -161,12 +162,16 @@ class ReferenceLine:
         sc = min(max(s, 0.0), self.length)
         i = min(int(sc / self.ds), len(self._xs) - 1)
         d = sc - i * self.ds
-        h_mid = self.heading_at(sc - 0.5 * d)
-        k = self._curv[i] if d > 0.0 else 0.0
+        j = max(0, bisect.bisect_right(self._seg_s0, sc) - 1)
+        s0, h0, k0, dk = self._seg_s0[j], self._seg_h0[j], self._seg_k0[j], self._seg_dk[j]
+        u = sc - s0
+        h = h0 + k0 * u + 0.5 * dk * u * u
+        um = u - 0.5 * d
+        h_mid = h0 + k0 * um + 0.5 * dk * um * um if um >= 0.0 else self.heading_at(sc - 0.5 * d)
+        k = self._curv[i]
         chord = d * (1.0 - k * k * d * d / 24.0)
         x = self._xs[i] + chord * math.cos(h_mid)
         y = self._ys[i] + chord * math.sin(h_mid)
-        h = self.heading_at(sc)
         if s != sc:
             x += (s - sc) * math.cos(h)
             y += (s - sc) * math.sin(h)
@@ -194,7 +199,7 @@ class ReferenceLine:
         """Nearest-point Frenet coordinates (s, t) of a world point.
 
         Searches locally from the previous answer first (consecutive queries of a moving vehicle), falls
-        back to a k-d tree over the samples when the local answer lies farther than `max_offset` laterally,
+        back to a brute-force nearest search over coarse samples (every ~5 m) when the local answer lies farther than `max_offset` laterally,
         then refines s exactly with Newton steps on the segment formulas. s < 0 or s > length means the
         point lies beyond an end.
         """
@@ -205,8 +210,8 @@ class ReferenceLine:
             if abs(t) <= max_offset:
                 self._hint = i
                 return s, t
-        _, i = self._tree.query((x, y))
-        i = self._walk(x, y, int(i))
+        d2 = (self._coarse_xy[:, 0] - x) ** 2 + (self._coarse_xy[:, 1] - y) ** 2
+        i = self._walk(x, y, int(np.argmin(d2)) * self._coarse_stride)
         self._hint = i
         return self._refine(x, y, i)
 
@@ -222,18 +227,21 @@ class ReferenceLine:
         return i
 
     def _refine(self, x: float, y: float, i: int) -> tuple[float, float]:
-        s = i * self.ds + (x - self._xs[i]) * self._cos[i] + (y - self._ys[i]) * self._sin[i]
-        t = 0.0
-        for _ in range(3):
+        c, sn = self._cos[i], self._sin[i]
+        dx, dy = x - self._xs[i], y - self._ys[i]
+        t = -dx * sn + dy * c
+        denom = 1.0 - self._curv[i] * t
+        s = i * self.ds + (dx * c + dy * sn) / (denom if denom > 0.1 else 1.0)
+        for _ in range(4):
             px, py, h = self.frame(s)
             c, sn = math.cos(h), math.sin(h)
             dx, dy = x - px, y - py
             a = dx * c + dy * sn
             t = -dx * sn + dy * c
-            inside = 0.0 <= s <= self.length
-            k = self.curvature_at(s) if inside else 0.0
+            if abs(a) < 1e-7:
+                s += a
+                break
+            k = self.curvature_at(s)
             denom = 1.0 - k * t
             s += a / denom if denom > 0.1 else a
-            if abs(a) < 1e-9:
-                break
         return s, t

@@ -3,8 +3,9 @@
 Link frames: the base link frame is the centre of mass (x forward, y left, z up); each front wheel hangs
 from a steering knuckle (revolute about z) and spins on a continuous joint about y; rear wheels spin
 directly on the body. Wheels collide as spheres of the wheel radius (a smooth single-point contact
-patch) with a friction coefficient of 1, so the road surface's friction sets the tyre grip; they are
-drawn as cylinders. The text is deterministic: the same parameters give byte-identical URDF.
+patch) with a friction coefficient of 1, so the road surface's friction sets the tyre grip, through a
+compliant contact (spring-damper sagging 3 cm under the static corner load, damping ratio 0.7) that
+stands in for tyre and suspension and shares the load over all four wheels; they are drawn as cylinders. The text is deterministic: the same parameters give byte-identical URDF.
 """
 
 from __future__ import annotations
@@ -17,6 +18,9 @@ from pathlib import Path
 from vehicles.params import VehicleParams
 
 KNUCKLE_MASS = 5.0
+GRAVITY = 9.81
+STATIC_DEFLECTION = 0.03  # m: compliant wheel-ground contact standing in for tyre + suspension
+DAMPING_RATIO = 0.7
 WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
 STEER_JOINT_NAMES = ("steer_front_left", "steer_front_right")
 _BODY_RGBA = "0.55 0.60 0.68 1"
@@ -78,10 +82,14 @@ def _wheel_link(params: VehicleParams, name: str) -> str:
     m, r, w = params.wheel_mass, params.wheel_radius, params.wheel_width
     i_spin = m * r * r / 2.0
     i_other = m * (3.0 * r * r + w * w) / 12.0
+    corner_mass = params.mass / 4.0
+    stiffness = corner_mass * GRAVITY / STATIC_DEFLECTION
+    damping = 2.0 * DAMPING_RATIO * math.sqrt(stiffness * corner_mass)
     return (
         f'<link name="wheel_{name}">'
         f'<contact><lateral_friction value="1.0"/><rolling_friction value="0.0"/>'
-        f'<spinning_friction value="0.0"/></contact>'
+        f'<spinning_friction value="0.0"/><stiffness value="{_f(stiffness)}"/>'
+        f'<damping value="{_f(damping)}"/></contact>'
         f'<inertial><origin xyz="0 0 0"/><mass value="{_f(m)}"/>'
         f'<inertia ixx="{_f(i_other)}" ixy="0" ixz="0" iyy="{_f(i_spin)}" iyz="0" izz="{_f(i_other)}"/>'
         "</inertial>"

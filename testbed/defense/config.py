@@ -52,7 +52,7 @@ class DefenseConfig:
     kf_q: float = 0.05
     """Process noise of the 1-D fusion Kalman filter, added on each predict (m²)."""
     kf_p0: float = 1.0
-    """Initial variance of the 1-D fusion Kalman filter at AR onset (m²); its state starts on the centreline."""
+    """Initial variance of the 1-D fusion Kalman filter at AR onset (m²); its state starts at d = 0."""
     ar_decel: float = 4.0
     """LD3 (and SAVIOR) attack-response deceleration (m/s²)."""
     max_decel: float = 8.0

@@ -1,4 +1,4 @@
-"""CUSUM anomaly detector: S_i = max(0, S_{i-1} + |r_i| - b), alarm when S_i > τ (paper Alg. 1, lines 6-10)."""
+"""CUSUM anomaly detector: S_i = max(0, S_{i-1} + |r_i| - b), alarm when S_i > τ (Alg. 1, lines 6-10)."""
 
 from __future__ import annotations
 

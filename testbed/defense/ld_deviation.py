@@ -30,15 +30,20 @@ class LdDeviation:
     def __init__(self, existence_threshold: float) -> None:
         self.existence_threshold = existence_threshold
         self.last: float | None = None
+        self.reused = False
+        """True when the last update found no valid line and returned the previous D."""
 
     def update(self, ld: LaneDetection, lane_width: float) -> float | None:
         """D_LD for this detection (m, + left); the last D when no line is valid; None if there is none."""
         d_left = line_distance(ld.left, ld.left_prob, self.existence_threshold)
         d_right = line_distance(ld.right, ld.right_prob, self.existence_threshold)
+        self.reused = False
         if math.isfinite(d_left) and d_left <= d_right:
             self.last = lane_width / 2.0 - d_left
         elif math.isfinite(d_right):
             self.last = d_right - lane_width / 2.0
+        else:
+            self.reused = True
         return self.last
 
     def reset(self) -> None:

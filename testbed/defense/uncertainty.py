@@ -29,25 +29,16 @@ class DeviationUncertainty:
         self.p_ld = p_ld
         self._msf: deque[float] = deque(maxlen=window)
         self._ld: deque[float] = deque(maxlen=window)
-        self._sum_msf = 0.0
-        self._sum_ld = 0.0
 
     def update(self, d_msf: float, d_ld: float) -> Uncertainties:
         """Append |D_MSF| and |D_LD| (dropping the oldest beyond w) and return (R_MSF, R_LD)."""
-        self._sum_msf += self._push(self._msf, abs(d_msf))
-        self._sum_ld += self._push(self._ld, abs(d_ld))
-        s_msf = max(self._sum_msf, SUM_FLOOR)
-        s_ld = max(self._sum_ld, SUM_FLOOR)
+        self._msf.append(abs(d_msf))
+        self._ld.append(abs(d_ld))
+        s_msf = max(sum(self._msf), SUM_FLOOR)
+        s_ld = max(sum(self._ld), SUM_FLOOR)
         geo = math.sqrt(s_msf * s_ld)
         lam = self.lam
         return Uncertainties(
             lam * s_msf / geo + (1.0 - lam) * self.p_msf,
             lam * s_ld / geo + (1.0 - lam) * self.p_ld,
         )
-
-    @staticmethod
-    def _push(window: deque[float], value: float) -> float:
-        """Append `value`; return the change of the window sum."""
-        dropped = window[0] if len(window) == window.maxlen else 0.0
-        window.append(value)
-        return value - dropped

@@ -36,30 +36,43 @@ class PolylineLaneMap:
         self.s = np.arange(len(self.kappa)) * SAMPLE
         self.n_lanes, self.width = n_lanes, lane_width
         self.tree = cKDTree(xy)
+        self._pts = xy.tolist()
+        self._hint = 0
 
-    def _centreline(self, x: float, y: float) -> tuple[float, float, int]:
-        """Arc length and signed offset (+ left) of (x, y) from the reference centreline, segment index."""
+    def _nearest(self, x: float, y: float) -> int:
+        """Nearest vertex: a local search around the last answer, the KD-tree when that is far off."""
+        lo, hi = max(self._hint - 200, 0), min(self._hint + 200, len(self.s))
+        d2 = (self.xy[lo:hi, 0] - x) ** 2 + (self.xy[lo:hi, 1] - y) ** 2
+        k = int(np.argmin(d2))
+        if 0 < k < hi - lo - 1 and d2[k] < 100.0:
+            i = lo + k
+        else:
+            i = int(self.tree.query((x, y))[1])
+        self._hint = i
+        return int(min(max(i, 1), len(self.s) - 2))
+
+    def _centreline(self, x: float, y: float) -> tuple[float, float]:
+        """Arc length and signed offset (+ left) of (x, y) from the reference centreline."""
         if not (math.isfinite(x) and math.isfinite(y)):
             raise OffMapError("pose is not finite")
-        _, i = self.tree.query((x, y))
-        i = int(min(max(i, 1), len(self.s) - 2))
-        best = None
+        i = self._nearest(x, y)
+        best = (math.inf, 0.0, 0.0)
         for j in (i - 1, i):
-            p0, p1 = self.xy[j], self.xy[j + 1]
-            d = p1 - p0
-            u = float(np.clip(((x - p0[0]) * d[0] + (y - p0[1]) * d[1]) / (SAMPLE * SAMPLE), 0.0, 1.0))
-            px, py = p0[0] + u * d[0], p0[1] + u * d[1]
-            dist2 = (x - px) ** 2 + (y - py) ** 2
-            if best is None or dist2 < best[0]:
-                cross = d[0] * (y - p0[1]) - d[1] * (x - p0[0])
-                best = (dist2, self.s[j] + u * SAMPLE, math.copysign(math.sqrt(dist2), cross), j)
-        _, s, l, j = best
+            x0, y0 = self._pts[j]
+            dx, dy = self._pts[j + 1][0] - x0, self._pts[j + 1][1] - y0
+            u = min(max(((x - x0) * dx + (y - y0) * dy) / (SAMPLE * SAMPLE), 0.0), 1.0)
+            ex, ey = x - (x0 + u * dx), y - (y0 + u * dy)
+            dist2 = ex * ex + ey * ey
+            if dist2 < best[0]:
+                side = dx * (y - y0) - dy * (x - x0)
+                best = (dist2, j * SAMPLE + u * SAMPLE, math.copysign(math.sqrt(dist2), side))
+        _, s, l = best
         if s <= 0.0 or s >= self.s[-1]:
             raise OffMapError("pose beyond the ends of the road")
-        return s, l, j
+        return s, l
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
-        s, l, _ = self._centreline(pose.x, pose.y)
+        s, l = self._centreline(pose.x, pose.y)
         if lane is None:
             lane = int(round(l / self.width))
         if not 0 <= lane < self.n_lanes or abs(l - lane * self.width) > self.width:

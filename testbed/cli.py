@@ -1,0 +1,154 @@
+"""The `ld3` command: run scenarios, inspect tracks, benchmarks, lane-detector tooling, campaigns, CAN.
+
+Every user error (unknown preset, malformed TOML, unreachable speed, unwritable output) ends in one
+line on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+EXIT_USAGE = 2
+
+
+class UserError(Exception):
+    """An error the user can fix; printed as one line."""
+
+
+def _add_run_overrides(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", help="shipped scenario name (see `ld3 scenarios`) or path to a .toml file")
+    p.add_argument("--track", help="track preset NAME[@SEED]")
+    p.add_argument("--vehicle", help="vehicle parameter set (sedan, dev-chassis)")
+    p.add_argument("--speed", type=float, help="target speed (m/s)")
+    p.add_argument("--duration", type=float, help="simulated duration (s)")
+    p.add_argument("--condition", help="day, dusk, night, rain, worn, shadows")
+    p.add_argument("--seed", type=int, help="scenario seed (all random draws)")
+    p.add_argument("--lane", type=int, help="ego lane index (0 = rightmost)")
+    p.add_argument("--detector", help="lane detector: neural, classical, oracle, none")
+    p.add_argument("--localization", help="truth or msf")
+    p.add_argument("--defense", help="ld3, ld3-naive-ar, savior, none")
+    p.add_argument("--attack", help="attack spec, e.g. trace:default or fusionripper:d=0.5,f=1.3")
+    p.add_argument("--out", type=Path, help="output directory (default runs/<scenario>-<seed>)")
+
+
+def scenario_from_args(args: argparse.Namespace):
+    from testbed.attacks.spec import attack_spec_to_dict
+    from testbed.eval.scenario import load_scenario
+
+    sc = load_scenario(args.scenario)
+    attack = attack_spec_to_dict(args.attack) if getattr(args, "attack", None) else None
+    return sc.with_overrides(track=args.track, vehicle=args.vehicle, speed=args.speed, duration=args.duration,
+                             condition=args.condition, seed=args.seed, lane=args.lane, detector=args.detector,
+                             localization=args.localization, defense=args.defense, attack=attack)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from testbed.eval.runner import run_scenario
+
+    sc = scenario_from_args(args)
+    out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
+    result = run_scenario(sc, out, video=args.video, progress=sys.stderr.isatty())
+    s = result.summary
+    print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
+          f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
+    print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", camera.mp4" if args.video else ""))
+    return 0
+
+
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    from testbed.eval.scenario import load_scenario, shipped_scenarios
+
+    for name in shipped_scenarios():
+        sc = load_scenario(name)
+        print(f"{name:16s} track {sc.track:16s} {sc.vehicle:12s} {sc.speed:5.1f} m/s  {sc.duration:5.0f} s")
+    return 0
+
+
+def cmd_tracks(args: argparse.Namespace) -> int:
+    from tracks.plot import save_track_png
+    from tracks.presets import list_presets, load_track
+
+    if args.tracks_cmd == "list":
+        for name, desc in list_presets():
+            print(f"{name:16s} {desc}")
+        return 0
+    track = load_track(args.name)
+    out = args.out or Path(f"{args.name.replace('@', '-')}.png")
+    save_track_png(track, out)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from testbed.eval import bench
+
+    result = bench.run(args.what, seconds=args.seconds)
+    print(json.dumps(result, indent=2))
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from testbed.eval.demo import run_demo
+
+    report = run_demo(args.out, progress=sys.stderr.isatty())
+    print(f"demo report: {report}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="cmd", required=True)
+
+    p = sub.add_parser("run", help="run one scenario and write summary.json, trajectory.csv, birdseye.png")
+    _add_run_overrides(p)
+    p.add_argument("--video", action="store_true", help="also write camera.mp4 with the lane-detection overlay")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("scenarios", help="list the shipped scenarios")
+    p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser("demo", help="run the default attacked scenario with and without LD3 and write a report")
+    p.add_argument("--out", type=Path, default=Path("runs/demo"))
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("tracks", help="track presets")
+    tsub = p.add_subparsers(dest="tracks_cmd", required=True)
+    tsub.add_parser("list", help="list presets")
+    show = tsub.add_parser("show", help="bird's-eye picture of a preset")
+    show.add_argument("name", help="NAME[@SEED]")
+    show.add_argument("--out", type=Path)
+    p.set_defaults(func=cmd_tracks)
+
+    p = sub.add_parser("bench", help="benchmarks (not tests): loop, map, defense")
+    p.add_argument("what", choices=["loop", "map", "defense"])
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    from testbed.eval.scenario import ScenarioError
+
+    return (UserError, ScenarioError, ValueError, FileNotFoundError, PermissionError)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except _user_errors() as exc:
+        print(f"ld3: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("ld3: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

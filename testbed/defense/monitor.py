@@ -1,0 +1,89 @@
+"""LD3 attack detection on a vehicle (paper Alg. 1): per lane detection, D_MSF = map lane deviation of the
+latest MSF pose, D_LD by Alg. 3 with the map's lane width, CUSUM on D_MSF - D_LD.
+
+Detection is disabled while the MSF pose is inside an intersection (no lane markings) and resumes after
+it with S reset and Alg. 3's memory cleared. A detection with a non-finite pose, an off-map query, or no
+D_LD yet is skipped and logged.
+"""
+
+from __future__ import annotations
+
+import math
+
+from testbed.defense.detector import Ld3Detector
+from testbed.defense.faults import FaultLog
+from testbed.defense.ld_deviation import LdDeviation
+from testbed.localization.estimate import LocalizationEstimate
+from testbed.perception.detection import LaneDetection
+from tracks.map_api import OffMapError, SemanticMap
+from tracks.pose import Pose
+
+
+class LaneConsistencyMonitor:
+    """Alg. 1 with intersection gating; after the alarm, `ego_lane` is the lane the MSF pose was on."""
+
+    def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog) -> None:
+        self.detector = Ld3Detector(b, tau)
+        self.ld_dev = LdDeviation(existence_threshold)
+        self.faults = faults
+        self.d_msf: float | None = None
+        self.d_ld: float | None = None
+        self.in_intersection = False
+        self.ego_lane: int | None = None
+
+    def step(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
+        """One detection step; True at (and after) the alarm."""
+        if self.detector.alarmed:
+            return True
+        pose = msf.pose
+        if not pose.is_finite():
+            self.faults.report("nan-pose", ld.timestamp, f"MSF pose {pose} is not finite; update skipped")
+            return False
+        try:
+            inside = smap.is_intersection(pose)
+        except OffMapError as err:
+            self.faults.report("off-map", ld.timestamp, f"is_intersection: {err}; update skipped")
+            return False
+        if inside:
+            self.in_intersection = True
+            return False
+        if self.in_intersection:
+            self.in_intersection = False
+            self.detector.reset()
+            self.ld_dev.reset()
+        pair = self.deviations(ld, pose, smap)
+        if pair is None or not self.detector.update(*pair):
+            return False
+        try:
+            self.ego_lane = smap.project(pose).lane
+        except OffMapError as err:
+            self.faults.report("off-map", ld.timestamp, f"project at alarm: {err}; ego lane left to the map")
+        return True
+
+    def deviations(
+        self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int | None = None
+    ) -> tuple[float, float] | None:
+        """(D_MSF, D_LD) against `lane` (nearest lane when None), or None when it cannot be formed."""
+        t = ld.timestamp
+        if not pose.is_finite():
+            self.faults.report("nan-pose", t, f"MSF pose {pose} is not finite; update skipped")
+            return None
+        try:
+            d_msf = smap.lane_dev(pose, lane)
+            width = smap.lane_width(pose, lane)
+        except OffMapError as err:
+            self.faults.report("off-map", t, f"lane_dev/lane_width: {err}; update skipped")
+            return None
+        if not (math.isfinite(d_msf) and math.isfinite(width) and width > 0.0):
+            self.faults.report("bad-map", t, f"D_MSF={d_msf}, lane width={width}; update skipped")
+            return None
+        d_ld = self.ld_dev.update(ld, width)
+        if d_ld is None:
+            self.faults.report("no-lane-lines", t, "no valid lane line yet; update skipped")
+            return None
+        if self.ld_dev.reused:
+            self.faults.report("no-lane-lines", t, f"no valid lane line; reusing D_LD={d_ld:.3f}")
+        else:
+            self.faults.clear()
+        self.d_msf, self.d_ld = d_msf, d_ld
+        return d_msf, d_ld

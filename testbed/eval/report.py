@@ -1,0 +1,87 @@
+"""Reports of several runs side by side: a markdown table in the style of the paper's Table 4 and a plot
+of the physical deviation of each run against time.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+@dataclass(frozen=True)
+class ReportRow:
+    label: str
+    run_dir: Path
+    summary: dict
+
+
+def _fmt(v, digits: int = 2) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}"
+    return str(v)
+
+
+def _phys_dev(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    t, d = [], []
+    with (run_dir / "trajectory.csv").open() as fh:
+        for row in csv.DictReader(fh):
+            if row["phys_dev"]:
+                t.append(float(row["t"]))
+                d.append(float(row["phys_dev"]))
+    return np.array(t), np.array(d)
+
+
+def plot_deviations(path: Path, rows: Sequence[ReportRow], title: str) -> None:
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    first = rows[0].summary
+    half, straddle = first["lane_width_m"] / 2, first["lane_straddle_dev_m"]
+    ax.axhspan(-straddle, straddle, color="0.92", label="no lane straddle")
+    for edge in (-half, half):
+        ax.axhline(edge, color="0.3", lw=1.2)
+    for r in rows:
+        t, d = _phys_dev(r.run_dir)
+        (line,) = ax.plot(t, d, label=f"{r.label}: {r.summary['consequence']}")
+        det = r.summary.get("detection_time_s")
+        if det is not None:
+            ax.axvline(det, color=line.get_color(), ls=":", lw=1)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("physical lateral deviation D (m, + left)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: str = "") -> Path:
+    """report.md and deviations.png in `out_dir`; returns the report path."""
+    plot_deviations(out_dir / "deviations.png", rows, title)
+    lines = [f"# {title}", "", notes, "",
+             "| run | defense | attack | consequence | detected | detection time (s) | detection dev (m) "
+             "| AR max dev (m) | stop dev (m) | max abs dev (m) | lane straddle dev (m) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        s = r.summary
+        attack = s["attack"]["kind"] if isinstance(s.get("attack"), dict) and "kind" in s["attack"] else _fmt(s["attack"])
+        lines.append(
+            f"| [{r.label}]({r.run_dir.name}/birdseye.png) | {s['defense']} | {attack} | {s['consequence']} "
+            f"| {_fmt(s['detected'])} | {_fmt(s['detection_time_s'])} | {_fmt(s['detection_dev_m'])} "
+            f"| {_fmt(s['ar_max_dev_m'])} | {_fmt(s['ar_stop_dev_m'])} | {_fmt(s['max_abs_dev_m'])} "
+            f"| {_fmt(s['lane_straddle_dev_m'])} |")
+    lines += ["", "![physical deviation of each run](deviations.png)", ""]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,219 @@
+"""Runs one scenario in simulation end to end and writes the output contract (DESIGN.md).
+
+The run's random streams are spawned from the scenario seed in a fixed order (camera noise,
+localization, attack, detector), so the same scenario and seed give byte-identical trajectories.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from testbed.attacks.spec import attack_from_dict
+from testbed.camera import FrontCamera, get_condition
+from testbed.control.lateral import LqrLateralController
+from testbed.control.longitudinal import SpeedController
+from testbed.control.planner import LanePlanner
+from testbed.defense.config import DefenseConfig
+from testbed.defense.factory import make_defense
+from testbed.direct_chassis import DirectChassis
+from testbed.eval.birdseye import save_birdseye
+from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
+from testbed.eval.outputs import write_summary, write_trajectory
+from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.video import VideoWriter
+from testbed.localization.stack import GroundTruthLocalization, LocalizationConfig, LocalizationStack
+from testbed.loop import ControlLoop, LoopRates, TickRecord
+from testbed.perception.factory import make_detector
+from testbed.world import PhysicsWorld, TileStreamer
+from tracks.presets import load_track
+from tracks.pose import Pose
+from vehicles.camera_rig import CameraRig
+from vehicles.params import get_vehicle
+
+STOP_SPEED = 0.05
+END_MARGIN_M = 30.0
+
+
+@dataclass
+class RunResult:
+    """A finished run: its summary, one record per control tick, the believed (MSF) path, the stop time."""
+
+    summary: dict[str, Any]
+    rows: list[TickRecord] = field(default_factory=list)
+    believed_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    stop_t: float | None = None
+
+
+class SimRun:
+    """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
+
+    def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False) -> None:
+        self.sc = sc
+        try:
+            self.track = load_track(sc.track)
+            self.params = get_vehicle(sc.vehicle)
+            self.condition = get_condition(sc.condition)
+            self.defense_config = DefenseConfig.from_dict(sc.defense_params)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+        if sc.speed > self.params.max_speed:
+            raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach "
+                                f"({self.params.max_speed} m/s)")
+        if sc.defense != "none" and sc.detector == "none":
+            raise ScenarioError(f"defense {sc.defense!r} needs a lane detector; detector is 'none'")
+        seeds = np.random.SeedSequence(sc.seed).spawn(4)
+        rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
+        self.smap = self.track.map
+        self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
+        if not 0 <= self.lane < len(self.track.lanes):
+            raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
+        start = self.track.start_pose(self.lane, sc.start_s)
+        self.start = start
+        self.world = PhysicsWorld(self.track, self.params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+        rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
+        self.chassis = DirectChassis(self.world)
+        self.attack = (attack_from_dict(sc.attack, rng=rng_attack, defense=self.defense_config)
+                       if sc.attack else None)
+        for painter in self.condition.track_painters(sc.seed):
+            self.track.add_painter(painter)
+        if self.attack is not None:
+            for painter in self.attack.painters(self.track):
+                self.track.add_painter(painter)
+        needs_camera = sc.detector in ("neural", "classical") if render is None else render
+        self.rig = CameraRig(self.params.camera)
+        self.streamer: TileStreamer | None = None
+        self.camera: FrontCamera | None = None
+        if needs_camera or video:
+            self.streamer = TileStreamer(self.track, sc.seed)
+            self.camera = FrontCamera(self.streamer.client, self.rig, self.condition, rng_camera)
+        self.video = VideoWriter(self.rig) if video else None
+        if sc.localization == "msf":
+            self.localization = LocalizationStack(LocalizationConfig.from_dict(sc.rates.get("localization", {})),
+                                                  rng_loc, self.track.lidar_quality_at, start, 0.0)
+        else:
+            self.localization = GroundTruthLocalization()
+        self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
+        self.defense = make_defense(sc.defense, self.defense_config)
+        dt = 1.0 / rates.control_hz
+        self.loop = ControlLoop(
+            chassis=self.chassis, localization=self.localization, smap=self.smap, lane=self.lane,
+            planner=LanePlanner(self.smap, self.lane, sc.speed),
+            lateral=LqrLateralController.from_vehicle(self.params, dt),
+            longitudinal=SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel),
+            defense=self.defense, detector=self.detector, camera=self._capture if self.camera else None,
+            attack=self.attack, rates=rates, on_frame=self.video.add if self.video else None,
+            existence_threshold=self.defense_config.existence_threshold,
+        )
+        lane_width = self.smap.lane_width(start, self.lane)
+        self.lane_width = lane_width
+        self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
+
+    def _capture(self, t: float, pose: Pose):
+        self.streamer.update(pose.x, pose.y)
+        return self.camera.capture(t, pose)
+
+    def _off_surface(self, pose: Pose) -> bool:
+        corners = footprint_corners(pose.x, pose.y, pose.yaw, self.params.length, self.params.width)
+        return not all(self.track.road_surface_contains(x, y) for x, y in corners)
+
+    def run(self, progress: bool = False) -> RunResult:
+        sc = self.sc
+        rows: list[TickRecord] = []
+        believed: list[tuple[float, float]] = []
+        n_ticks = int(round(sc.duration * self.loop.rates.control_hz))
+        stop_t: float | None = None
+        still_since: float | None = None
+        wall0 = time.perf_counter()
+        bar = tqdm(total=n_ticks, desc=f"{sc.name}", unit="tick", disable=not progress, leave=False)
+        for _ in range(n_ticks):
+            rec = self.loop.tick()
+            rows.append(rec)
+            est_pose = self.loop.last_estimate.pose
+            believed.append((est_pose.x, est_pose.y))
+            bar.update(1)
+            pose = self.loop.last_state.true_pose
+            contacts = self.world.contact_kinds()
+            off = self._off_surface(pose)
+            if self.monitor.observe(rec.phys_dev, contacts, off, self.track.drop_off_at(pose.x, pose.y)):
+                break
+            if self.loop.stopping and rec.speed < STOP_SPEED:
+                still_since = rec.t if still_since is None else still_since
+                if rec.t - still_since >= 0.5:
+                    stop_t = still_since
+                    break
+            else:
+                still_since = None
+            coord = self.smap.project(pose, self.lane)
+            if coord.s > self.track.length - END_MARGIN_M:
+                break
+        bar.close()
+        wall = time.perf_counter() - wall0
+        return RunResult(self._summary(rows, wall, stop_t), rows, np.array(believed).reshape(-1, 2), stop_t)
+
+    def _summary(self, rows: list[TickRecord], wall: float, stop_t: float | None) -> dict[str, Any]:
+        sc = self.sc
+        status = self.defense.status()
+        det_t = status.detection_time
+        phys = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
+        t = np.array([r.t for r in rows])
+        final_dev = float(phys[-1]) if len(phys) else math.nan
+        before = phys[t <= det_t] if det_t is not None else phys
+        during = phys[t >= det_t] if det_t is not None else np.array([])
+        sim_time = float(t[-1] + 1.0 / self.loop.rates.control_hz) if len(t) else 0.0
+        consequence = self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev)
+        return {
+            "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
+            "attack": self.attack.describe() if self.attack is not None else None,
+            "defense": sc.defense, "condition": sc.condition, "detector": sc.detector,
+            "localization": sc.localization, "target_speed_mps": sc.speed,
+            "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
+            "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
+            "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
+            "final_dev_m": final_dev, "consequence": consequence,
+            "detected": bool(status.detected), "detection_time_s": det_t,
+            "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
+            "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,
+            "ar_stop_dev_m": final_dev if stop_t is not None else None,
+            "stop_time_s": stop_t,
+            "attack_state": self.attack.state() if self.attack is not None else None,
+        }
+
+    def close(self) -> None:
+        self.world.close()
+        if self.streamer is not None:
+            self.streamer.close()
+
+
+def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, progress: bool = False,
+                 render: bool | None = None) -> RunResult:
+    """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4)."""
+    if out_dir is not None:
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            probe = out_dir / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
+    sim = SimRun(sc, render=render, video=video)
+    try:
+        result = sim.run(progress=progress)
+        if out_dir is not None:
+            write_trajectory(out_dir / "trajectory.csv", result.rows)
+            write_summary(out_dir / "summary.json", result.summary)
+            save_birdseye(out_dir / "birdseye.png", sim.track, result.rows, lane_width=sim.lane_width,
+                          straddle_dev=sim.monitor.straddle_dev, believed_xy=result.believed_xy,
+                          detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
+                          title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}")
+            if sim.video is not None:
+                sim.video.write(out_dir / "camera.mp4")
+        return result
+    finally:
+        sim.close()

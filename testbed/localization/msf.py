@@ -1,0 +1,140 @@
+"""Multi-sensor fusion in the style of Apollo's MSF: an error-state Kalman filter around IMU dead reckoning.
+
+Nominal state (x, y, yaw, v, gyro bias, accel bias) is propagated with each IMU sample:
+yaw += (ω − b_g) dt, v += (a − b_a) dt, (x, y) += v (cos yaw, sin yaw) dt. The filterpy KalmanFilter holds
+the 6-D error state δ = (δx, δy, δyaw, δv, δb_g, δb_a) and its covariance; its transition is the
+linearisation of the propagation above. GNSS (x, y) and LiDAR (x, y, yaw) fixes update the error state
+with the covariances their sensors report, after a chi-square innovation gate (Mahalanobis distance of
+the innovation against H P Hᵀ + R); the accepted correction is injected into the nominal state and δ
+reset to zero. The LiDAR locator is the filter's anchor: rejected for `lidar_reset_after` seconds in a
+row, it is re-admitted by inflating the position covariance (the filter admits it may have drifted).
+GNSS fixes that fail the gate are simply dropped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from scipy.stats import chi2
+
+from testbed.localization.estimate import LocalizationEstimate
+from testbed.localization.sensors import GnssFix, ImuSample, LidarFix
+from tracks.pose import Pose
+
+_H_GNSS = np.hstack([np.eye(2), np.zeros((2, 4))])
+_H_LIDAR = np.hstack([np.eye(3), np.zeros((3, 3))])
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class MsfParams:
+    """Process noise densities, initial uncertainty and gating of the fusion filter."""
+
+    accel_noise: float = 0.1
+    gyro_noise: float = 0.005
+    accel_bias_walk: float = 0.002
+    gyro_bias_walk: float = 0.00005
+    init_pos_std: float = 0.05
+    init_yaw_std: float = 0.01
+    init_speed_std: float = 0.1
+    init_accel_bias_std: float = 0.05
+    init_gyro_bias_std: float = 0.001
+    gate_prob: float = 0.999
+    lidar_reset_after: float = 3.0
+
+
+class MultiSensorFusion:
+    """Error-state KF fusing IMU propagation with gated GNSS and LiDAR-locator updates."""
+
+    def __init__(self, start_pose: Pose, start_speed: float, params: MsfParams | None = None) -> None:
+        self.params = p = params or MsfParams()
+        self.nominal = np.array([start_pose.x, start_pose.y, start_pose.yaw, start_speed, 0.0, 0.0])
+        self.kf = KalmanFilter(dim_x=6, dim_z=2)
+        self.kf.P = np.diag([p.init_pos_std**2, p.init_pos_std**2, p.init_yaw_std**2, p.init_speed_std**2,
+                             p.init_gyro_bias_std**2, p.init_accel_bias_std**2])
+        self.t: float | None = None
+        self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
+        self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
+        self.rejected = {"gnss": 0, "lidar": 0}
+
+    def predict(self, imu: ImuSample) -> None:
+        """Propagate the nominal state with one IMU sample and the error covariance with it."""
+        if self.t is None:
+            self.t = imu.t
+            for k in self._last_accepted:
+                self._last_accepted[k] = imu.t
+            return
+        dt = imu.t - self.t
+        self.t = imu.t
+        if dt <= 0.0:
+            return
+        p = self.params
+        x, y, yaw, v, bg, ba = self.nominal
+        c, s = math.cos(yaw), math.sin(yaw)
+        yaw = _wrap(yaw + (imu.yaw_rate - bg) * dt)
+        v = v + (imu.accel_long - ba) * dt
+        self.nominal[:4] = (x + v * c * dt, y + v * s * dt, yaw, v)
+        f = np.eye(6)
+        f[0, 2], f[0, 3] = -v * s * dt, c * dt
+        f[1, 2], f[1, 3] = v * c * dt, s * dt
+        f[2, 4] = -dt
+        f[3, 5] = -dt
+        self.kf.F = f
+        self.kf.Q = np.diag([0.0, 0.0, p.gyro_noise**2 * dt, p.accel_noise**2 * dt,
+                             p.gyro_bias_walk**2 * dt, p.accel_bias_walk**2 * dt])
+        self.kf.predict()
+
+    def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray, h: np.ndarray) -> bool:
+        s = h @ self.kf.P @ h.T + r
+        d2 = float(z @ np.linalg.solve(s, z))
+        if d2 > self._gate[len(z)]:
+            self.rejected[source] += 1
+            if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
+                self._readmit(source, t, z)
+            return False
+        self.kf.x = np.zeros(6)
+        self.kf.update(z, R=r, H=h)
+        self._inject()
+        self._last_accepted[source] = t
+        return True
+
+    def _readmit(self, source: str, t: float, z: np.ndarray) -> None:
+        """Inflate the position covariance to the rejected innovation so the next fix can be accepted."""
+        inflation = float(np.max(z[:2] ** 2))
+        self.kf.P[0, 0] += inflation
+        self.kf.P[1, 1] += inflation
+        self._last_accepted[source] = t
+
+    def _inject(self) -> None:
+        dx = self.kf.x
+        self.nominal += dx
+        self.nominal[2] = _wrap(self.nominal[2])
+        self.kf.x = np.zeros(6)
+
+    def update_gnss(self, fix: GnssFix) -> bool:
+        """Fuse a GNSS fix; returns False when the innovation gate rejects it."""
+        z = np.asarray(fix.xy, float) - self.nominal[:2]
+        return self._gated_update("gnss", fix.t, z, np.asarray(fix.cov, float), _H_GNSS)
+
+    def update_lidar(self, fix: LidarFix) -> bool:
+        """Fuse a LiDAR-locator pose; returns False when the innovation gate rejects it."""
+        z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1],
+                      _wrap(fix.yaw - self.nominal[2])])
+        return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float), _H_LIDAR)
+
+    @property
+    def pose(self) -> Pose:
+        return Pose(float(self.nominal[0]), float(self.nominal[1]), float(self.nominal[2]))
+
+    @property
+    def speed(self) -> float:
+        return float(self.nominal[3])
+
+    def estimate(self, t: float) -> LocalizationEstimate:
+        return LocalizationEstimate(t, self.pose, self.kf.P[:3, :3].copy())

@@ -1,0 +1,47 @@
+"""A lane as a constant lateral offset of the road's reference line (highway-env `AbstractLane` style).
+
+Longitudinal coordinate s is the reference line's arc length (shared by all lanes of a road, so lanes
+line up at the same s); lateral coordinate l is signed, + left of this lane's centreline.
+"""
+
+from __future__ import annotations
+
+from tracks.geometry import ReferenceLine
+
+
+class Lane:
+    """Lane `index` (0 = rightmost) centred `offset` m left of the reference line, `width` m wide."""
+
+    def __init__(self, reference: ReferenceLine, index: int, offset: float, width: float) -> None:
+        self.reference = reference
+        self.index = index
+        self.offset = offset
+        self.width = width
+
+    @property
+    def length(self) -> float:
+        return self.reference.length
+
+    def position(self, s: float, l: float = 0.0) -> tuple[float, float]:
+        """World (x, y) of the point at reference arc length s, l metres left of the lane centre."""
+        return self.reference.point(s, self.offset + l)
+
+    def local_coordinates(self, x: float, y: float) -> tuple[float, float]:
+        """(s, l) of a world point: s along the reference line, l signed offset from this lane's centre."""
+        s, t = self.reference.project(x, y)
+        return s, t - self.offset
+
+    def heading_at(self, s: float) -> float:
+        return self.reference.heading_at(s)
+
+    def width_at(self, s: float) -> float:
+        return self.width
+
+    def curvature_at(self, s: float) -> float:
+        """Curvature of the lane centreline itself (1/m, + left): k / (1 - k * offset) for an offset curve."""
+        k = self.reference.curvature_at(s)
+        return k / (1.0 - k * self.offset)
+
+    def on_lane(self, x: float, y: float, margin: float = 0.0) -> bool:
+        s, l = self.local_coordinates(x, y)
+        return 0.0 <= s <= self.length and abs(l) <= 0.5 * self.width + margin

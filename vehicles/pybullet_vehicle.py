@@ -1,0 +1,184 @@
+"""The vehicle as a PyBullet multibody driven through its wheels: physics does the driving.
+
+Each physics step, `pre_step` moves the rate-limited steering towards its command and sets the two
+Ackermann front-wheel angles (position control), and turns the acceleration command into wheel torques:
+F = m_eff·a + road_load(v) with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at
+that torque limit, their target capped 1 m/s above the body speed as traction control), F < 0 brakes all
+four (velocity motors held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes
+that hold a stopped car). The road load is applied to the body as an external force. A speed governor
+caps the command at (max_speed − v)·1 s⁻¹. The car is only placed by `reset_pose`, never teleported.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+
+from tracks.pose import Pose
+from vehicles.params import VehicleParams
+from vehicles.road_load import road_load
+from vehicles.steering import SteeringActuator, ackermann_angles, bicycle_angle
+from vehicles.urdf import STATIC_DEFLECTION, STEER_JOINT_NAMES, WHEEL_NAMES, write_urdf
+
+DEFAULT_URDF_DIR = Path(tempfile.gettempdir()) / "ld3_vehicles"
+_GOVERNOR_GAIN = 1.0  # 1/s
+_ACCEL_FILTER_TAU = 0.05  # s
+_TRACTION_SLIP = 1.0  # m/s: traction control caps the driven rims this much above the body speed
+_MAX_WHEEL_SPEED = 400.0  # rad/s, PyBullet's joint velocity cap (default 100 rad/s is too low)
+_STEER_TORQUE = 1.0e4  # N·m
+_STEER_POSITION_GAIN = 0.5
+_STEER_VELOCITY_GAIN = 1.0
+
+
+def _yaw_of(q: tuple[float, float, float, float]) -> float:
+    x, y, z, w = q
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+class PyBulletVehicle:
+    """A `VehicleParams` car loaded into an existing PyBullet client; reports the reference-point pose."""
+
+    def __init__(
+        self,
+        client_id: int,
+        params: VehicleParams,
+        pose: Pose,
+        urdf_dir: str | Path | None = None,
+    ) -> None:
+        self.params = params
+        self._cid = client_id
+        path = write_urdf(params, urdf_dir if urdf_dir is not None else DEFAULT_URDF_DIR)
+        self.body_id: int = p.loadURDF(
+            str(path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client_id
+        )
+        joints = {
+            p.getJointInfo(self.body_id, j, physicsClientId=client_id)[1].decode(): j
+            for j in range(p.getNumJoints(self.body_id, physicsClientId=client_id))
+        }
+        self.wheel_link_ids: tuple[int, ...] = tuple(joints[f"spin_{n}"] for n in WHEEL_NAMES)
+        self.steer_joint_ids: tuple[int, ...] = tuple(joints[n] for n in STEER_JOINT_NAMES)
+        p.changeDynamics(self.body_id, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client_id)
+        for j in self.wheel_link_ids:
+            p.changeDynamics(self.body_id, j, maxJointVelocity=_MAX_WHEEL_SPEED, physicsClientId=client_id)
+
+        r = params.wheel_radius
+        i_spin = params.wheel_mass * r * r / 2.0
+        self._m_eff = params.mass + 4.0 * i_spin / (r * r)
+        self._cg_offset = np.array([params.cg_x, 0.0, params.cg_height])
+        self._steering = SteeringActuator(params.max_steer, params.max_steer_rate)
+        self._cmd_steer = 0.0
+        self._cmd_accel = 0.0
+        self._speed = 0.0
+        self._accel = 0.0
+        self.reset_pose(pose)
+
+    # -- commands and stepping ------------------------------------------------------------------------
+
+    def apply(self, steer_cmd: float, accel_cmd: float) -> None:
+        """Store the command: road-wheel steer angle (rad, + left) and longitudinal accel (m/s², < 0 brakes)."""
+        self._cmd_steer = steer_cmd
+        self._cmd_accel = accel_cmd
+
+    def pre_step(self, dt: float) -> None:
+        """Actuate for the physics step of length `dt` that follows (call before every stepSimulation)."""
+        cid, body, prm = self._cid, self.body_id, self.params
+        pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=cid)
+        lin, _ = p.getBaseVelocity(body, physicsClientId=cid)
+        yaw = _yaw_of(orn)
+        c, s = math.cos(yaw), math.sin(yaw)
+        v = lin[0] * c + lin[1] * s
+        alpha = dt / (_ACCEL_FILTER_TAU + dt)
+        self._accel += alpha * ((v - self._speed) / dt - self._accel)
+        self._speed = v
+
+        delta = self._steering.step(self._cmd_steer, dt)
+        left, right = ackermann_angles(delta, prm.wheelbase, prm.track_width)
+        rate = self._steering.rate
+        p.setJointMotorControlArray(
+            body, self.steer_joint_ids, p.POSITION_CONTROL,
+            targetPositions=(left, right), targetVelocities=(rate, rate),
+            forces=(_STEER_TORQUE, _STEER_TORQUE),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
+            velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
+            physicsClientId=cid,
+        )
+
+        accel = max(-prm.max_decel, min(prm.max_accel, self._cmd_accel, _GOVERNOR_GAIN * (prm.max_speed - v)))
+        load = road_load(prm, v)
+        force = self._m_eff * accel + load
+        r = prm.wheel_radius
+        if force >= 0.0:
+            drive = force * r / 2.0
+            spin = (max(v, 0.0) + _TRACTION_SLIP) / r
+            targets = (0.0, 0.0, spin, spin)
+            torques = (0.0, 0.0, drive, drive)
+        else:
+            front = -force * prm.front_brake_share * r / 2.0
+            rear = -force * (1.0 - prm.front_brake_share) * r / 2.0
+            targets = (0.0, 0.0, 0.0, 0.0)
+            torques = (front, front, rear, rear)
+        p.setJointMotorControlArray(
+            body, self.wheel_link_ids, p.VELOCITY_CONTROL,
+            targetVelocities=targets, forces=torques, physicsClientId=cid,
+        )
+        p.applyExternalForce(body, -1, (-load * c, -load * s, 0.0), pos, p.WORLD_FRAME, physicsClientId=cid)
+
+    def reset_pose(self, pose: Pose, speed: float = 0.0) -> None:
+        """Place the car (initial placement only) at `pose`, straight wheels, rolling forward at `speed`."""
+        cid, body = self._cid, self.body_id
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        ox, _, oz = self._cg_offset
+        com = (pose.x + c * ox, pose.y + s * ox, oz - STATIC_DEFLECTION)
+        p.resetBasePositionAndOrientation(
+            body, com, p.getQuaternionFromEuler((0.0, 0.0, pose.yaw)), physicsClientId=cid
+        )
+        p.resetBaseVelocity(body, (speed * c, speed * s, 0.0), (0.0, 0.0, 0.0), physicsClientId=cid)
+        for j in self.steer_joint_ids:
+            p.resetJointState(body, j, 0.0, 0.0, physicsClientId=cid)
+        for j in self.wheel_link_ids:
+            p.resetJointState(body, j, 0.0, speed / self.params.wheel_radius, physicsClientId=cid)
+        self._steering.reset(0.0)
+        self._cmd_steer = 0.0
+        self._cmd_accel = 0.0
+        self._speed = speed
+        self._accel = 0.0
+
+    # -- measurements ---------------------------------------------------------------------------------
+
+    def pose(self) -> Pose:
+        """Reference point (footprint centre projected on the ground) and heading, world frame."""
+        pos, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
+        rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        ref = np.asarray(pos) - rot @ self._cg_offset
+        return Pose(float(ref[0]), float(ref[1]), _yaw_of(orn))
+
+    def speed(self) -> float:
+        """Signed longitudinal speed (m/s, + forward)."""
+        _, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
+        lin, _ = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
+        yaw = _yaw_of(orn)
+        return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw)
+
+    def yaw_rate(self) -> float:
+        """Yaw rate (rad/s, + counter-clockwise)."""
+        return p.getBaseVelocity(self.body_id, physicsClientId=self._cid)[1][2]
+
+    def accel(self) -> float:
+        """Measured longitudinal acceleration (m/s²), low-pass filtered with a 50 ms time constant."""
+        return self._accel
+
+    def steer_angle(self) -> float:
+        """Actual road-wheel angle (rad, + left): the bicycle-model equivalent of both front wheels."""
+        left, right = (
+            st[0] for st in p.getJointStates(self.body_id, self.steer_joint_ids, physicsClientId=self._cid)
+        )
+        return bicycle_angle(left, right)
+
+    def wheel_speeds(self) -> tuple[float, ...]:
+        """Rim speeds ω·r (m/s) of the wheels in `wheel_link_ids` order: FL, FR, RL, RR."""
+        states = p.getJointStates(self.body_id, self.wheel_link_ids, physicsClientId=self._cid)
+        return tuple(st[1] * self.params.wheel_radius for st in states)
