@@ -227,20 +227,20 @@ class ReferenceLine:
         return i
 
     def _refine(self, x: float, y: float, i: int) -> tuple[float, float]:
+        """Exact projection near sample i: osculating-circle guess, then Newton steps on the segments."""
         c, sn = self._cos[i], self._sin[i]
         dx, dy = x - self._xs[i], y - self._ys[i]
-        t = -dx * sn + dy * c
-        denom = 1.0 - self._curv[i] * t
-        s = i * self.ds + (dx * c + dy * sn) / (denom if denom > 0.1 else 1.0)
+        a, t = dx * c + dy * sn, -dx * sn + dy * c
+        k = self._curv[i]
+        s = i * self.ds + (math.atan2(k * a, 1.0 - k * t) / k if abs(k) > 1e-12 else a)
         for _ in range(4):
             px, py, h = self.frame(s)
             c, sn = math.cos(h), math.sin(h)
             dx, dy = x - px, y - py
             a = dx * c + dy * sn
             t = -dx * sn + dy * c
-            if abs(a) < 1e-7:
-                s += a
-                break
+            if abs(a) < 1e-6:
+                return s + a, t
             k = self.curvature_at(s)
             denom = 1.0 - k * t
             s += a / denom if denom > 0.1 else a

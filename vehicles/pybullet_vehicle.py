@@ -6,7 +6,7 @@ F = m_eff·a + road_load(v) with m_eff = m + ΣI_wheel/r²; F > 0 drives the rea
 that torque limit, their target capped 1 m/s above the body speed as traction control), F < 0 brakes all
 four (velocity motors held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes
 that hold a stopped car). The road load is applied to the body as an external force. A speed governor
-caps the command at (max_speed − v)·1 s⁻¹. The car is only placed by `reset_pose`, never teleported.
+caps the command at (max_speed − v)·2 s⁻¹. The car is only placed by `reset_pose`, never teleported.
 """
 
 from __future__ import annotations
@@ -25,12 +25,12 @@ from vehicles.steering import SteeringActuator, ackermann_angles, bicycle_angle
 from vehicles.urdf import STATIC_DEFLECTION, STEER_JOINT_NAMES, WHEEL_NAMES, write_urdf
 
 DEFAULT_URDF_DIR = Path(tempfile.gettempdir()) / "ld3_vehicles"
-_GOVERNOR_GAIN = 1.0  # 1/s
+_GOVERNOR_GAIN = 2.0  # 1/s
 _ACCEL_FILTER_TAU = 0.05  # s
 _TRACTION_SLIP = 1.0  # m/s: traction control caps the driven rims this much above the body speed
 _MAX_WHEEL_SPEED = 400.0  # rad/s, PyBullet's joint velocity cap (default 100 rad/s is too low)
 _STEER_TORQUE = 1.0e4  # N·m
-_STEER_POSITION_GAIN = 0.5
+_STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
 
 
@@ -72,6 +72,7 @@ class PyBulletVehicle:
         self._steering = SteeringActuator(params.max_steer, params.max_steer_rate)
         self._cmd_steer = 0.0
         self._cmd_accel = 0.0
+        self._sent_steer = (0.0, 0.0)
         self._speed = 0.0
         self._accel = 0.0
         self.reset_pose(pose)
@@ -79,7 +80,7 @@ class PyBulletVehicle:
     # -- commands and stepping ------------------------------------------------------------------------
 
     def apply(self, steer_cmd: float, accel_cmd: float) -> None:
-        """Store the command: road-wheel steer angle (rad, + left) and longitudinal accel (m/s², < 0 brakes)."""
+        """Store the command: road-wheel angle (rad, + left) and longitudinal accel (m/s², < 0 brakes)."""
         self._cmd_steer = steer_cmd
         self._cmd_accel = accel_cmd
 
@@ -96,16 +97,8 @@ class PyBulletVehicle:
         self._speed = v
 
         delta = self._steering.step(self._cmd_steer, dt)
-        left, right = ackermann_angles(delta, prm.wheelbase, prm.track_width)
-        rate = self._steering.rate
-        p.setJointMotorControlArray(
-            body, self.steer_joint_ids, p.POSITION_CONTROL,
-            targetPositions=(left, right), targetVelocities=(rate, rate),
-            forces=(_STEER_TORQUE, _STEER_TORQUE),
-            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
-            velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
-            physicsClientId=cid,
-        )
+        if (delta, self._steering.rate) != self._sent_steer:  # motors keep their targets: resend on change
+            self._send_steer(delta)
 
         accel = max(-prm.max_decel, min(prm.max_accel, self._cmd_accel, _GOVERNOR_GAIN * (prm.max_speed - v)))
         load = road_load(prm, v)
@@ -122,10 +115,30 @@ class PyBulletVehicle:
             targets = (0.0, 0.0, 0.0, 0.0)
             torques = (front, front, rear, rear)
         p.setJointMotorControlArray(
-            body, self.wheel_link_ids, p.VELOCITY_CONTROL,
-            targetVelocities=targets, forces=torques, physicsClientId=cid,
+            body,
+            self.wheel_link_ids,
+            p.VELOCITY_CONTROL,
+            targetVelocities=targets,
+            forces=torques,
+            physicsClientId=cid,
         )
         p.applyExternalForce(body, -1, (-load * c, -load * s, 0.0), pos, p.WORLD_FRAME, physicsClientId=cid)
+
+    def _send_steer(self, delta: float) -> None:
+        left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
+        rate = self._steering.rate
+        p.setJointMotorControlArray(
+            self.body_id,
+            self.steer_joint_ids,
+            p.POSITION_CONTROL,
+            targetPositions=(left, right),
+            targetVelocities=(rate, rate),
+            forces=(_STEER_TORQUE, _STEER_TORQUE),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
+            velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
+            physicsClientId=self._cid,
+        )
+        self._sent_steer = (delta, rate)
 
     def reset_pose(self, pose: Pose, speed: float = 0.0) -> None:
         """Place the car (initial placement only) at `pose`, straight wheels, rolling forward at `speed`."""
@@ -142,6 +155,7 @@ class PyBulletVehicle:
         for j in self.wheel_link_ids:
             p.resetJointState(body, j, 0.0, speed / self.params.wheel_radius, physicsClientId=cid)
         self._steering.reset(0.0)
+        self._send_steer(0.0)
         self._cmd_steer = 0.0
         self._cmd_accel = 0.0
         self._speed = speed

@@ -5,7 +5,8 @@ from a steering knuckle (revolute about z) and spins on a continuous joint about
 directly on the body. Wheels collide as spheres of the wheel radius (a smooth single-point contact
 patch) with a friction coefficient of 1, so the road surface's friction sets the tyre grip, through a
 compliant contact (spring-damper sagging 3 cm under the static corner load, damping ratio 0.7) that
-stands in for tyre and suspension and shares the load over all four wheels; they are drawn as cylinders. The text is deterministic: the same parameters give byte-identical URDF.
+stands in for tyre and suspension and shares the load over all four wheels; they are drawn as
+cylinders. The text is deterministic: the same parameters give byte-identical URDF.
 """
 
 from __future__ import annotations
@@ -16,9 +17,10 @@ import tempfile
 from pathlib import Path
 
 from vehicles.params import VehicleParams
+from vehicles.road_load import GRAVITY
+from vehicles.steering import ackermann_angles
 
 KNUCKLE_MASS = 5.0
-GRAVITY = 9.81
 STATIC_DEFLECTION = 0.03  # m: compliant wheel-ground contact standing in for tyre + suspension
 DAMPING_RATIO = 0.7
 WHEEL_NAMES = ("front_left", "front_right", "rear_left", "rear_right")
@@ -47,16 +49,24 @@ def _box(origin: tuple[float, float, float], size: tuple[float, float, float]) -
     return f'<origin xyz="{_xyz(*origin)}"/><geometry><box size="{_xyz(*size)}"/></geometry>'
 
 
+def _visual(name: str, geometry: str, rgba: str) -> str:
+    return (
+        f'<visual name="{name}">{geometry}<material name="{name}"><color rgba="{rgba}"/></material></visual>'
+    )
+
+
 def _body_link(params: VehicleParams) -> str:
     cx, ch = params.cg_x, params.cg_height
     body_mass = params.mass - 4.0 * params.wheel_mass - 2.0 * KNUCKLE_MASS
     lower_h = params.hood_height - params.ground_clearance
-    lower = _box((-cx, 0.0, params.ground_clearance + lower_h / 2.0 - ch), (params.length, params.width, lower_h))
+    lower = _box(
+        (-cx, 0.0, params.ground_clearance + lower_h / 2.0 - ch), (params.length, params.width, lower_h)
+    )
     coll_h = params.height - params.ground_clearance
     collision = _box(
         (-cx, 0.0, params.ground_clearance + coll_h / 2.0 - ch), (params.length, params.width, coll_h)
     )
-    visuals = [f'<visual name="body">{lower}<material name="body"><color rgba="{_BODY_RGBA}"/></material></visual>']
+    visuals = [_visual("body", lower, _BODY_RGBA)]
     cabin_h = params.height - params.hood_height
     if cabin_h > 0.0:
         # The greenhouse ends just behind the camera so the camera never sits inside drawn geometry.
@@ -66,9 +76,7 @@ def _body_link(params: VehicleParams) -> str:
             ((x0 + x1) / 2.0 - cx, 0.0, params.hood_height + cabin_h / 2.0 - ch),
             (x1 - x0, params.width - 0.2, cabin_h),
         )
-        visuals.append(
-            f'<visual name="cabin">{cabin}<material name="cabin"><color rgba="{_CABIN_RGBA}"/></material></visual>'
-        )
+        visuals.append(_visual("cabin", cabin, _CABIN_RGBA))
     return (
         '<link name="body">'
         f'<inertial><origin xyz="0 0 0"/><mass value="{_f(body_mass)}"/>'
@@ -122,25 +130,37 @@ def urdf_text(params: VehicleParams) -> str:
     cx, ch = params.cg_x, params.cg_height
     z = params.wheel_radius - ch
     half_t = params.track_width / 2.0
-    steer_limit = math.atan2(
-        params.wheelbase * math.tan(params.max_steer),
-        params.wheelbase - half_t * math.tan(params.max_steer),
-    )
-    limit = f'<limit lower="{_f(-steer_limit - 0.05)}" upper="{_f(steer_limit + 0.05)}" effort="1e5" velocity="10"/>'
+    inner = ackermann_angles(params.max_steer, params.wheelbase, params.track_width)[0] + 0.05
+    limit = f'<limit lower="{_f(-inner)}" upper="{_f(inner)}" effort="1e5" velocity="10"/>'
     parts = [f'<?xml version="1.0"?>\n<robot name="{params.name}">', _body_link(params)]
     for name, side in (("front_left", 1.0), ("front_right", -1.0)):
         parts.append(_knuckle_link(name))
         parts.append(_wheel_link(params, name))
         parts.append(
-            _joint(f"steer_{name}", "revolute", "body", f"knuckle_{name}",
-                   _xyz(params.front_axle_x - cx, side * half_t, z), "0 0 1", limit)
+            _joint(
+                f"steer_{name}",
+                "revolute",
+                "body",
+                f"knuckle_{name}",
+                _xyz(params.front_axle_x - cx, side * half_t, z),
+                "0 0 1",
+                limit,
+            )
         )
-        parts.append(_joint(f"spin_{name}", "continuous", f"knuckle_{name}", f"wheel_{name}", "0 0 0", "0 1 0"))
+        parts.append(
+            _joint(f"spin_{name}", "continuous", f"knuckle_{name}", f"wheel_{name}", "0 0 0", "0 1 0")
+        )
     for name, side in (("rear_left", 1.0), ("rear_right", -1.0)):
         parts.append(_wheel_link(params, name))
         parts.append(
-            _joint(f"spin_{name}", "continuous", "body", f"wheel_{name}",
-                   _xyz(params.rear_axle_x - cx, side * half_t, z), "0 1 0")
+            _joint(
+                f"spin_{name}",
+                "continuous",
+                "body",
+                f"wheel_{name}",
+                _xyz(params.rear_axle_x - cx, side * half_t, z),
+                "0 1 0",
+            )
         )
     parts.append("</robot>\n")
     return "\n".join(parts)

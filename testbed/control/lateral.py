@@ -20,7 +20,7 @@ from testbed.control.plan import Plan
 
 SCHEDULE_MIN_SPEED = 1.0
 SCHEDULE_MAX_SPEED = 40.0
-SCHEDULE_STEP = 0.5
+SCHEDULE_STEP = 1.0
 
 
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -40,8 +40,10 @@ class LqrLateralController:
         model: LateralModel,
         max_steer: float,
         dt: float,
-        q: tuple[float, float, float, float] = (0.1, 0.0, 1.0, 0.0),
+        q: tuple[float, float, float, float] = (0.5, 0.0, 1.0, 0.0),
         r: float = 25.0,
+        q_integral: float = 0.05,
+        integral_limit: float = 0.03,
         hold_speed: float = 0.1,
     ) -> None:
         self.model = model
@@ -49,10 +51,11 @@ class LqrLateralController:
         self.dt = dt
         self.hold_speed = hold_speed
         self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
-        q_mat, r_mat = np.diag(q), np.array([[r]])
+        self.integral_limit = integral_limit
+        q_mat, r_mat = np.diag((q_integral, *q)), np.array([[r]])
         gains = []
         for v in self.speeds:
-            ad, bd = discretise(*model.error_dynamics(float(v)), dt)
+            ad, bd = self.augmented(*discretise(*model.error_dynamics(float(v)), dt), dt)
             k, _, _ = control.dlqr(ad, bd, q_mat, r_mat)
             gains.append(np.asarray(k, dtype=float).ravel())
         self.gains = np.array(gains)
@@ -61,6 +64,15 @@ class LqrLateralController:
         self._lr = model.lr
         self._lf_over_crl = model.lf * model.mass / (model.cr * model.wheelbase)
         self._last = 0.0
+        self._integral = 0.0
+
+    @staticmethod
+    def augmented(ad: np.ndarray, bd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Prepend the integral of e_y as a state: z[k+1] = z[k] + dt·e_y[k]."""
+        a = np.zeros((5, 5))
+        a[0, 0], a[0, 1] = 1.0, dt
+        a[1:, 1:] = ad
+        return a, np.vstack([np.zeros((1, 1)), bd])
 
     @classmethod
     def from_vehicle(cls, vehicle: Any, dt: float, **tuning: Any) -> LqrLateralController:
@@ -76,21 +88,16 @@ class LqrLateralController:
         )
         return cls(model, vehicle.max_steer, dt, **tuning)
 
-    def gain(self, speed: float) -> tuple[float, float, float, float]:
-        """K(v) linearly interpolated in the schedule (clamped to its speed range)."""
+    def gain(self, speed: float) -> tuple[float, ...]:
+        """K(v) = [k_∫, k_ey, k_ėy, k_eψ, k_ėψ] linearly interpolated in the schedule (clamped to its range)."""
         pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
         i = min(int(pos), len(self._gain_rows) - 2)
         f = pos - i
-        lo, hi = self._gain_rows[i], self._gain_rows[i + 1]
-        return (
-            lo[0] + f * (hi[0] - lo[0]),
-            lo[1] + f * (hi[1] - lo[1]),
-            lo[2] + f * (hi[2] - lo[2]),
-            lo[3] + f * (hi[3] - lo[3]),
-        )
+        return tuple(a + f * (b - a) for a, b in zip(self._gain_rows[i], self._gain_rows[i + 1], strict=True))
 
     def reset(self) -> None:
         self._last = 0.0
+        self._integral = 0.0
 
     def update(self, plan: Plan, speed: float, yaw_rate: float | None = None) -> float:
         """Steer angle for this tick. `yaw_rate` (rad/s, gyro) is optional: without it the yaw rate is
@@ -105,13 +112,17 @@ class LqrLateralController:
         v2k = v * v * kappa
         steer_ss = self.model.wheelbase * kappa + self._kv * v2k
         heading_ss = -self._lr * kappa + self._lf_over_crl * v2k
-        k1, k2, k3, k4 = self.gain(v)
+        ki, k1, k2, k3, k4 = self.gain(v)
         steer = (
             steer_ss
+            - ki * self._integral
             - k1 * plan.lateral_error
             - k2 * v * (math.sin(plan.heading_error) - heading_ss)
             - k3 * (plan.heading_error - heading_ss)
             - k4 * (yaw_rate - v * plan.local_curvature)
         )
         self._last = min(max(steer, -self.max_steer), self.max_steer)
+        if steer == self._last:  # anti-windup: integrate only while the command is not clamped
+            limit = self.integral_limit / max(ki, 1e-9)
+            self._integral = min(max(self._integral + self.dt * plan.lateral_error, -limit), limit)
         return self._last

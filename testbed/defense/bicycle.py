@@ -43,12 +43,14 @@ class BicycleModel:
         beta = np.arctan(c.rear_ratio * np.tan(c.steer_gain * steer))
         heading = yaw + beta
         v_next = np.maximum(v + (c.accel_gain * accel - c.drag * v) * dt, 0.0)
-        return np.array([
-            x + v * np.cos(heading) * dt,
-            y + v * np.sin(heading) * dt,
-            yaw + v * np.sin(beta) / (c.rear_ratio * c.wheelbase) * dt,
-            v_next,
-        ])
+        return np.array(
+            [
+                x + v * np.cos(heading) * dt,
+                y + v * np.sin(heading) * dt,
+                yaw + v * np.sin(beta) / (c.rear_ratio * c.wheelbase) * dt,
+                v_next,
+            ]
+        )
 
     def jacobian(self, state: np.ndarray, steer: float, accel: float, dt: float) -> np.ndarray:
         """∂step/∂state (4×4) at a single state."""
@@ -57,12 +59,14 @@ class BicycleModel:
         beta = float(np.arctan(c.rear_ratio * np.tan(c.steer_gain * steer)))
         cos_h, sin_h = np.cos(yaw + beta), np.sin(yaw + beta)
         braked_to_rest = v + (c.accel_gain * accel - c.drag * v) * dt <= 0.0
-        return np.array([
-            [1.0, 0.0, -v * sin_h * dt, cos_h * dt],
-            [0.0, 1.0, v * cos_h * dt, sin_h * dt],
-            [0.0, 0.0, 1.0, np.sin(beta) / (c.rear_ratio * c.wheelbase) * dt],
-            [0.0, 0.0, 0.0, 0.0 if braked_to_rest else 1.0 - c.drag * dt],
-        ])
+        return np.array(
+            [
+                [1.0, 0.0, -v * sin_h * dt, cos_h * dt],
+                [0.0, 1.0, v * cos_h * dt, sin_h * dt],
+                [0.0, 0.0, 1.0, np.sin(beta) / (c.rear_ratio * c.wheelbase) * dt],
+                [0.0, 0.0, 0.0, 0.0 if braked_to_rest else 1.0 - c.drag * dt],
+            ]
+        )
 
 
 _FIT_X0 = np.array([0.5, 1.0, 1.0, 0.0])
@@ -81,7 +85,7 @@ def fit_bicycle_coefficients(
     segments = [_segments(np.asarray(log, dtype=float), horizon_s) for log in logs]
     segments = [s for s in segments if s is not None]
     if not segments:
-        raise ValueError(f"no log is longer than the {horizon_s} s fitting horizon")
+        raise ValueError(f"no usable log (N×7, finite, increasing t, longer than the {horizon_s} s horizon)")
     horizon = min(s[0].shape[1] for s in segments)
     cmd = np.concatenate([c[:, :horizon] for c, _ in segments])
     meas = np.concatenate([m[:, : horizon + 1] for _, m in segments])
@@ -104,6 +108,8 @@ def _segments(log: np.ndarray, horizon_s: float) -> tuple[np.ndarray, np.ndarray
     if log.ndim != 2 or log.shape[1] != len(LOG_COLUMNS) or len(log) < 3 or not np.isfinite(log).all():
         return None
     dt = np.diff(log[:, 0])
+    if not (dt > 0.0).all():
+        return None
     horizon = round(horizon_s / float(np.median(dt)))
     if horizon < 1 or len(log) <= horizon:
         return None

@@ -79,7 +79,8 @@ class Ld3Defense(Defense):
             self.faults.report("off-map", msf.t, f"lane_point: {err}; fused pose carried by MSF motion")
             if self._fused_offset is None:
                 return pose
-            return Pose(pose.x + self._fused_offset[0], pose.y + self._fused_offset[1], pose.yaw)
+            self._fused_pose = Pose(pose.x + self._fused_offset[0], pose.y + self._fused_offset[1], pose.yaw)
+            return self._fused_pose
         fused = pose_on_lane(point, heading, step.d, pose.yaw)
         self._fused_pose = fused
         self._fused_offset = (fused.x - pose.x, fused.y - pose.y)

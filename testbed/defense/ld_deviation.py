@@ -17,11 +17,12 @@ from testbed.perception.detection import LaneDetection
 
 def line_distance(coeffs: np.ndarray | None, prob: float, existence_threshold: float) -> float:
     """|y(0)| of a valid line, +inf for an invalid one (missing, non-finite, or below the threshold)."""
-    if coeffs is None or len(coeffs) == 0 or not prob >= existence_threshold:
+    if coeffs is None or not prob >= existence_threshold:
         return math.inf
-    if not all(math.isfinite(float(c)) for c in coeffs):
+    values = coeffs.tolist() if isinstance(coeffs, np.ndarray) else list(coeffs)
+    if not values or not all(map(math.isfinite, values)):
         return math.inf
-    return abs(float(coeffs[0]))
+    return abs(values[0])
 
 
 class LdDeviation:

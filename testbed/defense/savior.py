@@ -81,7 +81,9 @@ class SaviorDefense(Defense):
         self._speed = speed
         if self.ekf is not None:
             self.ekf.update(
-                np.array([[speed]]), lambda _: _H_SPEED, lambda x: _H_SPEED @ x,
+                np.array([[speed]]),
+                lambda _: _H_SPEED,
+                lambda x: _H_SPEED @ x,
                 R=np.array([[self.config.savior_speed_std**2]]),
             )
 

@@ -84,7 +84,7 @@ class SimRun:
         for painter in self.condition.track_painters(sc.seed):
             self.track.add_painter(painter)
         if self.attack is not None:
-            for painter in self.attack.painters(self.track):
+            for painter in self.attack.painters():
                 self.track.add_painter(painter)
         needs_camera = sc.detector in ("neural", "classical") if render is None else render
         self.rig = CameraRig(self.params.camera)

@@ -7,8 +7,9 @@ random direction); the receiver reports a covariance that grows only partly duri
 LiDAR locator (10 Hz): a map matcher whose search starts at the MSF predicted pose. Where the map has
 few features (the track's `feature_quality`, further reduced by random traffic-occlusion episodes) the
 cost surface is flat, so the match converges only part of the way from the prior to the truth
-(`pull` ∈ [pull_poor, 1]), and not at all once the prior is beyond the capture radius. Its noise and its
-reported covariance grow in those stretches. The residual dependence of the match on the prior is not
+(`pull` ∈ [pull_poor, 1]), and not at all once the prior is beyond the capture radius (pull × exp(−½(δ/r)⁴),
+δ = prior error): the match is then lost and reports a large covariance. Noise and reported covariance
+also grow in feature-poor stretches. The residual dependence of the match on the prior is not
 in the reported covariance: a fused estimate that drifts drags the locator with it.
 
 IMU (100 Hz): longitudinal accelerometer and yaw gyro with white noise and random-walk biases.
@@ -80,14 +81,14 @@ class _Schedule:
 class GnssModel:
     """GNSS error model parameters (m, s)."""
 
-    bias_std: float = 0.25
-    bias_tau: float = 120.0
-    noise_std: float = 0.12
-    reported_std: float = 0.5
+    bias_std: float = 0.1
+    bias_tau: float = 60.0
+    noise_std: float = 0.08
+    reported_std: float = 0.3
     multipath_rate: float = 1.0 / 90.0
     multipath_duration: tuple[float, float] = (2.0, 6.0)
     multipath_offset: tuple[float, float] = (0.5, 2.5)
-    multipath_reported_gain: float = 0.4
+    multipath_reported_gain: float = 0.8
 
 
 class GnssSensor:
@@ -143,10 +144,11 @@ class LidarModel:
     yaw_std_rich: float = 0.002
     yaw_std_poor: float = 0.01
     pull_poor: float = 0.15
-    capture_radius: float = 1.2
-    occlusion_rate: float = 1.0 / 30.0
-    occlusion_duration: tuple[float, float] = (4.0, 12.0)
-    occlusion_depth: tuple[float, float] = (0.3, 0.9)
+    capture_radius: float = 0.6
+    lost_reported_std: float = 1.0
+    occlusion_rate: float = 1.0 / 12.0
+    occlusion_duration: tuple[float, float] = (4.0, 10.0)
+    occlusion_depth: tuple[float, float] = (0.5, 1.0)
 
 
 class LidarLocator:
@@ -189,10 +191,12 @@ class LidarLocator:
         poor = 1.0 - q
         offset = np.array([prior.x - true_pose.x, prior.y - true_pose.y])
         dist = float(np.linalg.norm(offset))
-        pull = (m.pull_poor + (1.0 - m.pull_poor) * q) * math.exp(-0.5 * (dist / m.capture_radius) ** 2)
+        captured = math.exp(-0.5 * (dist / m.capture_radius) ** 4)
+        pull = (m.pull_poor + (1.0 - m.pull_poor) * q) * captured
         std = m.noise_std_rich + (m.noise_std_poor - m.noise_std_rich) * poor
         yaw_std = m.yaw_std_rich + (m.yaw_std_poor - m.yaw_std_rich) * poor
         rep = m.reported_std_rich + (m.reported_std_poor - m.reported_std_rich) * poor
+        rep += m.lost_reported_std * (1.0 - captured)
         xy = np.array([true_pose.x, true_pose.y]) + (1.0 - pull) * offset + std * self.rng.normal(size=2)
         yaw = true_pose.yaw + (1.0 - pull) * _wrap(prior.yaw - true_pose.yaw) + yaw_std * self.rng.normal()
         cov = np.diag([rep * rep, rep * rep, (2.0 * yaw_std) ** 2])

@@ -45,12 +45,16 @@ def drive(
     yaw_noise: float = 0.002,
     on_tick: Callable[[float, LanePlanner, BicyclePlant], None] | None = None,
     plant_params: PlantParams | None = None,
+    lateral: LqrLateralController | None = None,
+    gyro: bool = True,
 ) -> Trace:
-    """Drive lane 0 from s = 5 m at `speed`, starting `offset` m left of the centreline."""
+    """Drive lane 0 from s = 5 m at `speed`, starting `offset` m left of the centreline; `gyro` passes
+    the plant's yaw rate to the lateral controller (else it estimates it from its last command)."""
     pp = plant_params or PlantParams()
     plant = BicyclePlant(pp, Pose(smap.xy[50, 0], smap.xy[50, 1] + offset, 0.0), speed)
     planner = LanePlanner(smap, 0, speed)
-    lateral = LqrLateralController(controller_model(), pp.max_steer, DT)
+    lateral = lateral or LqrLateralController(controller_model(), pp.max_steer, DT)
+    lateral.reset()
     longitudinal = SpeedController()
     trace = Trace()
     for i in range(round(duration / DT)):
@@ -62,7 +66,7 @@ def drive(
         if on_tick is not None:
             on_tick(t, planner, plant)
         plan = planner.plan(noisy, plant.vx, t)
-        steer = lateral.update(plan, plant.vx, yaw_rate=plant.r)
+        steer = lateral.update(plan, plant.vx, yaw_rate=plant.r if gyro else None)
         accel = longitudinal.update(plan, plant.vx, DT)
         trace.t.append(t)
         trace.dev.append(smap.lane_dev(true, 0))

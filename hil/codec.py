@@ -1,0 +1,110 @@
+"""Chassis frame codec: cantools coding of hil/dbc/chassis.dbc plus life counters and checksums.
+
+One codec instance is one endpoint: `encode` fills the next life counter of that frame ID (for IDs that
+carry one) and seals byte 7 with the XOR checksum; `decode` rejects a frame unless it is a standard, non-
+remote 8-byte frame of a known ID with a correct checksum, every signal within its DBC range, and (for
+IDs with a life counter) the successor of the previous counter on that ID. Physical units are those of
+the DBC (degrees for angles); the SI conversions live in `hil.actuator_map` and `hil.report_map`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+import cantools
+from cantools.database.can import Message as DbcMessage
+
+from hil.integrity import (
+    CHECKSUM_BYTE,
+    FRAME_LENGTH,
+    LifeCounter,
+    LifeMonitor,
+    LifeVerdict,
+    checksum_ok,
+    xor_checksum,
+)
+
+DBC_PATH = Path(__file__).resolve().parent / "dbc" / "chassis.dbc"
+
+
+class FrameRejected(Exception):
+    """A received frame failed verification; `reason` is "format", "checksum", "range" or "counter"."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class DecodedFrame:
+    """A verified frame: DBC message name, ID and physical signal values (checksum and life included)."""
+
+    name: str
+    frame_id: int
+    signals: Mapping[str, float]
+
+
+def _suffixed(message: DbcMessage, suffix: str) -> str | None:
+    names = [s.name for s in message.signals if s.name.endswith(suffix)]
+    return names[0] if names else None
+
+
+class ChassisCodec:
+    """Encodes and decodes chassis frames for one endpoint; owns its tx counters and rx monitors."""
+
+    def __init__(self, dbc_path: Path = DBC_PATH) -> None:
+        self.db = cantools.database.load_file(str(dbc_path), strict=True)
+        self._messages = {m.frame_id: m for m in self.db.messages}
+        self._life = {m.frame_id: _suffixed(m, "Life") for m in self.db.messages}
+        self._checksum = {m.frame_id: _suffixed(m, "Checksum") for m in self.db.messages}
+        self._tx_life: dict[int, LifeCounter] = {i: LifeCounter() for i, n in self._life.items() if n}
+        self._rx_life: dict[int, LifeMonitor] = {i: LifeMonitor() for i, n in self._life.items() if n}
+
+    def frame_id(self, name: str) -> int:
+        return self.db.get_message_by_name(name).frame_id
+
+    def knows(self, frame_id: int) -> bool:
+        return frame_id in self._messages
+
+    def encode(self, name: str, signals: Mapping[str, float]) -> can.Message:
+        """A sealed frame of message `name`; `signals` holds all signals but the life counter and checksum."""
+        message = self.db.get_message_by_name(name)
+        payload = dict(signals)
+        payload[self._checksum[message.frame_id]] = 0
+        life_name = self._life[message.frame_id]
+        if life_name:
+            payload[life_name] = self._tx_life[message.frame_id].next()
+        data = bytearray(message.encode(payload, strict=True))
+        data[CHECKSUM_BYTE] = xor_checksum(data)
+        return can.Message(arbitration_id=message.frame_id, is_extended_id=False, dlc=FRAME_LENGTH, data=data)
+
+    def decode(self, frame: can.Message) -> DecodedFrame:
+        """Verify and decode a received frame; raises FrameRejected."""
+        message = self._messages.get(frame.arbitration_id)
+        odd_kind = frame.is_extended_id or frame.is_remote_frame or frame.is_error_frame or frame.is_fd
+        if message is None or odd_kind:
+            raise FrameRejected("format", f"not a chassis frame: {frame}")
+        data = bytes(frame.data)
+        if frame.dlc != FRAME_LENGTH or len(data) != FRAME_LENGTH:
+            raise FrameRejected("format", f"{message.name}: DLC {frame.dlc}, {len(data)} bytes")
+        if not checksum_ok(data):
+            raise FrameRejected("checksum", f"{message.name}: {data.hex()}")
+        signals = message.decode(data, decode_choices=False, scaling=False)
+        physical = {}
+        for signal in message.signals:
+            raw = signals[signal.name]
+            value = signal.conversion.raw_to_scaled(raw, decode_choices=False)
+            lo, hi = signal.minimum, signal.maximum
+            tolerance = abs(signal.scale) / 2
+            if (lo is not None and value < lo - tolerance) or (hi is not None and value > hi + tolerance):
+                raise FrameRejected("range", f"{message.name}.{signal.name} = {value}")
+            physical[signal.name] = value
+        life_name = self._life[message.frame_id]
+        if life_name:
+            verdict = self._rx_life[message.frame_id].check(int(physical[life_name]))
+            if verdict is not LifeVerdict.OK:
+                raise FrameRejected("counter", f"{message.name}: life {physical[life_name]} {verdict.value}")
+        return DecodedFrame(message.name, message.frame_id, physical)

@@ -1,0 +1,36 @@
+"""Frame recorder: every frame a bridge sends and receives, written by can.Logger (.asc or .blf)."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import can
+
+LOG_SUFFIXES = (".asc", ".blf")
+
+
+class FrameRecorder(can.Listener):
+    """A thread-safe can.Listener writing to a can.Logger file; attach with CanChassisBridge.add_listener."""
+
+    def __init__(self, path: Path) -> None:
+        if path.suffix not in LOG_SUFFIXES:
+            raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {path}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.frames = 0
+        self._lock = threading.Lock()
+        self._logger = can.Logger(str(path))
+        self._closed = False
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._lock:
+            if not self._closed:
+                self._logger.on_message_received(msg)
+                self.frames += 1
+
+    def stop(self) -> None:
+        with self._lock:
+            if not self._closed:
+                self._closed = True
+                self._logger.stop()

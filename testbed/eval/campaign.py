@@ -1,0 +1,82 @@
+"""Campaigns: many scenario runs in worker processes, each in its own folder, resumable.
+
+A run whose `summary.json` exists is not run again, so a campaign interrupted half-way continues
+where it stopped; a run that fails is recorded in `failures.txt` with its error and the campaign goes on.
+The collected summaries go to `runs.csv` and the campaign's own table to `report.md`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import multiprocessing as mp
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from testbed.eval.scenario import Scenario
+
+
+@dataclass(frozen=True)
+class CampaignRun:
+    run_id: str
+    scenario: Scenario
+    tags: dict[str, Any]
+
+
+def _execute(job: tuple[CampaignRun, Path]) -> tuple[str, dict[str, Any] | None, str | None]:
+    from testbed.eval.runner import run_scenario
+
+    run, out = job
+    run_dir = out / run.run_id
+    try:
+        result = run_scenario(run.scenario, run_dir)
+        return run.run_id, result.summary, None
+    except Exception as exc:  # a failing run is reported, never allowed to sink the campaign
+        return run.run_id, None, f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}"
+
+
+def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2,
+                 progress: bool = True) -> list[tuple[CampaignRun, dict[str, Any]]]:
+    """Run every campaign run not yet done; returns (run, summary) for all runs that have a summary."""
+    out.mkdir(parents=True, exist_ok=True)
+    by_id = {r.run_id: r for r in runs}
+    todo = [(r, out) for r in runs if not (out / r.run_id / "summary.json").exists()]
+    failures: list[str] = []
+    if todo:
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(processes=max(1, workers)) as pool:
+            it = pool.imap_unordered(_execute, todo)
+            for run_id, _summary, error in tqdm(it, total=len(todo), desc=out.name, disable=not progress):
+                if error is not None:
+                    failures.append(f"{run_id}: {error}")
+    if failures:
+        (out / "failures.txt").write_text("\n".join(failures))
+    done = []
+    for run_id, run in by_id.items():
+        path = out / run_id / "summary.json"
+        if path.exists():
+            done.append((run, json.loads(path.read_text())))
+    _write_runs_csv(out / "runs.csv", done)
+    return done
+
+
+def _write_runs_csv(path: Path, done: Iterable[tuple[CampaignRun, dict[str, Any]]]) -> None:
+    rows = [{"run_id": r.run_id, **r.tags, **{k: v for k, v in s.items() if not isinstance(v, dict | list)}}
+            for r, s in done]
+    if not rows:
+        return
+    keys: list[str] = []
+    for row in rows:
+        keys += [k for k in row if k not in keys]
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+CampaignBuilder = Callable[[int], list[CampaignRun]]

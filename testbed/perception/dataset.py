@@ -1,0 +1,239 @@
+"""Labelled camera frames rendered from the testbed's own camera, for training and evaluating lane detectors.
+
+An episode is one preset track at one seed under one condition: the camera is placed at a run of poses
+along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera pitch and height jitter),
+the frame rendered and labelled from the map (`labels.ego_lines`). On top of the preset's own look the
+episode randomises asphalt tone, marking brightness, exposure, blur and noise, and erases the paint of
+random lane-line stretches (unmarked edges and gaps) so missing lines are common. Track seeds for
+training come from `TRAIN_SEEDS`; `HELD_OUT_SEEDS` is reserved for evaluation and never trained on.
+Shards are `.npz` files: images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from testbed.camera import CONDITIONS, FrontCamera, get_condition
+from testbed.perception.labels import ego_lines
+from testbed.world import TileStreamer
+from tracks.layout import Boundary, MarkingRun
+from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
+from tracks.pose import Pose
+from tracks.presets import PRESETS, load_track
+from tracks.texture import TileFrame
+from vehicles.camera_rig import CameraRig
+from vehicles.params import get_vehicle
+
+TRAIN_SEEDS = range(1, 9000)
+HELD_OUT_SEEDS = range(9000, 9100)
+MAX_LATERAL_OFFSET = 1.5  # m
+MAX_YAW_OFFSET = math.radians(5.0)
+PITCH_JITTER = math.radians(0.5)
+HEIGHT_JITTER = 0.05  # m
+POSES_PER_STATION = 2  # frames rendered at each station along the road (different pose and rig)
+LABEL_KEYS = ("left", "right", "left_exists", "right_exists", "lane_width", "deviation")
+
+
+class MarkingFadePainter:
+    """Scales the contrast of the lane-line paint against the asphalt by `brightness` (1 = unchanged)."""
+
+    def __init__(self, brightness: float) -> None:
+        self.brightness = brightness
+
+    def paint(self, img: np.ndarray, frame: TileFrame, rng: np.random.Generator) -> None:
+        cover = marking_coverage(frame)[..., None]
+        if not cover.any():
+            return
+        base = np.median(img[::7, ::7].reshape(-1, 3), axis=0)
+        work = img.astype(float)
+        work = work + cover * (self.brightness - 1.0) * (work - base)
+        img[:] = np.clip(work + 0.5, 0, 255).astype(np.uint8)
+
+
+def erase_stretches(track, rng: np.random.Generator, per_km: float = 3.0) -> None:
+    """Replace random stretches (15-80 m) of each lane line by 'none': unmarked edges and gaps."""
+    new = []
+    for boundary in track.boundaries:
+        n = rng.poisson(per_km * track.length / 1000.0)
+        gaps = sorted((float(a), float(a + rng.uniform(15.0, 80.0))) for a in rng.uniform(0, track.length, n))
+        runs: list[MarkingRun] = []
+        for run in boundary.runs:
+            pieces = [(run.s0, run.s1)]
+            for a, b in gaps:
+                pieces = [p for lo, hi in pieces for p in ((lo, min(hi, a)), (max(lo, b), hi)) if p[1] > p[0]]
+            covered = run.s0
+            for lo, hi in pieces:
+                if lo > covered:
+                    runs.append(MarkingRun(covered, lo, "none"))
+                runs.append(MarkingRun(lo, hi, run.kind))
+                covered = hi
+            if covered < run.s1:
+                runs.append(MarkingRun(covered, run.s1, "none"))
+        new.append(Boundary(boundary.t, tuple(runs)))
+    track.boundaries = new
+
+
+def sensor_randomise(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Extra exposure gain, blur and noise on a rendered frame."""
+    out = img.astype(np.float32) * float(np.exp(rng.uniform(-0.35, 0.35)))
+    if rng.random() < 0.3:
+        out = cv2.GaussianBlur(out, (0, 0), float(rng.uniform(0.3, 1.0)))
+    out += rng.normal(0.0, rng.uniform(0.0, 4.0), out.shape).astype(np.float32)
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One track, seed and condition; frames are drawn from `seed` too."""
+
+    preset: str
+    seed: int
+    condition: str
+
+
+def episodes(split: str, count: int, seed: int) -> list[Episode]:
+    """`count` episodes cycling over every preset and condition, track seeds drawn from the split."""
+    seeds = TRAIN_SEEDS if split == "train" else HELD_OUT_SEEDS
+    if split not in ("train", "heldout"):
+        raise ValueError(f"split must be 'train' or 'heldout', got {split!r}")
+    rng = np.random.default_rng([seed, 0 if split == "train" else 1])
+    presets, conditions = list(PRESETS), list(CONDITIONS)
+    out = []
+    for i in range(count):
+        preset = presets[i % len(presets)]
+        condition = conditions[(i // len(presets) + i) % len(conditions)]
+        out.append(Episode(preset, int(rng.choice(seeds)), condition))
+    return out
+
+
+def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterator[tuple[np.ndarray, dict]]:
+    """Yield (image, label) for `n_frames` poses along one random lane of the episode's track."""
+    rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))])
+    track = load_track(f"{ep.preset}@{ep.seed}")
+    condition = get_condition(ep.condition)
+    erase_stretches(track, rng)
+    track.painters = [
+        AsphaltPainter(tone=float(rng.uniform(0.65, 1.35)), grain=float(rng.uniform(4.0, 10.0))),
+        MarkingPainter(),
+        MarkingFadePainter(float(rng.uniform(0.55, 1.1))),
+        *condition.track_painters(ep.seed),
+    ]
+    base_rig = CameraRig(get_vehicle(vehicle).camera)
+    streamer = TileStreamer(track, ep.seed, radius_m=55.0)
+    try:
+        lane = track.lanes[int(rng.integers(len(track.lanes)))]
+        mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
+        s = float(rng.uniform(0.0, min(40.0, 0.2 * track.length)))
+        for i in range(n_frames):
+            if s > track.length - 2.0:
+                break
+            yield _render_pose(track, lane, s, streamer, base_rig, condition, rng, ep)
+            if i % POSES_PER_STATION == POSES_PER_STATION - 1:
+                s += float(rng.uniform(0.4, 1.6)) * mean_step
+    finally:
+        streamer.close()
+
+
+def _render_pose(track, lane, s: float, streamer: TileStreamer, base_rig: CameraRig, condition,
+                 rng: np.random.Generator, ep: Episode) -> tuple[np.ndarray, dict]:
+    x, y = lane.position(s, float(rng.uniform(-MAX_LATERAL_OFFSET, MAX_LATERAL_OFFSET)))
+    pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
+    rig = base_rig.with_jitter(float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)),
+                               float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER)))
+    streamer.update(x, y)
+    image = sensor_randomise(FrontCamera(streamer.client, rig, condition, rng).render(pose), rng)
+    truth = ego_lines(track, pose)
+    label = {
+        "left": truth.left.coeffs, "right": truth.right.coeffs,
+        "left_exists": truth.left.exists, "right_exists": truth.right.exists,
+        "lane_width": truth.width, "deviation": truth.deviation,
+        "meta": {"preset": ep.preset, "seed": ep.seed, "condition": ep.condition, "s": round(s, 2),
+                 "lane": truth.lane, "pose": [round(v, 4) for v in pose]},
+    }
+    return image, label
+
+
+def write_shard(path: Path, images: list[np.ndarray], labels: list[dict]) -> None:
+    arrays = {k: np.asarray([lb[k] for lb in labels]) for k in LABEL_KEYS}
+    meta = np.asarray([json.dumps(lb["meta"]) for lb in labels])
+    np.savez(path, images=np.stack(images), meta=meta, **arrays)
+
+
+@dataclass
+class FrameSet:
+    """Frames and labels loaded from a dataset directory (all shards concatenated)."""
+
+    images: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    left_exists: np.ndarray
+    right_exists: np.ndarray
+    lane_width: np.ndarray
+    deviation: np.ndarray
+    meta: list[dict]
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+
+def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
+    shards = sorted(Path(directory).glob("shard_*.npz"))
+    if not shards:
+        raise FileNotFoundError(f"no dataset shards (shard_*.npz) in {directory}")
+    parts: dict[str, list] = {k: [] for k in ("images", *LABEL_KEYS)}
+    meta: list[dict] = []
+    for shard in shards:
+        with np.load(shard) as z:
+            for k in parts:
+                parts[k].append(z[k])
+            meta += [json.loads(m) for m in z["meta"]]
+        if limit is not None and len(meta) >= limit:
+            break
+    cat = {k: np.concatenate(v)[:limit] for k, v in parts.items()}
+    return FrameSet(meta=meta[:limit], **cat)
+
+
+def _render_to_shard(job: tuple[Episode, int, Path]) -> int:
+    ep, n_frames, path = job
+    frames = list(render_episode(ep, n_frames))
+    if frames:
+        write_shard(path, [f[0] for f in frames], [f[1] for f in frames])
+    return len(frames)
+
+
+def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
+                  workers: int = 1, progress: bool = False) -> int:
+    """Render about `frames` labelled frames into `out` (one shard per episode); returns the frame count."""
+    from multiprocessing import get_context
+
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    n_eps = max(1, math.ceil(frames / frames_per_episode))
+    jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz")
+            for i, ep in enumerate(episodes(split, n_eps, seed))]
+    bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
+    done = 0
+    if workers > 1:
+        with get_context("spawn").Pool(workers) as pool:
+            for n in pool.imap_unordered(_render_to_shard, jobs):
+                done += n
+                bar.update(n)
+    else:
+        for job in jobs:
+            n = _render_to_shard(job)
+            done += n
+            bar.update(n)
+    bar.close()
+    (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
+                                                  "episodes": n_eps, "held_out_seeds": [HELD_OUT_SEEDS.start,
+                                                                                        HELD_OUT_SEEDS.stop]}))
+    return done

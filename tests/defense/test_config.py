@@ -1,0 +1,41 @@
+import pytest
+
+from testbed.defense.config import DefenseConfig
+from testbed.defense.factory import make_defense
+
+
+def test_defaults_follow_the_paper():
+    c = DefenseConfig()
+    assert (c.b, c.tau, c.ar_decel) == (0.6, 0.1, 4.0)
+
+
+def test_from_dict_accepts_ints_for_floats():
+    c = DefenseConfig.from_dict({"b": 1, "tau": 0.2, "window": 10, "ar_decel": 2.5})
+    assert (c.b, c.tau, c.window, c.ar_decel) == (1.0, 0.2, 10, 2.5)
+    assert isinstance(c.b, float)
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"bee": 0.6}, "unknown"),
+        ({"lam": 1.5}, "lam"),
+        ({"window": 0}, "window"),
+        ({"window": 2.5}, "window"),
+        ({"tau": -0.1}, "tau"),
+        ({"ar_decel": 0}, "ar_decel"),
+        ({"b": "0.6"}, "b"),
+        ({"b": True}, "b"),
+        ({"p_ld": float("nan")}, "p_ld"),
+    ],
+)
+def test_from_dict_rejects_bad_tables(table, message):
+    with pytest.raises(ValueError, match=message):
+        DefenseConfig.from_dict(table)
+
+
+def test_factory_names_and_unknown_name():
+    for name in ("ld3", "ld3-naive-ar", "savior", "none"):
+        assert make_defense(name, DefenseConfig()).name == name
+    with pytest.raises(ValueError, match=r"unknown defense 'ld4'.*ld3, ld3-naive-ar, savior, none"):
+        make_defense("ld4", DefenseConfig())

@@ -1,0 +1,83 @@
+import math
+
+import numpy as np
+import pytest
+from scipy.special import fresnel
+
+from tracks.geometry import Arc, Clothoid, ReferenceLine, Straight, bend
+from tracks.pose import Pose
+
+R = 60.0
+
+
+@pytest.fixture(scope="module")
+def circle_line() -> ReferenceLine:
+    return ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(100.0), Arc(R, R * math.pi)])
+
+
+def test_arc_positions_match_the_analytic_circle(circle_line):
+    for s in (100.0, 123.4, 187.77, 100.0 + R * math.pi):
+        phi = (s - 100.0) / R
+        x, y, h = circle_line.frame(s)
+        assert x == pytest.approx(100.0 + R * math.sin(phi), abs=1e-9)
+        assert y == pytest.approx(R - R * math.cos(phi), abs=1e-9)
+        assert h == pytest.approx(phi, abs=1e-12)
+
+
+def test_projection_on_an_arc_matches_the_circle(circle_line):
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        phi, r = rng.uniform(0.05, 3.0), rng.uniform(R - 8.0, R + 8.0)
+        s, t = circle_line.project(100.0 + r * math.sin(phi), R - r * math.cos(phi))
+        assert s == pytest.approx(100.0 + R * phi, abs=1e-6)
+        assert t == pytest.approx(R - r, abs=1e-6)  # inside the left turn is + (left)
+
+
+def test_projection_is_the_same_warm_or_cold(circle_line):
+    circle_line.project(0.0, 0.0)
+    warm = circle_line.project(150.0, 20.0)
+    circle_line._hint = None
+    cold = circle_line.project(150.0, 20.0)
+    assert warm == pytest.approx(cold, abs=1e-9)
+
+
+def test_clothoid_matches_fresnel_integrals():
+    length, k1 = 40.0, 1.0 / 50.0
+    line = ReferenceLine(Pose(0.0, 0.0, 0.0), [Clothoid(0.0, k1, length)])
+    a = math.sqrt(math.pi * length / k1)  # k(s) = s / (a^2 / pi) -> x = a C(s/a), y = a S(s/a)
+    for s in (10.0, 25.0, 40.0):
+        fs, fc = fresnel(s / a)
+        x, y, h = line.frame(s)
+        assert x == pytest.approx(a * fc, abs=1e-7)
+        assert y == pytest.approx(a * fs, abs=1e-7)
+        assert h == pytest.approx(0.5 * k1 * s * s / length, abs=1e-12)
+    s, t = line.project(*line.point(33.0, -1.5))
+    assert (s, t) == pytest.approx((33.0, -1.5), abs=1e-6)
+
+
+def test_bend_is_curvature_continuous_and_turns_the_angle():
+    segs = [Straight(50.0), *bend(-80.0, math.radians(70.0), 25.0), Straight(50.0)]
+    line = ReferenceLine(Pose(5.0, -3.0, 0.3), segs, step=0.25)
+    jumps = np.abs(np.diff(line.curvature))
+    assert jumps.max() <= (1.0 / 80.0) / 25.0 * line.ds + 1e-12
+    assert line.heading[-1] == pytest.approx(0.3 - math.radians(70.0), abs=1e-12)
+    assert line.curvature.min() == pytest.approx(-1.0 / 80.0)
+
+
+def test_bend_rejects_a_transition_longer_than_the_bend():
+    with pytest.raises(ValueError):
+        bend(60.0, math.radians(10.0), 30.0)
+
+
+def test_points_vectorised_agree_with_point(circle_line):
+    s = np.array([3.0, 99.9, 140.0, 250.0])
+    pts = circle_line.points(s, 1.25)
+    for (x, y), sv in zip(pts, s, strict=True):
+        assert (x, y) == pytest.approx(circle_line.point(float(sv), 1.25), abs=1e-9)
+
+
+def test_beyond_the_end_extends_straight(circle_line):
+    x_end, y_end, h_end = circle_line.frame(circle_line.length)
+    s, t = circle_line.project(x_end + 5.0 * math.cos(h_end), y_end + 5.0 * math.sin(h_end))
+    assert s == pytest.approx(circle_line.length + 5.0, abs=1e-6)
+    assert t == pytest.approx(0.0, abs=1e-6)

@@ -1,0 +1,47 @@
+"""A bare PyBullet world for vehicle tests: DIRECT client, 240 Hz, gravity, infinite flat ground (μ = 1)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pybullet as p
+
+from vehicles.pybullet_vehicle import PyBulletVehicle
+
+DT = 1.0 / 240.0
+
+
+def make_world(solver_iterations: int | None = None) -> int:
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0.0, 0.0, -9.81, physicsClientId=cid)
+    p.setTimeStep(DT, physicsClientId=cid)
+    if solver_iterations is not None:
+        p.setPhysicsEngineParameter(numSolverIterations=solver_iterations, physicsClientId=cid)
+    ground = p.createMultiBody(
+        0.0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), physicsClientId=cid
+    )
+    p.changeDynamics(ground, -1, lateralFriction=1.0, physicsClientId=cid)
+    return cid
+
+
+def drive(
+    cid: int,
+    vehicle: PyBulletVehicle,
+    seconds: float,
+    controller: Callable[[], tuple[float, float]],
+    on_step: Callable[[], None] | None = None,
+) -> None:
+    """Step the world for `seconds`, asking `controller` for (steer, accel) before every physics step."""
+    for _ in range(round(seconds / DT)):
+        vehicle.apply(*controller())
+        vehicle.pre_step(DT)
+        p.stepSimulation(physicsClientId=cid)
+        if on_step is not None:
+            on_step()
+
+
+def speed_controller(
+    vehicle: PyBulletVehicle, target: float, steer: float = 0.0
+) -> Callable[[], tuple[float, float]]:
+    """Proportional speed control (1 s⁻¹) at a constant steering angle."""
+    return lambda: (steer, 1.0 * (target - vehicle.speed()))

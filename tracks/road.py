@@ -1,0 +1,166 @@
+"""A track: one road of same-direction lanes on a reference line, with markings, edges, intersections,
+its collision bodies, a LiDAR feature-quality profile and its streamed, procedurally painted tiles.
+
+The reference line runs along the centre of the ego lane (so s is the ego lane's own arc length); lanes
+are indexed 0 = rightmost; lateral offsets t are + left.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from tracks import obstacles as obstacle_builder
+from tracks import texture
+from tracks.geometry import ReferenceLine
+from tracks.lane import Lane
+from tracks.layout import Boundary, CollisionBox, Edge, MarkingRun
+from tracks.paint import AsphaltPainter, MarkingPainter
+from tracks.pose import Pose
+from tracks.texture import Painter
+
+SEDAN_WIDTH = 1.90  # m; the vehicle width the presets' lane straddle deviations are quoted for
+
+
+class Track:
+    """A named road (`name@seed`) with lanes, lane lines, edges, intersections and tiles."""
+
+    def __init__(
+        self,
+        name: str,
+        seed: int,
+        description: str,
+        reference: ReferenceLine,
+        lane_widths: Sequence[float],
+        line_kinds: Sequence[str],
+        right: Edge,
+        left: Edge,
+        ego_lane: int = 0,
+        intersections: Sequence[tuple[float, float]] = (),
+        lidar_profile: tuple[np.ndarray, np.ndarray] | None = None,
+        painters: Sequence[Painter] | None = None,
+        tile_length: float = 20.0,
+        px_per_m: float = 25.0,
+    ) -> None:
+        if len(line_kinds) != len(lane_widths) + 1:
+            raise ValueError("need one marking kind per lane line (lanes + 1)")
+        if not 0 <= ego_lane < len(lane_widths):
+            raise ValueError(f"ego lane {ego_lane} out of range")
+        self.name = name
+        self.seed = seed
+        self.description = description
+        self.reference = reference
+        self.length = reference.length
+        self.ego_lane = ego_lane
+        self.right, self.left = right, left
+        self.intersections = sorted((float(a), float(b)) for a, b in intersections)
+        offsets = np.concatenate([[0.0], np.cumsum(lane_widths)])
+        offsets -= offsets[ego_lane] + 0.5 * lane_widths[ego_lane]
+        self.lanes = [
+            Lane(reference, i, float(offsets[i] + 0.5 * w), float(w)) for i, w in enumerate(lane_widths)
+        ]
+        self.boundaries = [
+            Boundary(float(t), self._runs(kind)) for t, kind in zip(offsets, line_kinds, strict=True)
+        ]
+        if lidar_profile is None:
+            lidar_profile = (np.array([0.0, self.length]), np.ones(2))
+        self._lidar_s, self._lidar_q = lidar_profile
+        self.painters: list[Painter] = list(painters) if painters is not None else [
+            AsphaltPainter(), MarkingPainter()
+        ]
+        self.tile_length = tile_length
+        self.px_per_m = px_per_m
+
+    def __repr__(self) -> str:
+        return f"Track({self.name}@{self.seed}, {self.length:.0f} m, {len(self.lanes)} lanes)"
+
+    def _runs(self, kind: str) -> tuple[MarkingRun, ...]:
+        runs, s = [], 0.0
+        for a, b in self.intersections:
+            if a > s:
+                runs.append(MarkingRun(s, a, kind))
+            runs.append(MarkingRun(a, b, "none"))
+            s = b
+        if s < self.length:
+            runs.append(MarkingRun(s, self.length, kind))
+        return tuple(runs)
+
+    # ---- cross section -----------------------------------------------------------------------
+    @property
+    def paved_range(self) -> tuple[float, float]:
+        """Lateral extent [t_right, t_left] of the paved surface (lanes plus shoulders/gutters)."""
+        return self.boundaries[0].t - self.right.paved, self.boundaries[-1].t + self.left.paved
+
+    @property
+    def lateral_range(self) -> tuple[float, float]:
+        """Lateral extent [t_min, t_max] covered by the tiles (road plus roadside)."""
+        return self.boundaries[0].t - self.right.extent, self.boundaries[-1].t + self.left.extent
+
+    def in_intersection(self, s: float) -> bool:
+        return any(a <= s < b for a, b in self.intersections)
+
+    def lane_straddle_dev(self, lane: int | None = None, vehicle_width: float = SEDAN_WIDTH) -> float:
+        """(lane width - vehicle width) / 2 for `lane` (default: the ego lane)."""
+        return 0.5 * (self.lanes[self.ego_lane if lane is None else lane].width - vehicle_width)
+
+    def start_pose(self, lane: int | None = None, s: float = 20.0) -> Pose:
+        """Pose on the centre of `lane` (default: ego lane) at arc length s, heading along the road."""
+        ln = self.lanes[self.ego_lane if lane is None else lane]
+        x, y = ln.position(s, 0.0)
+        return Pose(x, y, ln.heading_at(s))
+
+    def road_surface_contains(self, x: float, y: float) -> bool:
+        """True on the drivable paved surface: lanes, shoulders and the cross street in intersections."""
+        s, t = self.reference.project(x, y)
+        if not 0.0 <= s <= self.length:
+            return False
+        lo, hi = self.lateral_range if self.in_intersection(s) else self.paved_range
+        return lo <= t <= hi
+
+    def edge_kind_at(self, x: float, y: float) -> str | None:
+        """None on the paved surface; otherwise the kind of the edge the point lies beyond
+        ('drop_off' there means the vehicle fell off the road). Beyond either road end: 'open'."""
+        if self.road_surface_contains(x, y):
+            return None
+        s, t = self.reference.project(x, y)
+        if not 0.0 <= s <= self.length:
+            return "open"
+        lo, hi = self.paved_range
+        return self.left.kind if t > 0.5 * (lo + hi) else self.right.kind
+
+    def lidar_feature_quality(self, s: float) -> float:
+        """LiDAR map-matching feature richness at arc length s: 1 rich, near 0 feature-poor (smooth, seeded)."""
+        return float(np.interp(s, self._lidar_s, self._lidar_q))
+
+    def obstacles(self, tile: int | None = None) -> list[CollisionBox]:
+        """Static collision boxes (curbs, barriers, guardrails, divider, trees), chunked within tiles."""
+        return obstacle_builder.build(self, tile)
+
+    # ---- tiles -------------------------------------------------------------------------------
+    @property
+    def n_tiles(self) -> int:
+        return math.ceil(self.length / self.tile_length - 1e-9)
+
+    def tile_frame(self, i: int) -> texture.TileFrame:
+        return texture.tile_frame(self, i)
+
+    def tile_texture(self, i: int, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Paint tile i (H×W×3 uint8 RGB); the default rng is seeded by (track seed, i), so it is repeatable."""
+        return texture.paint_tile(self, i, np.random.default_rng([self.seed, i]) if rng is None else rng)
+
+    def tile_mesh(self, i: int, spacing: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World-frame surface mesh of tile i: vertices (N,3), uvs (N,2), triangle indices (M,)."""
+        return texture.tile_mesh(self, i, spacing)
+
+    def tiles_near(self, x: float, y: float, radius: float) -> list[int]:
+        """Indices of tiles with any part within about `radius` m (along the road) of (x, y)."""
+        s, _ = self.reference.project(x, y)
+        first = max(0, math.floor((s - radius) / self.tile_length))
+        last = min(self.n_tiles - 1, math.floor((s + radius) / self.tile_length))
+        return list(range(first, last + 1))
+
+    def add_painter(self, painter: Painter) -> None:
+        """Append a painter; it runs after the existing ones on every tile painted from now on."""
+        self.painters.append(painter)

@@ -1,0 +1,66 @@
+"""The semantic map of a track (implements `tracks.map_api.SemanticMap`, paper Table 3).
+
+A pose is projected once onto the track's reference line (local search from the previous answer, exact
+Newton refinement), then expressed against the requested lane, or against the lane containing it (the
+nearest lane centre when between or beyond lanes) when `lane` is None.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracks.map_api import LaneCoord, OffMapError
+from tracks.pose import Pose
+from tracks.road import Track
+
+OFF_MAP_MARGIN = 3.0  # m beyond a lane's half width that still counts as on that lane's map
+
+
+class TrackMap:
+    """SemanticMap over one `Track`."""
+
+    def __init__(self, track: Track) -> None:
+        self.track = track
+        self._lanes = track.lanes
+        self._centres = [ln.offset for ln in track.lanes]
+        self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
+        self._reach = (self._bounds[0][0] - OFF_MAP_MARGIN, self._bounds[-1][1] + OFF_MAP_MARGIN)
+        self._length = track.length
+
+    def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
+        if not pose.is_finite():
+            raise OffMapError(f"non-finite pose {pose}")
+        x, y = pose.x, pose.y
+        s, t = self.track.reference.project(x, y)
+        if not (0.0 <= s <= self._length and self._reach[0] <= t <= self._reach[1]):
+            raise OffMapError(f"pose ({x:.2f}, {y:.2f}) is off the map of {self.track.name} (s={s:.1f}, t={t:.2f})")
+        if lane is None:
+            lane = self._lane_at(t)
+        elif not 0 <= lane < len(self._lanes):
+            raise ValueError(f"lane {lane} not on {self.track.name} (lanes 0..{len(self._lanes) - 1})")
+        return LaneCoord(lane, s, t - self._centres[lane])
+
+    def _lane_at(self, t: float) -> int:
+        for i, (lo, hi) in enumerate(self._bounds):
+            if lo <= t < hi:
+                return i
+        return 0 if t < self._bounds[0][0] else len(self._lanes) - 1
+
+    def lane_dev(self, pose: Pose, lane: int | None = None) -> float:
+        return self.project(pose, lane).l
+
+    def lane_width(self, pose: Pose, lane: int | None = None) -> float:
+        c = self.project(pose, lane)
+        return self._lanes[c.lane].width_at(c.s)
+
+    def lane_point(self, pose: Pose, lane: int | None = None) -> tuple[np.ndarray, float]:
+        c = self.project(pose, lane)
+        ln = self._lanes[c.lane]
+        return np.array(ln.position(c.s, 0.0)), ln.heading_at(c.s)
+
+    def lane_curvature(self, pose: Pose, lane: int | None = None) -> float:
+        c = self.project(pose, lane)
+        return self._lanes[c.lane].curvature_at(c.s)
+
+    def is_intersection(self, pose: Pose) -> bool:
+        return self.track.in_intersection(self.project(pose).s)
