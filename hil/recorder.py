@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import threading
 from pathlib import Path
 
@@ -26,6 +27,9 @@ class FrameRecorder(can.Listener):
     def on_message_received(self, msg: can.Message) -> None:
         with self._lock:
             if not self._closed:
+                if not isinstance(msg.channel, int | None):  # BLF stores numeric channels only
+                    msg = copy.copy(msg)
+                    msg.channel = None
                 self._logger.on_message_received(msg)
                 self.frames += 1
 

@@ -9,6 +9,7 @@ in bounded memory while the physics client (and the car in it) is never touched.
 from __future__ import annotations
 
 import logging
+import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,7 +50,7 @@ class PhysicsWorld:
         self.dt = 1.0 / physics_hz
         self.t = 0.0
         pb.setGravity(0, 0, -9.81, physicsClientId=self.client)
-        pb.setTimeStep(self.dt, physicsClientId=self.client)
+        pb.setPhysicsEngineParameter(fixedTimeStep=self.dt, numSolverIterations=10, physicsClientId=self.client)
         plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self.client)
         self.ground_id = pb.createMultiBody(0, plane, physicsClientId=self.client)
         pb.changeDynamics(self.ground_id, -1, lateralFriction=1.0, physicsClientId=self.client)
@@ -62,7 +63,7 @@ class PhysicsWorld:
         shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(box.half_extents),
                                         physicsClientId=self.client)
         quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
-        body = pb.createMultiBody(0, shape, basePosition=list(box.centre), baseOrientation=quat,
+        body = pb.createMultiBody(0, shape, basePosition=list(box.center), baseOrientation=quat,
                                   physicsClientId=self.client)
         self.obstacle_kind[body] = box.kind
 
@@ -88,27 +89,17 @@ class PhysicsWorld:
 class TileStreamer:
     """Render client holding the road tiles near the car; reset when its texture budget is spent."""
 
-    def __init__(self, track, rng_seed: int, radius_m: float = 90.0, texture_budget: int = 40) -> None:
+    def __init__(self, track, ahead_m: float = 100.0, behind_m: float = 10.0, texture_budget: int = 40) -> None:
         self.track = track
-        self.seed = rng_seed
-        self.radius = radius_m
+        self.ahead = ahead_m
+        self.behind = behind_m
         self.budget = texture_budget
         self.client = pb.connect(pb.DIRECT)
         self._tmp = tempfile.TemporaryDirectory(prefix="ld3-tiles-")
         self.loaded: dict[int, list[int]] = {}
         self.textures_loaded = 0
         self.resets = 0
-        self._obstacles_by_tile = self._bucket_obstacles()
         self._reset_scene()
-
-    def _bucket_obstacles(self) -> dict[int, list]:
-        buckets: dict[int, list] = {}
-        for box in self.track.obstacles():
-            cx, cy = box.centre[0], box.centre[1]
-            near = self.track.tiles_near(cx, cy, 0.0)
-            if near:
-                buckets.setdefault(near[0], []).append(box)
-        return buckets
 
     def _reset_scene(self) -> None:
         pb.resetSimulation(physicsClientId=self.client)
@@ -118,9 +109,12 @@ class TileStreamer:
         self.loaded.clear()
         self.textures_loaded = 0
 
-    def update(self, x: float, y: float) -> None:
-        """Load the tiles within the radius of (x, y), drop the others."""
-        wanted = set(self.track.tiles_near(x, y, self.radius))
+    def update(self, pose: Pose) -> None:
+        """Load the tiles from `behind` m behind to `ahead` m ahead of the pose, drop the others."""
+        half = 0.5 * (self.ahead + self.behind)
+        shift = half - self.behind
+        cx, cy = pose.x + shift * math.cos(pose.yaw), pose.y + shift * math.sin(pose.yaw)
+        wanted = set(self.track.tiles_near(cx, cy, half))
         missing = wanted - self.loaded.keys()
         if self.textures_loaded + len(missing) > self.budget:
             self.resets += 1
@@ -134,7 +128,7 @@ class TileStreamer:
 
     def _load_tile(self, i: int) -> list[int]:
         verts, uvs, idx = self.track.tile_mesh(i)
-        img = self.track.tile_texture(i, np.random.default_rng([self.seed, i]))
+        img = self.track.tile_texture(i)
         path = Path(self._tmp.name) / f"tile{i}.png"
         cv2.imwrite(str(path), np.ascontiguousarray(img[:, :, ::-1]))
         tex = pb.loadTexture(str(path), physicsClientId=self.client)
@@ -146,14 +140,14 @@ class TileStreamer:
                                   normals=normals, physicsClientId=self.client)
         body = pb.createMultiBody(baseVisualShapeIndex=vs, physicsClientId=self.client)
         pb.changeVisualShape(body, -1, textureUniqueId=tex, rgbaColor=[1, 1, 1, 1], physicsClientId=self.client)
-        return [body] + [self._add_box_visual(box) for box in self._obstacles_by_tile.get(i, [])]
+        return [body] + [self._add_box_visual(box) for box in self.track.obstacles(i)]
 
     def _add_box_visual(self, box) -> int:
         colour = OBSTACLE_COLOURS.get(box.kind, (0.6, 0.6, 0.6, 1.0))
         vs = pb.createVisualShape(pb.GEOM_BOX, halfExtents=list(box.half_extents), rgbaColor=list(colour),
                                   physicsClientId=self.client)
         quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
-        return pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=list(box.centre),
+        return pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=list(box.center),
                                   baseOrientation=quat, physicsClientId=self.client)
 
     def close(self) -> None:

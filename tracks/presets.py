@@ -51,7 +51,7 @@ def _curves(rng: np.random.Generator | None, canonical: list[tuple[float, float,
     """Run-in straight, then bends (signed radius, angle, straight after) until `total` metres.
 
     Seeded layouts alternate turn direction and flip a bend whose heading would pass ±100°, so the road
-    meanders without doubling back on itself.
+    meanders without doubling back on itself; their second bend is within 10 % of the smallest radius.
     """
     segs: list[Segment] = [Straight(run_in)]
     length, heading, i, sign = run_in, 0.0, 0, 1.0 if rng is None or rng.random() < 0.5 else -1.0
@@ -63,7 +63,9 @@ def _curves(rng: np.random.Generator | None, canonical: list[tuple[float, float,
             ang = math.radians(rng.uniform(*angle_deg))
             if abs(heading + sign * ang) > math.radians(100.0):
                 sign = -sign
-            r, after = sign * rng.uniform(*radius), rng.uniform(*straight)
+            tightest = i == 1  # every layout has one bend near the family's smallest radius
+            r = sign * (radius[0] * rng.uniform(1.0, 1.1) if tightest else rng.uniform(*radius))
+            after = rng.uniform(*straight)
             sign = -sign
         bend_segs = bend(r, ang, transition(abs(r), ang))
         segs += [*bend_segs, Straight(after)]

@@ -158,7 +158,7 @@ class Track:
         """Indices of tiles with any part within about `radius` m (along the road) of (x, y)."""
         s, _ = self.reference.project(x, y)
         first = max(0, math.floor((s - radius) / self.tile_length))
-        last = min(self.n_tiles - 1, math.floor((s + radius) / self.tile_length))
+        last = min(self.n_tiles - 1, math.ceil((s + radius) / self.tile_length) - 1)
         return list(range(first, last + 1))
 
     def add_painter(self, painter: Painter) -> None:

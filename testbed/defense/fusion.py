@@ -47,4 +47,5 @@ class SafetyDrivenFusion:
 
 def pose_on_lane(point: np.ndarray, heading: float, d: float, yaw: float) -> Pose:
     """The centreline point shifted by d along the lane's left normal, with heading `yaw`."""
-    return Pose(float(point[0]) - d * math.sin(heading), float(point[1]) + d * math.cos(heading), yaw)
+    h = float(heading)
+    return Pose(float(point[0]) - d * math.sin(h), float(point[1]) + d * math.cos(h), float(yaw))

@@ -69,8 +69,8 @@ class LaneConsistencyMonitor:
             self.faults.report("nan-pose", t, f"MSF pose {pose} is not finite; update skipped")
             return None
         try:
-            d_msf = smap.lane_dev(pose, lane)
-            width = smap.lane_width(pose, lane)
+            d_msf = float(smap.lane_dev(pose, lane))
+            width = float(smap.lane_width(pose, lane))
         except OffMapError as err:
             self.faults.report("off-map", t, f"lane_dev/lane_width: {err}; update skipped")
             return None

@@ -33,6 +33,7 @@ from testbed.loop import ControlLoop, LoopRates, TickRecord
 from testbed.perception.factory import make_detector
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.presets import load_track
+from tracks.semantic_map import TrackMap
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
@@ -70,7 +71,7 @@ class SimRun:
             raise ScenarioError(f"defense {sc.defense!r} needs a lane detector; detector is 'none'")
         seeds = np.random.SeedSequence(sc.seed).spawn(4)
         rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
-        self.smap = self.track.map
+        self.smap = TrackMap(self.track)
         self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
         if not 0 <= self.lane < len(self.track.lanes):
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
@@ -91,12 +92,12 @@ class SimRun:
         self.streamer: TileStreamer | None = None
         self.camera: FrontCamera | None = None
         if needs_camera or video:
-            self.streamer = TileStreamer(self.track, sc.seed)
+            self.streamer = TileStreamer(self.track)
             self.camera = FrontCamera(self.streamer.client, self.rig, self.condition, rng_camera)
         self.video = VideoWriter(self.rig) if video else None
         if sc.localization == "msf":
             self.localization = LocalizationStack(LocalizationConfig.from_dict(sc.rates.get("localization", {})),
-                                                  rng_loc, self.track.lidar_quality_at, start, 0.0)
+                                                  rng_loc, self._lidar_quality, start, 0.0)
         else:
             self.localization = GroundTruthLocalization()
         self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
@@ -115,13 +116,21 @@ class SimRun:
         self.lane_width = lane_width
         self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
 
+    def _lidar_quality(self, x: float, y: float) -> float:
+        """LiDAR feature richness at a world point (the track's profile along the road)."""
+        s, _ = self.track.reference.project(x, y)
+        return self.track.lidar_feature_quality(s)
+
     def _capture(self, t: float, pose: Pose):
-        self.streamer.update(pose.x, pose.y)
+        self.streamer.update(pose)
         return self.camera.capture(t, pose)
 
-    def _off_surface(self, pose: Pose) -> bool:
+    def _edge_beyond(self, pose: Pose) -> str | None:
+        """Kind of road edge a whole side of the footprint is beyond (two corners off the paved surface)."""
         corners = footprint_corners(pose.x, pose.y, pose.yaw, self.params.length, self.params.width)
-        return not all(self.track.road_surface_contains(x, y) for x, y in corners)
+        kinds = [self.track.edge_kind_at(x, y) for x, y in corners]
+        off = [k for k in kinds if k is not None]
+        return off[0] if len(off) >= 2 else None
 
     def run(self, progress: bool = False) -> RunResult:
         sc = self.sc
@@ -140,8 +149,8 @@ class SimRun:
             bar.update(1)
             pose = self.loop.last_state.true_pose
             contacts = self.world.contact_kinds()
-            off = self._off_surface(pose)
-            if self.monitor.observe(rec.phys_dev, contacts, off, self.track.drop_off_at(pose.x, pose.y)):
+            edge = self._edge_beyond(pose)
+            if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
                 break
             if self.loop.stopping and rec.speed < STOP_SPEED:
                 still_since = rec.t if still_since is None else still_since

@@ -132,9 +132,9 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig = TrainConfig()
             loss.backward()
             opt.step()
             sched.step()
-            total += float(loss)
+            total += loss.item()
             bar.update(1)
-            bar.set_postfix(epoch=epoch, loss=f"{float(loss):.4f}")
+            bar.set_postfix(epoch=epoch, loss=f"{loss.item():.4f}")
         row = {"epoch": epoch, "train_loss": total / steps_per_epoch, "minutes": (time.monotonic() - start) / 60}
         if val is not None and val_t is not None:
             row.update(dev_error(model, val_t, val.lane_width, val.deviation))

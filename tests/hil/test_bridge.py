@@ -8,7 +8,7 @@ import pytest
 from hil.actuator_map import ActuatorRequest
 from hil.bridge import CanChassisBridge
 from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator
+from hil.ecu import EcuEmulator, EcuLimits
 from hil.kinematic_plant import KinematicBicyclePlant
 from hil.recorder import FrameRecorder
 from hil.replay import replay_log
@@ -23,7 +23,7 @@ def lane_keeper(state):
     """Speed to 4 m/s and hold y = 0, with a gentle weave so the steering keeps moving."""
     pose = state.true_pose
     steer = -0.3 * pose.y - 0.8 * math.remainder(pose.yaw, math.tau) + 0.01 * math.sin(0.7 * state.t)
-    return ChassisCommand(max(min(steer, 0.4), -0.4), 1.5 * (4.0 - state.speed))
+    return ChassisCommand(max(min(steer, 0.4), -0.4), max(min(1.5 * (4.0 - state.speed), 3.0), -4.0))
 
 
 def run(port, ticks):
@@ -52,9 +52,10 @@ def test_engage_reports_standby_then_self_driving(link):
 
 def test_virtual_bus_run_stays_within_5_cm_of_the_direct_run(channel):
     ecu_bus, bridge_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
-    ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(pose=START))
+    # steering limits wide enough that the VCU never clips this controller (the direct run has none)
+    ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(pose=START), EcuLimits(max_steer_rate=5.0))
     ecu.start()
-    bridge = CanChassisBridge(bridge_bus)
+    bridge = CanChassisBridge(bridge_bus, steer_rate=5.0)
     try:
         bridge.engage()
         over_can = run(bridge, 1500)
@@ -67,6 +68,7 @@ def test_virtual_bus_run_stays_within_5_cm_of_the_direct_run(channel):
     gaps = [math.hypot(a.x - b.x, a.y - b.y) for a, b in zip(over_can, direct, strict=True)]
     assert direct[-1].x > 40.0
     assert max(gaps) < 0.05
+    assert not any(f.steer_limited for f in [ecu.report()])
     assert sum(bridge.rejected.values()) == 0
 
 

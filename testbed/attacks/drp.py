@@ -1,0 +1,100 @@
+"""LD-side attacks modelled on the Dirty Road Patch (DRP) attack (Sato et al., USENIX Security'21; paper §6.2).
+
+`DrpTrace` injects a lateral deviation into the lane detector's output: from `start` the detected lines
+shift so that the LD deviation moves by `shift` (m, + left), ramping in over `ramp` seconds and lasting
+`duration` seconds (the car drives over the patch). Shifting the ego-lane centre right by s makes the car
+appear s further left, so both lines' c0 move by −s. `DrpPatch` paints a physical dirty-road patch into the
+road texture, which the camera sees and the detector reacts to on its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+from testbed.attacks.base import Attack, AttackerView
+from testbed.perception.detection import LaneDetection
+
+IDLE, ACTIVE, OVER, PAINTED = "idle", "active", "over", "painted"
+
+
+def _check(cond: bool, msg: str) -> None:
+    if not cond:
+        raise ValueError(msg)
+
+
+class DrpTrace(Attack):
+    """Trapezoid LD-deviation injection: ramp to `shift` in `ramp` s, hold, stop after `duration` s."""
+
+    name = "drp-trace"
+
+    def __init__(self, start: float = 10.0, shift: float = 0.7, ramp: float = 1.0, duration: float = 5.0) -> None:
+        super().__init__(start)
+        _check(math.isfinite(shift), f"drp-trace shift must be finite, got {shift}")
+        _check(math.isfinite(ramp) and ramp >= 0, f"drp-trace ramp must be a time >= 0 s, got {ramp}")
+        _check(math.isfinite(duration) and duration > 0, f"drp-trace duration must be > 0 s, got {duration}")
+        self.shift, self.ramp, self.duration = shift, ramp, duration
+        self.stage = IDLE
+        self.offset = 0.0
+
+    def injected(self, t: float) -> float:
+        """LD deviation added at time t (m, + left)."""
+        tau = t - self.start_time
+        if tau < 0 or tau > self.duration:
+            return 0.0
+        return self.shift * (1.0 if self.ramp == 0 else min(1.0, tau / self.ramp))
+
+    def tamper_ld(self, ld: LaneDetection, view: AttackerView) -> LaneDetection:
+        tau = view.t - self.start_time
+        self.stage = IDLE if tau < 0 else (ACTIVE if tau <= self.duration else OVER)
+        self.offset = self.injected(view.t)
+        if self.offset == 0.0:
+            return ld
+
+        def moved(c):
+            if c is None:
+                return None
+            c = c.copy()
+            c[0] -= self.offset
+            return c
+
+        return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+
+    def state(self) -> dict[str, Any]:
+        return {"stage": self.stage, "switch_time": None, "offset": self.offset}
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.name, "start": self.start_time, "shift": self.shift, "ramp": self.ramp,
+                "duration": self.duration}
+
+
+class DrpPatch(Attack):
+    """A dark patch painted on the road at arc length `at`, lateral offset `offset` from the reference line."""
+
+    name = "drp-patch"
+
+    def __init__(self, at: float, length: float = 10.0, width: float = 1.5, offset: float = 0.0,
+                 angle: float = 0.0, darkness: float = 0.5) -> None:
+        super().__init__(0.0)
+        _check(math.isfinite(at) and at >= 0, f"drp-patch at must be an arc length >= 0 m, got {at}")
+        _check(math.isfinite(length) and length > 0, f"drp-patch length must be > 0 m, got {length}")
+        _check(math.isfinite(width) and width > 0, f"drp-patch width must be > 0 m, got {width}")
+        _check(math.isfinite(offset), f"drp-patch offset must be finite, got {offset}")
+        _check(math.isfinite(angle), f"drp-patch angle must be finite (rad), got {angle}")
+        _check(0.0 < darkness <= 1.0, f"drp-patch darkness must be in (0, 1], got {darkness}")
+        self.at, self.length, self.width, self.offset = at, length, width, offset
+        self.angle, self.darkness = angle, darkness
+
+    def painters(self) -> list[Any]:
+        from tracks.paint import PatchPainter
+
+        return [PatchPainter(s_center=self.at, t_center=self.offset, length=self.length, width=self.width,
+                             angle=self.angle, darkness=self.darkness)]
+
+    def state(self) -> dict[str, Any]:
+        return {"stage": PAINTED, "switch_time": None, "offset": 0.0}
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.name, "at": self.at, "length": self.length, "width": self.width,
+                "offset": self.offset, "angle": self.angle, "darkness": self.darkness}

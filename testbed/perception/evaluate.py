@@ -1,0 +1,146 @@
+"""Evaluation of a lane detector on labelled held-out frames, per condition, the way LD3 uses it.
+
+Per frame, D_LD comes from Alg. 3 (`LdDeviation`, fresh per frame, with the map lane width) and is
+compared with the true physical deviation: mean |error|, p95, p99 (frames where no line is valid count
+under `no_output`). Existence is scored per line: precision and recall of "present" and of "missing".
+Latency is `detect` wall time on one torch thread (median, p99). Writes ld_eval.json, ld_eval.md and a
+PNG grid of frames with detected (green) and true (red) lines drawn over them.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from testbed.defense.ld_deviation import LdDeviation
+from testbed.perception.dataset import FrameSet
+from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from tracks.pose import Pose
+from vehicles.camera_rig import CameraRig
+
+
+def _ratio(num: int, den: int) -> float | None:
+    return num / den if den else None
+
+
+def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray,
+          existence_threshold: float) -> dict[str, float | int | None]:
+    errs, no_output = [], 0
+    tp = fp = fn = tn = 0  # positive = line present
+    for i in idx:
+        ld = detections[i]
+        d = LdDeviation(existence_threshold).update(ld, float(frames.lane_width[i]))
+        if d is None:
+            no_output += 1
+        else:
+            errs.append(abs(d - float(frames.deviation[i])))
+        for coeffs, prob, truth in ((ld.left, ld.left_prob, frames.left_exists[i]),
+                                    (ld.right, ld.right_prob, frames.right_exists[i])):
+            said = coeffs is not None and prob >= existence_threshold
+            tp += said and truth
+            fp += said and not truth
+            fn += (not said) and truth
+            tn += (not said) and not truth
+    e = np.asarray(errs)
+    return {
+        "frames": len(idx), "no_output": no_output,
+        "mean_abs_err_m": float(e.mean()) if len(e) else None,
+        "p95_err_m": float(np.percentile(e, 95)) if len(e) else None,
+        "p99_err_m": float(np.percentile(e, 99)) if len(e) else None,
+        "present_precision": _ratio(tp, tp + fp), "present_recall": _ratio(tp, tp + fn),
+        "missing_precision": _ratio(tn, tn + fn), "missing_recall": _ratio(tn, tn + fp),
+        "missing_lines": tn + fp,
+    }
+
+
+def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: float = 0.5,
+             progress: bool = False) -> tuple[dict, list[LaneDetection]]:
+    """Detect on every frame (one torch thread) and score per condition and overall."""
+    from tqdm import tqdm
+
+    torch.set_num_threads(1)
+    detections, latency = [], []
+    for i in tqdm(range(len(frames)), desc="evaluating", unit="frame", disable=not progress):
+        pose = Pose(*frames.meta[i]["pose"])
+        frame = CameraFrame(float(i), frames.images[i], pose)
+        t0 = time.perf_counter()
+        detections.append(detector.detect(frame))
+        latency.append(time.perf_counter() - t0)
+    conditions = sorted({m["condition"] for m in frames.meta})
+    cond = np.asarray([m["condition"] for m in frames.meta])
+    report: dict = {"detector": type(detector).__name__, "existence_threshold": existence_threshold,
+                    "per_condition": {c: score(detections, frames, np.flatnonzero(cond == c), existence_threshold)
+                                      for c in conditions},
+                    "overall": score(detections, frames, np.arange(len(frames)), existence_threshold)}
+    lat = np.asarray(latency) * 1e3
+    report["latency_ms"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)), "threads": 1}
+    return report, detections
+
+
+def markdown_table(reports: list[dict]) -> str:
+    def f(v: float | None, fmt: str = ".3f") -> str:
+        return "-" if v is None else format(v, fmt)
+
+    lines = ["| detector | condition | frames | mean abs err (m) | p95 (m) | p99 (m) | missing P | missing R "
+             "| present P | present R | no output |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for rep in reports:
+        for name, s in [*rep["per_condition"].items(), ("all", rep["overall"])]:
+            lines.append(f"| {rep['detector']} | {name} | {s['frames']} | {f(s['mean_abs_err_m'])} "
+                         f"| {f(s['p95_err_m'])} | {f(s['p99_err_m'])} | {f(s['missing_precision'], '.3f')} "
+                         f"| {f(s['missing_recall'])} | {f(s['present_precision'])} | {f(s['present_recall'])} "
+                         f"| {s['no_output']} |")
+    lines.append("")
+    for rep in reports:
+        lat = rep["latency_ms"]
+        lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms")
+    return "\n".join(lines) + "\n"
+
+
+def _draw(img: np.ndarray, rig: CameraRig, coeffs: np.ndarray | None, colour: tuple[int, int, int]) -> None:
+    if coeffs is None:
+        return
+    x = np.linspace(4.0, 40.0, 40)
+    uv = rig.ground_to_pixel(np.column_stack([x, np.polynomial.polynomial.polyval(x, coeffs)]))
+    pts = uv[np.isfinite(uv).all(axis=1)].round().astype(np.int32)
+    if len(pts) > 1:
+        cv2.polylines(img, [pts], False, colour, 1, cv2.LINE_AA)
+
+
+def frame_grid(frames: FrameSet, detections: list[LaneDetection], rig: CameraRig, path: Path,
+               per_condition: int = 2) -> Path:
+    """PNG grid: `per_condition` frames of each condition, truth in red, detection in green."""
+    cond = [m["condition"] for m in frames.meta]
+    tiles = []
+    for c in sorted(set(cond)):
+        for i in [j for j, v in enumerate(cond) if v == c][:per_condition]:
+            img = frames.images[i].copy()
+            _draw(img, rig, frames.left[i] if frames.left_exists[i] else None, (255, 0, 0))
+            _draw(img, rig, frames.right[i] if frames.right_exists[i] else None, (255, 0, 0))
+            _draw(img, rig, detections[i].left, (0, 255, 0))
+            _draw(img, rig, detections[i].right, (0, 255, 0))
+            cv2.putText(img, c, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+            tiles.append(img)
+    cols = 4
+    while len(tiles) % cols:
+        tiles.append(np.zeros_like(tiles[0]))
+    grid = np.vstack([np.hstack(tiles[r : r + cols]) for r in range(0, len(tiles), cols)])
+    cv2.imwrite(str(path), np.ascontiguousarray(grid[:, :, ::-1]))
+    return path
+
+
+def write_report(reports: list[dict], grid_source: tuple[FrameSet, list[LaneDetection], CameraRig] | None,
+                 out: Path) -> dict[str, Path]:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"json": out / "ld_eval.json", "markdown": out / "ld_eval.md"}
+    paths["json"].write_text(json.dumps(reports, indent=1))
+    paths["markdown"].write_text(markdown_table(reports))
+    if grid_source is not None:
+        paths["grid"] = frame_grid(*grid_source, out / "ld_eval_grid.png")
+    return paths
