@@ -71,9 +71,10 @@ class CanChassisBridge(ChassisPort):
         self.rejected = {"format": 0, "checksum": 0, "range": 0, "counter": 0}
         self.frames_tx = 0
         self.frames_rx = 0
+        self.frames_accepted = 0
         self.foreign_node = False
         self._stop = threading.Event()
-        self._notifier = can.Notifier(bus, [self._on_frame], timeout=0.05)
+        self._notifier = can.Notifier(bus, [self.handle], timeout=0.05)
         self._sender: threading.Thread | None = None
         if clock is ClockMode.REALTIME:
             self._sender = threading.Thread(target=self._send_loop, name="bridge-50hz", daemon=True)
@@ -185,7 +186,8 @@ class CanChassisBridge(ChassisPort):
             for listener in self._listeners:
                 listener.on_message_received(frame)
 
-    def _on_frame(self, frame: can.Message) -> None:
+    def handle(self, frame: can.Message) -> None:
+        """Process one received frame (the can.Notifier callback)."""
         self.frames_rx += 1
         if frame.arbitration_id in self._foreign_ids and not frame.is_extended_id:
             self.foreign_node = True
@@ -197,6 +199,7 @@ class CanChassisBridge(ChassisPort):
         except FrameRejected as rejection:
             self.rejected[rejection.reason] += 1
             return
+        self.frames_accepted += 1
         if decoded.name == STEP_DONE:
             with self._done:
                 self._done_echo = int(decoded.signals["StepCountEcho"])

@@ -127,6 +127,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("what", choices=["loop", "map", "defense"])
     p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
     p.set_defaults(func=cmd_bench)
+
+    from testbed.perception.commands import add_ld_parser
+
+    add_ld_parser(sub)
     return parser
 
 

@@ -32,6 +32,7 @@ OBSTACLE_COLOURS: dict[str, tuple[float, float, float, float]] = {
     "tree": (0.20, 0.38, 0.16, 1.0),
 }
 GROUND_RGBA = (0.33, 0.42, 0.26, 1.0)
+OBSTACLE_UPDATE_STEPS = 24
 
 
 @dataclass(frozen=True)
@@ -43,34 +44,63 @@ class WorldConfig:
 
 
 class PhysicsWorld:
-    """Physics client: flat ground with the track's static collision bodies and one vehicle."""
+    """Physics client: flat ground, the track's static collision bodies near the car, and one vehicle.
 
-    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = 240.0) -> None:
+    Roadside bodies are streamed like the render tiles (one compound body per tile and kind, for the
+    tiles within `obstacle_window_m` of the car): Bullet updates every body's bounds each step, so
+    loading a whole road's curbs at once would make each step an order of magnitude slower.
+    """
+
+    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = 240.0,
+                 obstacle_window_m: float = 60.0) -> None:
         self.client = pb.connect(pb.DIRECT)
+        self.track = track
         self.dt = 1.0 / physics_hz
         self.t = 0.0
+        self.steps = 0
+        self.window = obstacle_window_m
         pb.setGravity(0, 0, -9.81, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(fixedTimeStep=self.dt, numSolverIterations=10, physicsClientId=self.client)
         plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self.client)
         self.ground_id = pb.createMultiBody(0, plane, physicsClientId=self.client)
         pb.changeDynamics(self.ground_id, -1, lateralFriction=1.0, physicsClientId=self.client)
         self.obstacle_kind: dict[int, str] = {}
-        for box in track.obstacles():
-            self._add_box(box)
+        self._tile_bodies: dict[int, list[int]] = {}
         self.vehicle = PyBulletVehicle(self.client, params, start)
+        self.update_obstacles(start)
 
-    def _add_box(self, box) -> None:
-        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(box.half_extents),
-                                        physicsClientId=self.client)
-        quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
-        body = pb.createMultiBody(0, shape, basePosition=list(box.center), baseOrientation=quat,
-                                  physicsClientId=self.client)
-        self.obstacle_kind[body] = box.kind
+    def update_obstacles(self, pose: Pose) -> None:
+        """Load the roadside bodies of the tiles within the window of the pose; drop the others."""
+        wanted = set(self.track.tiles_near(pose.x, pose.y, self.window))
+        for i in sorted(self._tile_bodies.keys() - wanted):
+            for body in self._tile_bodies.pop(i):
+                self.obstacle_kind.pop(body, None)
+                pb.removeBody(body, physicsClientId=self.client)
+        for i in sorted(wanted - self._tile_bodies.keys()):
+            by_kind: dict[str, list] = {}
+            for box in self.track.obstacles(i):
+                by_kind.setdefault(box.kind, []).append(box)
+            self._tile_bodies[i] = [self._add_compound(kind, boxes) for kind, boxes in sorted(by_kind.items())]
+
+    def _add_compound(self, kind: str, boxes: list) -> int:
+        shape = pb.createCollisionShapeArray(
+            shapeTypes=[pb.GEOM_BOX] * len(boxes),
+            halfExtents=[list(b.half_extents) for b in boxes],
+            collisionFramePositions=[list(b.center) for b in boxes],
+            collisionFrameOrientations=[pb.getQuaternionFromEuler((0.0, 0.0, b.yaw)) for b in boxes],
+            physicsClientId=self.client,
+        )
+        body = pb.createMultiBody(0, shape, physicsClientId=self.client)
+        self.obstacle_kind[body] = kind
+        return body
 
     def step(self) -> None:
+        if self.steps % OBSTACLE_UPDATE_STEPS == 0:
+            self.update_obstacles(self.vehicle.pose())
         self.vehicle.pre_step(self.dt)
         pb.stepSimulation(physicsClientId=self.client)
-        self.t += self.dt
+        self.steps += 1
+        self.t = self.steps * self.dt
 
     def contact_kinds(self) -> set[str]:
         """Kinds of roadside bodies the vehicle touches now (curb, barrier, guardrail, divider, tree)."""
@@ -134,6 +164,8 @@ class TileStreamer:
         tex = pb.loadTexture(str(path), physicsClientId=self.client)
         path.unlink()
         self.textures_loaded += 1
+        uvs = np.asarray(uvs, dtype=float).copy()
+        uvs[:, 1] = 1.0 - uvs[:, 1]  # tracks puts v = 0 on texture row 0; PyBullet puts it on the last row
         normals = [[0.0, 0.0, 1.0]] * len(verts)
         vs = pb.createVisualShape(pb.GEOM_MESH, vertices=np.asarray(verts).tolist(),
                                   indices=np.asarray(idx).astype(int).tolist(), uvs=np.asarray(uvs).tolist(),

@@ -30,10 +30,10 @@ def map_query_benchmark(track: Track, n: int = 20000, seed: int = 0) -> dict[str
     lane = track.lanes[track.ego_lane]
     s_drive = 5.0 + np.arange(n) * 0.1 % max(track.length - 10.0, 1.0)
     wander = 1.5 * np.sin(s_drive / 37.0)
-    drive = [Pose(*lane.position(s, l), lane.heading_at(s)) for s, l in zip(s_drive, wander, strict=True)]
+    drive = [Pose(*lane.position(s, lat), lane.heading_at(s)) for s, lat in zip(s_drive, wander, strict=True)]
     s_rand = rng.uniform(1.0, track.length - 1.0, n // 4)
     l_rand = rng.uniform(-0.5, 0.5, n // 4) * lane.width
-    scatter = [Pose(*lane.position(s, l), 0.0) for s, l in zip(s_rand, l_rand, strict=True)]
+    scatter = [Pose(*lane.position(s, lat), 0.0) for s, lat in zip(s_rand, l_rand, strict=True)]
     warm = _timed(TrackMap(track).lane_dev, drive)
     cold = _timed(TrackMap(track).lane_dev, scatter)
     return {

@@ -69,7 +69,9 @@ def bend(radius: float, angle: float, transition: float) -> list[Segment]:
     k = 1.0 / radius
     arc_angle = abs(angle) - abs(k) * transition
     if arc_angle < 0.0:
-        raise ValueError(f"transition {transition} m too long for a {angle:.3f} rad bend of radius {radius} m")
+        raise ValueError(
+            f"transition {transition} m too long for a {angle:.3f} rad bend of radius {radius} m"
+        )
     return [Clothoid(0.0, k, transition), Arc(radius, arc_angle * abs(radius)), Clothoid(k, 0.0, transition)]
 
 
@@ -130,13 +132,17 @@ class ReferenceLine:
     def _heading_array(self, s: np.ndarray) -> np.ndarray:
         idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
         u = s - np.asarray(self._seg_s0)[idx]
-        return np.asarray(self._seg_h0)[idx] + np.asarray(self._seg_k0)[idx] * u + (
-            0.5 * np.asarray(self._seg_dk)[idx] * u * u
+        return (
+            np.asarray(self._seg_h0)[idx]
+            + np.asarray(self._seg_k0)[idx] * u
+            + (0.5 * np.asarray(self._seg_dk)[idx] * u * u)
         )
 
     def _curvature_array(self, s: np.ndarray) -> np.ndarray:
         idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
-        return np.asarray(self._seg_k0)[idx] + np.asarray(self._seg_dk)[idx] * (s - np.asarray(self._seg_s0)[idx])
+        return np.asarray(self._seg_k0)[idx] + np.asarray(self._seg_dk)[idx] * (
+            s - np.asarray(self._seg_s0)[idx]
+        )
 
     def _integrate_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Integrate cos/sin(heading) over sub-intervals split at segment joins (heading is smooth inside)."""
@@ -147,8 +153,11 @@ class ReferenceLine:
         nodes = mid[:, None] + half[:, None] * _GL_NODES[None, :]
         idx = np.clip(np.searchsorted(self._seg_s0, mid, side="right") - 1, 0, len(self.segments) - 1)
         u = nodes - np.asarray(self._seg_s0)[idx][:, None]
-        h = (np.asarray(self._seg_h0)[idx][:, None] + np.asarray(self._seg_k0)[idx][:, None] * u
-             + 0.5 * np.asarray(self._seg_dk)[idx][:, None] * u * u)
+        h = (
+            np.asarray(self._seg_h0)[idx][:, None]
+            + np.asarray(self._seg_k0)[idx][:, None] * u
+            + 0.5 * np.asarray(self._seg_dk)[idx][:, None] * u * u
+        )
         dx = half * (np.cos(h) @ _GL_WEIGHTS)
         dy = half * (np.sin(h) @ _GL_WEIGHTS)
         xk = self.start.x + np.concatenate([[0.0], np.cumsum(dx)])
@@ -195,36 +204,45 @@ class ReferenceLine:
         return np.column_stack([x, y])
 
     # ---- projection -------------------------------------------------------------------------
-    def project(self, x: float, y: float, max_offset: float = 40.0) -> tuple[float, float]:
+    def project(self, x: float, y: float, max_offset: float = 20.0) -> tuple[float, float]:
         """Nearest-point Frenet coordinates (s, t) of a world point.
 
-        Searches locally from the previous answer first (consecutive queries of a moving vehicle), falls
-        back to a brute-force nearest search over coarse samples (every ~5 m) when the local answer lies farther than `max_offset` laterally,
-        then refines s exactly with Newton steps on the segment formulas. s < 0 or s > length means the
-        point lies beyond an end.
+        Walks from the previous answer first (consecutive queries of a moving vehicle); when that walk does
+        not settle or lands farther than `max_offset` laterally, restarts from the nearest of coarse samples
+        (every ~5 m). s is then refined exactly by Newton steps on the segment formulas. s < 0 or
+        s > length means the point lies beyond an end.
         """
-        i = self._hint
-        if i is not None:
-            i = self._walk(x, y, i)
-            s, t = self._refine(x, y, i)
-            if abs(t) <= max_offset:
-                self._hint = i
-                return s, t
+        if self._hint is not None:
+            i, settled = self._walk(x, y, self._hint)
+            if settled:
+                s, t = self._canonical_refine(x, y, i)
+                if abs(t) <= max_offset:
+                    return s, t
         d2 = (self._coarse_xy[:, 0] - x) ** 2 + (self._coarse_xy[:, 1] - y) ** 2
-        i = self._walk(x, y, int(np.argmin(d2)) * self._coarse_stride)
-        self._hint = i
-        return self._refine(x, y, i)
+        i, _ = self._walk(x, y, int(np.argmin(d2)) * self._coarse_stride)
+        return self._canonical_refine(x, y, i)
 
-    def _walk(self, x: float, y: float, i: int) -> int:
-        last = len(self._xs) - 1
+    def _canonical_refine(self, x: float, y: float, i: int) -> tuple[float, float]:
+        """Refine from the sample just behind the answer, so the result (to the bit) does not depend on
+        the query history that produced the starting index."""
+        s, t = self._refine(x, y, i)
+        k = min(max(math.floor(s / self.ds), 0), len(self._xs) - 1)
+        if k != i:
+            s, t = self._refine(x, y, k)
+        self._hint = k
+        return s, t
+
+    def _walk(self, x: float, y: float, i: int) -> tuple[int, bool]:
+        """Step along the samples by the along-track distance until it stays (or bounces between two
+        neighbours, which happens just outside a curve); returns (index, settled)."""
+        last, previous = len(self._xs) - 1, -1
         for _ in range(12):
             a = (x - self._xs[i]) * self._cos[i] + (y - self._ys[i]) * self._sin[i]
-            step = math.floor(a / self.ds)
-            j = min(max(i + step, 0), last)
-            if j == i:
-                break
-            i = j
-        return i
+            j = min(max(i + math.floor(a / self.ds), 0), last)
+            if j in (i, previous):
+                return min(i, j), True
+            previous, i = i, j
+        return i, False
 
     def _refine(self, x: float, y: float, i: int) -> tuple[float, float]:
         """Exact projection near sample i: osculating-circle guess, then Newton steps on the segments."""

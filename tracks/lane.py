@@ -22,9 +22,9 @@ class Lane:
     def length(self) -> float:
         return self.reference.length
 
-    def position(self, s: float, l: float = 0.0) -> tuple[float, float]:
-        """World (x, y) of the point at reference arc length s, l metres left of the lane centre."""
-        return self.reference.point(s, self.offset + l)
+    def position(self, s: float, lat: float = 0.0) -> tuple[float, float]:
+        """World (x, y) of the point at reference arc length s, `lat` metres left of the lane centre."""
+        return self.reference.point(s, self.offset + lat)
 
     def local_coordinates(self, x: float, y: float) -> tuple[float, float]:
         """(s, l) of a world point: s along the reference line, l signed offset from this lane's centre."""
@@ -43,5 +43,5 @@ class Lane:
         return k / (1.0 - k * self.offset)
 
     def on_lane(self, x: float, y: float, margin: float = 0.0) -> bool:
-        s, l = self.local_coordinates(x, y)
-        return 0.0 <= s <= self.length and abs(l) <= 0.5 * self.width + margin
+        s, lat = self.local_coordinates(x, y)
+        return 0.0 <= s <= self.length and abs(lat) <= 0.5 * self.width + margin

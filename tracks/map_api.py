@@ -23,7 +23,7 @@ class LaneCoord(NamedTuple):
 
     lane: int
     s: float
-    l: float
+    l: float  # noqa: E741 - the lane-frame name of highway-env and the paper
 
 
 class SemanticMap(Protocol):

@@ -7,6 +7,7 @@ jitter. Boxes stand on z = 0.
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import TYPE_CHECKING
 
@@ -24,8 +25,10 @@ _OVERLAP = 0.02  # m added to each chunk's half length so neighbours close up on
 def build(track: Track, tile: int | None = None) -> list[CollisionBox]:
     tiles = range(track.n_tiles) if tile is None else [tile]
     boxes: list[CollisionBox] = []
-    for side, edge, outer in ((-1.0, track.right, track.boundaries[0].t), (1.0, track.left,
-                                                                          track.boundaries[-1].t)):
+    for side, edge, outer in (
+        (-1.0, track.right, track.boundaries[0].t),
+        (1.0, track.left, track.boundaries[-1].t),
+    ):
         for b_index, body in enumerate(edge.bodies):
             t_near = outer + side * body.gap
             t_mid = t_near + side * 0.5 * body.thickness
@@ -53,7 +56,9 @@ def _free_pieces(intersections: list[tuple[float, float]], s0: float, s1: float)
     return [(p, q) for p, q in pieces if q - p > 0.05]
 
 
-def _continuous(track: Track, body: RoadsideBody, t: float, a: float, b: float, tile: int) -> list[CollisionBox]:
+def _continuous(
+    track: Track, body: RoadsideBody, t: float, a: float, b: float, tile: int
+) -> list[CollisionBox]:
     ref = track.reference
     ks = np.abs([ref.curvature_at(s) for s in np.linspace(a, b, 9)])
     k = float(np.max(ks / np.maximum(1.0 - ks * abs(t), 0.2)))
@@ -61,19 +66,25 @@ def _continuous(track: Track, body: RoadsideBody, t: float, a: float, b: float, 
     n = max(1, math.ceil((b - a) / max_len))
     edges = np.linspace(a, b, n + 1)
     out = []
-    for c0, c1 in zip(edges[:-1], edges[1:], strict=True):
+    for c0, c1 in itertools.pairwise(edges):
         p0, p1 = np.array(ref.point(c0, t)), np.array(ref.point(c1, t))
         d = p1 - p0
         centre = 0.5 * (p0 + p1)
-        out.append(CollisionBox(
-            (float(centre[0]), float(centre[1]), 0.5 * body.height),
-            (0.5 * float(np.hypot(*d)) + _OVERLAP, 0.5 * body.thickness, 0.5 * body.height),
-            math.atan2(d[1], d[0]), body.kind, tile))
+        out.append(
+            CollisionBox(
+                (float(centre[0]), float(centre[1]), 0.5 * body.height),
+                (0.5 * float(np.hypot(*d)) + _OVERLAP, 0.5 * body.thickness, 0.5 * body.height),
+                math.atan2(d[1], d[0]),
+                body.kind,
+                tile,
+            )
+        )
     return out
 
 
-def _discrete(track: Track, body: RoadsideBody, t: float, a: float, b: float, tile: int,
-              key: tuple[int, int]) -> list[CollisionBox]:
+def _discrete(
+    track: Track, body: RoadsideBody, t: float, a: float, b: float, tile: int, key: tuple[int, int]
+) -> list[CollisionBox]:
     """Object j sits near j * spacing, jittered by a generator seeded by (track seed, body, j)."""
     out = []
     for j in range(max(0, math.floor(a / body.spacing) - 1), math.ceil(b / body.spacing) + 2):
@@ -83,6 +94,13 @@ def _discrete(track: Track, body: RoadsideBody, t: float, a: float, b: float, ti
             continue
         x, y = track.reference.point(s, t)
         half = 0.5 * body.thickness
-        out.append(CollisionBox((x, y, 0.5 * body.height), (half, half, 0.5 * body.height),
-                                track.reference.heading_at(s), body.kind, tile))
+        out.append(
+            CollisionBox(
+                (x, y, 0.5 * body.height),
+                (half, half, 0.5 * body.height),
+                track.reference.heading_at(s),
+                body.kind,
+                tile,
+            )
+        )
     return out

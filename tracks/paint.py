@@ -7,6 +7,7 @@ by the track seed, so they run on seamlessly across tile borders; per-pixel grai
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -20,7 +21,11 @@ GROUND_COLOURS = {
     "drop": (40.0, 34.0, 28.0),
     "asphalt": ASPHALT,
 }
-BODY_COLOURS = {"curb": (185.0, 183.0, 176.0), "divider": (176.0, 172.0, 160.0), "barrier": (176.0, 172.0, 160.0)}
+BODY_COLOURS = {
+    "curb": (185.0, 183.0, 176.0),
+    "divider": (176.0, 172.0, 160.0),
+    "barrier": (176.0, 172.0, 160.0),
+}
 WHITE = (236.0, 236.0, 230.0)
 YELLOW = (232.0, 182.0, 42.0)
 
@@ -30,9 +35,9 @@ def value_noise(frame: TileFrame, cell: float, salt: int) -> np.ndarray:
     s, t = frame.s_of_rows() / cell, (frame.t_of_cols() - frame.t_min) / cell
     k0, k1 = math.floor(s.min()), math.floor(s.max()) + 1
     n_cols = math.floor(t.max()) + 2
-    lattice = np.stack([
-        np.random.default_rng([frame.track.seed, salt, k]).random(n_cols) for k in range(k0, k1 + 1)
-    ])
+    lattice = np.stack(
+        [np.random.default_rng([frame.track.seed, salt, k]).random(n_cols) for k in range(k0, k1 + 1)]
+    )
     ks, ms = np.floor(s).astype(int), np.floor(t).astype(int)
     fs, ft = s - ks, t - ms
     fs, ft = fs * fs * (3 - 2 * fs), ft * ft * (3 - 2 * ft)
@@ -67,7 +72,10 @@ class AsphaltPainter:
         ground[:] = np.asarray(ASPHALT) * self.tone
         ground[t < lo] = GROUND_COLOURS[track.right.ground]
         ground[t > hi] = GROUND_COLOURS[track.left.ground]
-        for side, edge, outer in ((-1, track.right, track.boundaries[0].t), (1, track.left, track.boundaries[-1].t)):
+        for side, edge, outer in (
+            (-1, track.right, track.boundaries[0].t),
+            (1, track.left, track.boundaries[-1].t),
+        ):
             for body in edge.bodies:
                 if body.kind in BODY_COLOURS and body.spacing == 0.0:
                     near, far = outer + side * body.gap, outer + side * (body.gap + body.thickness)
@@ -82,9 +90,19 @@ class AsphaltPainter:
         img[:] = np.clip(layer + 0.5, 0, 255).astype(np.uint8)
 
 
-def marking_alphas(frame: TileFrame, width: float = 0.15, dash: tuple[float, float] = (3.0, 9.0),
-                   double_gap: float = 0.10) -> list[tuple[np.ndarray, tuple[float, float, float]]]:
-    """Coverage (H×W in [0, 1]) and paint colour of every lane-line marking stroke in the tile."""
+class Stroke(NamedTuple):
+    """One painted marking stroke: its coverage `alpha` in [0, 1] over image block [rows, cols]."""
+
+    rows: slice
+    cols: slice
+    alpha: np.ndarray
+    colour: tuple[float, float, float]
+
+
+def marking_strokes(
+    frame: TileFrame, width: float = 0.15, dash: tuple[float, float] = (3.0, 9.0), double_gap: float = 0.10
+) -> list[Stroke]:
+    """Every lane-line marking stroke in the tile (anti-aliased coverage blocks and paint colours)."""
     s, t = frame.s_of_rows(), frame.t_of_cols()
     out = []
     for boundary in frame.track.boundaries:
@@ -93,26 +111,29 @@ def marking_alphas(frame: TileFrame, width: float = 0.15, dash: tuple[float, flo
                 continue
             along = _band(s, run.s0, run.s1, frame.px_per_m_s)
             if run.kind == "dashed_white":
-                phase = np.mod(s, dash[0] + dash[1])
-                along = along * _band(phase, 0.0, dash[0], frame.px_per_m_s)
+                along = along * _band(np.mod(s, dash[0] + dash[1]), 0.0, dash[0], frame.px_per_m_s)
             if run.kind == "double_yellow":
                 w = 0.8 * width
                 off = 0.5 * (double_gap + w)
-                strokes = [(boundary.t - off, w), (boundary.t + off, w)]
+                lines = [(boundary.t - off, w), (boundary.t + off, w)]
             else:
-                strokes = [(boundary.t, width)]
+                lines = [(boundary.t, width)]
             colour = YELLOW if "yellow" in run.kind else WHITE
-            for centre, w in strokes:
-                across = _band(t, centre - 0.5 * w, centre + 0.5 * w, frame.px_per_m_t)
-                out.append((along[:, None] * across[None, :], colour))
+            rows = frame.rows_between(run.s0 - 0.1, run.s1 + 0.1)
+            for centre, w in lines:
+                cols = frame.cols_between(centre - 0.5 * w - 0.1, centre + 0.5 * w + 0.1)
+                across = _band(t[cols], centre - 0.5 * w, centre + 0.5 * w, frame.px_per_m_t)
+                if rows.start < rows.stop and cols.start < cols.stop:
+                    out.append(Stroke(rows, cols, along[rows, None] * across[None, :], colour))
     return out
 
 
 def marking_coverage(frame: TileFrame) -> np.ndarray:
     """Union coverage (H×W in [0, 1]) of all lane-line markings in the tile."""
     cover = np.zeros((frame.height, frame.width))
-    for alpha, _ in marking_alphas(frame):
-        np.maximum(cover, alpha, out=cover)
+    for stroke in marking_strokes(frame):
+        block = cover[stroke.rows, stroke.cols]
+        np.maximum(block, stroke.alpha, out=block)
     return cover
 
 
@@ -120,20 +141,21 @@ class MarkingPainter:
     """Lane-line paint: solid and dashed (3 m on, 9 m off) white, solid and double yellow, ~0.15 m wide,
     with slight per-pixel paint-density noise."""
 
-    def __init__(self, width: float = 0.15, dash: tuple[float, float] = (3.0, 9.0), double_gap: float = 0.10,
-                 paint_noise: float = 0.08) -> None:
+    def __init__(
+        self,
+        width: float = 0.15,
+        dash: tuple[float, float] = (3.0, 9.0),
+        double_gap: float = 0.10,
+        paint_noise: float = 0.08,
+    ) -> None:
         self.width, self.dash, self.double_gap, self.paint_noise = width, dash, double_gap, paint_noise
 
     def paint(self, img: np.ndarray, frame: TileFrame, rng: np.random.Generator) -> None:
-        strokes = marking_alphas(frame, self.width, self.dash, self.double_gap)
-        if not strokes:
-            return
-        density = 1.0 - self.paint_noise * rng.random((frame.height, frame.width))
-        work = img.astype(float)
-        for alpha, colour in strokes:
-            a = (alpha * density)[..., None]
-            work = work * (1.0 - a) + np.asarray(colour) * a
-        img[:] = np.clip(work + 0.5, 0, 255).astype(np.uint8)
+        for stroke in marking_strokes(frame, self.width, self.dash, self.double_gap):
+            density = 1.0 - self.paint_noise * rng.random(stroke.alpha.shape)
+            block = img[stroke.rows, stroke.cols]
+            _blend(block, stroke.colour, stroke.alpha * density)
+            img[stroke.rows, stroke.cols] = block
 
 
 class WearPainter:
@@ -173,7 +195,9 @@ class ShadowPainter:
     def paint(self, img: np.ndarray, frame: TileFrame, rng: np.random.Generator) -> None:
         s, t = frame.s_of_rows(), frame.t_of_cols()
         shade = np.zeros((frame.height, frame.width))
-        for k in range(max(0, math.floor((frame.s0 - 20.0) / self._SLOT)), math.floor(frame.s1 / self._SLOT) + 1):
+        for k in range(
+            max(0, math.floor((frame.s0 - 20.0) / self._SLOT)), math.floor(frame.s1 / self._SLOT) + 1
+        ):
             g = np.random.default_rng([frame.track.seed, 53, self.salt, k])
             if g.random() >= self.per_100m * self._SLOT / 100.0:
                 continue
@@ -196,8 +220,15 @@ class PatchPainter:
     GRIME = (38.0, 33.0, 28.0)
     FEATHER = 0.10  # m
 
-    def __init__(self, s_center: float, t_center: float, length: float, width: float, angle: float = 0.0,
-                 darkness: float = 0.6) -> None:
+    def __init__(
+        self,
+        s_center: float,
+        t_center: float,
+        length: float,
+        width: float,
+        angle: float = 0.0,
+        darkness: float = 0.6,
+    ) -> None:
         self.s_center, self.t_center = s_center, t_center
         self.length, self.width, self.angle, self.darkness = length, width, angle, darkness
 
@@ -211,8 +242,9 @@ class PatchPainter:
         dt = frame.t_of_cols()[cols][None, :] - self.t_center
         c, sn = math.cos(self.angle), math.sin(self.angle)
         u, v = ds * c + dt * sn, -ds * sn + dt * c
-        inside = (np.clip((0.5 * self.length - np.abs(u)) / self.FEATHER, 0.0, 1.0)
-                  * np.clip((0.5 * self.width - np.abs(v)) / self.FEATHER, 0.0, 1.0))
+        inside = np.clip((0.5 * self.length - np.abs(u)) / self.FEATHER, 0.0, 1.0) * np.clip(
+            (0.5 * self.width - np.abs(v)) / self.FEATHER, 0.0, 1.0
+        )
         grime = self.darkness * (0.8 + 0.2 * rng.random(inside.shape))
         region = img[rows, cols]
         _blend(region, self.GRIME, inside * grime)

@@ -9,11 +9,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.axes import Axes  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
 
-from tracks.road import Track  # noqa: E402
+from tracks.road import Track
 
 BODY_STYLE = {
     "curb": ("#b9b7b0", 1.2),
@@ -21,10 +21,19 @@ BODY_STYLE = {
     "guardrail": ("#5f7f9f", 1.6),
     "divider": ("#d08a2a", 2.4),
 }
-LINE_COLOUR = {"solid_white": "#ffffff", "dashed_white": "#ffffff", "solid_yellow": "#f0b400",
-               "double_yellow": "#f0b400"}
-GROUND_COLOUR = {"grass": "#9bb98a", "concrete": "#d4d2cc", "dirt": "#b59f7f", "drop": "#3b2f24",
-                 "asphalt": "#6b6b70"}
+LINE_COLOUR = {
+    "solid_white": "#ffffff",
+    "dashed_white": "#ffffff",
+    "solid_yellow": "#f0b400",
+    "double_yellow": "#f0b400",
+}
+GROUND_COLOUR = {
+    "grass": "#9bb98a",
+    "concrete": "#d4d2cc",
+    "dirt": "#b59f7f",
+    "drop": "#3b2f24",
+    "asphalt": "#6b6b70",
+}
 
 
 def _strip(track: Track, s: np.ndarray, t_a: float, t_b: float) -> np.ndarray:
@@ -53,8 +62,15 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
         if b > s0 and a < s1:
             band = np.linspace(max(a, s0), min(b, s1), 20)
             ax.fill(*_strip(track, band, t_min, t_max).T, color="#6b6b70", lw=0, zorder=1)
-            ax.fill(*_strip(track, band, t_min, t_max).T, facecolor="none", edgecolor="#c0392b", hatch="//",
-                    lw=0.8, zorder=4, label="intersection")
+            ax.fill(
+                *_strip(track, band, t_min, t_max).T,
+                facecolor="none",
+                edgecolor="#c0392b",
+                hatch="//",
+                lw=0.8,
+                zorder=4,
+                label="intersection",
+            )
     for boundary in track.boundaries:
         for run in boundary.runs:
             if run.kind == "none" or run.s1 <= s0 or run.s0 >= s1:
@@ -64,21 +80,34 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
                 on &= np.mod(s, 12.0) < 3.0
             offsets = (-0.11, 0.11) if run.kind == "double_yellow" else (0.0,)
             for off in offsets:
-                _masked_line(ax, track.reference.points(s, boundary.t + off), on,
-                             color=LINE_COLOUR[run.kind], lw=0.8, zorder=3)
+                _masked_line(
+                    ax,
+                    track.reference.points(s, boundary.t + off),
+                    on,
+                    color=LINE_COLOUR[run.kind],
+                    lw=0.8,
+                    zorder=3,
+                )
     free = np.array([not track.in_intersection(v) for v in s])
-    for side, edge, outer in ((-1, track.right, track.boundaries[0].t), (1, track.left, track.boundaries[-1].t)):
+    for side, edge, outer in (
+        (-1, track.right, track.boundaries[0].t),
+        (1, track.left, track.boundaries[-1].t),
+    ):
         if edge.kind == "drop_off":
             edge_t = lo if side < 0 else hi
-            _masked_line(ax, track.reference.points(s, edge_t), free, color="#3b2f24", lw=2.0, ls="--",
-                         zorder=3)
+            _masked_line(
+                ax, track.reference.points(s, edge_t), free, color="#3b2f24", lw=2.0, ls="--", zorder=3
+            )
         for body in edge.bodies:
             t_mid = outer + side * (body.gap + 0.5 * body.thickness)
             if body.spacing > 0.0:
-                tiles = range(int(s0 // track.tile_length), min(track.n_tiles, math.ceil(s1 / track.tile_length)))
+                tiles = range(
+                    int(s0 // track.tile_length), min(track.n_tiles, math.ceil(s1 / track.tile_length))
+                )
                 trees = [box for i in tiles for box in track.obstacles(i) if box.kind == body.kind]
-                ax.scatter([b.center[0] for b in trees], [b.center[1] for b in trees], s=6, color="#2e7d32",
-                           zorder=4)
+                ax.scatter(
+                    [b.center[0] for b in trees], [b.center[1] for b in trees], s=6, color="#2e7d32", zorder=4
+                )
             else:
                 colour, lw = BODY_STYLE[body.kind]
                 _masked_line(ax, track.reference.points(s, t_mid), free, color=colour, lw=lw, zorder=3)

@@ -27,7 +27,9 @@ def _pick(rng: np.random.Generator | None, canonical: float, lo: float, hi: floa
     return canonical if rng is None else float(rng.uniform(lo, hi))
 
 
-def lidar_profile(seed: int, length: float, base: float, poor_stretches: int) -> tuple[np.ndarray, np.ndarray]:
+def lidar_profile(
+    seed: int, length: float, base: float, poor_stretches: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Smooth feature-quality profile on a 5 m grid: `base` plus slow seeded undulation and a few
     Gaussian feature-poor dips (open fields, tunnels of sameness), clipped to [0.05, 1]."""
     rng = np.random.default_rng([seed, 5])
@@ -42,12 +44,22 @@ def lidar_profile(seed: int, length: float, base: float, poor_stretches: int) ->
 
 
 def _painters(rng: np.random.Generator | None) -> list:
-    return [AsphaltPainter(tone=_pick(rng, 1.0, 0.85, 1.15), grain=_pick(rng, 7.0, 5.0, 9.0)), MarkingPainter()]
+    return [
+        AsphaltPainter(tone=_pick(rng, 1.0, 0.85, 1.15), grain=_pick(rng, 7.0, 5.0, 9.0)),
+        MarkingPainter(),
+    ]
 
 
-def _curves(rng: np.random.Generator | None, canonical: list[tuple[float, float, float]],
-            radius: tuple[float, float], angle_deg: tuple[float, float], straight: tuple[float, float],
-            transition: Callable[[float, float], float], total: float, run_in: float) -> list[Segment]:
+def _curves(
+    rng: np.random.Generator | None,
+    canonical: list[tuple[float, float, float]],
+    radius: tuple[float, float],
+    angle_deg: tuple[float, float],
+    straight: tuple[float, float],
+    transition: Callable[[float, float], float],
+    total: float,
+    run_in: float,
+) -> list[Segment]:
     """Run-in straight, then bends (signed radius, angle, straight after) until `total` metres.
 
     Seeded layouts alternate turn direction and flip a bend whose heading would pass ±100°, so the road
@@ -81,40 +93,91 @@ def slr(seed: int) -> Track:
     length = _pick(rng, 1800.0, 1600.0, 2200.0)
     shoulder = _pick(rng, 2.5, 1.5, 3.0)
     edge = Edge("drop_off", paved=shoulder, ground="drop", roadside=3.0)
-    return Track("slr", seed, "long single-lane straight road (3.56 m) with drop-offs beyond the shoulders",
-                 ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(length)]), [3.56], ["solid_white"] * 2,
-                 edge, edge, lidar_profile=lidar_profile(seed, length, 0.6, 2), painters=_painters(rng))
+    return Track(
+        "slr",
+        seed,
+        "long single-lane straight road (3.56 m) with drop-offs beyond the shoulders",
+        ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(length)]),
+        [3.56],
+        ["solid_white"] * 2,
+        edge,
+        edge,
+        lidar_profile=lidar_profile(seed, length, 0.6, 2),
+        painters=_painters(rng),
+    )
 
 
 def urban_straight(seed: int) -> Track:
     rng = None if seed == 0 else np.random.default_rng(seed)
     length = _pick(rng, 1600.0, 1500.0, 2000.0)
     trees = rng is None or rng.random() < 0.6
-    roadside = (RoadsideBody("tree", gap=0.85, thickness=0.5, height=5.0, spacing=_pick(rng, 8.0, 7.0, 11.0))
-                if trees else RoadsideBody("barrier", gap=0.85, thickness=0.5, height=0.9))
+    roadside = (
+        RoadsideBody("tree", gap=0.85, thickness=0.5, height=5.0, spacing=_pick(rng, 8.0, 7.0, 11.0))
+        if trees
+        else RoadsideBody("barrier", gap=0.85, thickness=0.5, height=0.9)
+    )
     right = Edge("curb", paved=0.10, ground="concrete", bodies=(CURB, roadside))
-    left = Edge("curb", paved=0.30, ground="concrete",
-                bodies=(RoadsideBody("curb", 0.30, 0.30, 0.15), RoadsideBody("barrier", 1.0, 0.6, 0.9)))
-    return Track("urban-straight", seed, "straight 2-lane urban road (ego 3.90 m), curbs, roadside trees/barriers",
-                 ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(length)]), [3.90, 3.60],
-                 ["solid_white", "dashed_white", "solid_yellow"], right, left,
-                 lidar_profile=lidar_profile(seed, length, 0.85, 2), painters=_painters(rng))
+    left = Edge(
+        "curb",
+        paved=0.30,
+        ground="concrete",
+        bodies=(RoadsideBody("curb", 0.30, 0.30, 0.15), RoadsideBody("barrier", 1.0, 0.6, 0.9)),
+    )
+    return Track(
+        "urban-straight",
+        seed,
+        "straight 2-lane urban road (ego 3.90 m), curbs, roadside trees/barriers",
+        ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(length)]),
+        [3.90, 3.60],
+        ["solid_white", "dashed_white", "solid_yellow"],
+        right,
+        left,
+        lidar_profile=lidar_profile(seed, length, 0.85, 2),
+        painters=_painters(rng),
+    )
 
 
-URBAN_CURVY_BENDS = [(80.0, 60, 60), (-60.0, 75, 50), (120.0, 50, 80), (-90.0, 70, 40), (60.0, 80, 70),
-                     (-150.0, 45, 60), (100.0, 65, 50), (-70.0, 70, 80), (90.0, 60, 60), (-110.0, 55, 100)]
+URBAN_CURVY_BENDS = [
+    (80.0, 60, 60),
+    (-60.0, 75, 50),
+    (120.0, 50, 80),
+    (-90.0, 70, 40),
+    (60.0, 80, 70),
+    (-150.0, 45, 60),
+    (100.0, 65, 50),
+    (-70.0, 70, 80),
+    (90.0, 60, 60),
+    (-110.0, 55, 100),
+]
 
 
 def urban_curvy(seed: int) -> Track:
     rng = None if seed == 0 else np.random.default_rng(seed)
-    segs = _curves(rng, URBAN_CURVY_BENDS, (60.0, 200.0), (40.0, 85.0), (30.0, 120.0),
-                   lambda r, a: min(25.0, 0.4 * r * a), total=1800.0, run_in=150.0)
+    segs = _curves(
+        rng,
+        URBAN_CURVY_BENDS,
+        (60.0, 200.0),
+        (40.0, 85.0),
+        (30.0, 120.0),
+        lambda r, a: min(25.0, 0.4 * r * a),
+        total=1800.0,
+        run_in=150.0,
+    )
     ref = ReferenceLine(Pose(0.0, 0.0, 0.0), segs)
     right = Edge("curb", paved=0.10, ground="concrete", bodies=(CURB,))
     left = Edge("divider", paved=0.15, ground="concrete", bodies=(DIVIDER,), roadside=2.0)
-    return Track("urban-curvy", seed, "curvy single-lane urban road (3.40 m, R >= 60 m), divider left, curb right",
-                 ref, [3.40], ["solid_white", "double_yellow"], right, left,
-                 lidar_profile=lidar_profile(seed, ref.length, 0.8, 2), painters=_painters(rng))
+    return Track(
+        "urban-curvy",
+        seed,
+        "curvy single-lane urban road (3.40 m, R >= 60 m), divider left, curb right",
+        ref,
+        [3.40],
+        ["solid_white", "double_yellow"],
+        right,
+        left,
+        lidar_profile=lidar_profile(seed, ref.length, 0.8, 2),
+        painters=_painters(rng),
+    )
 
 
 HIGHWAY_BENDS = [(900.0, 15, 300), (-700.0, 20, 250), (1200.0, 12, 350), (-600.0, 18, 300), (800.0, 16, 300)]
@@ -122,14 +185,32 @@ HIGHWAY_BENDS = [(900.0, 15, 300), (-700.0, 20, 250), (1200.0, 12, 350), (-600.0
 
 def highway(seed: int) -> Track:
     rng = None if seed == 0 else np.random.default_rng(seed)
-    segs = _curves(rng, HIGHWAY_BENDS, (600.0, 1500.0), (8.0, 22.0), (200.0, 400.0),
-                   lambda r, a: min(80.0, 0.4 * r * a), total=3100.0, run_in=250.0)
+    segs = _curves(
+        rng,
+        HIGHWAY_BENDS,
+        (600.0, 1500.0),
+        (8.0, 22.0),
+        (200.0, 400.0),
+        lambda r, a: min(80.0, 0.4 * r * a),
+        total=3100.0,
+        run_in=250.0,
+    )
     ref = ReferenceLine(Pose(0.0, 0.0, 0.0), segs)
     right = Edge("guardrail", paved=3.0, ground="grass", bodies=(RoadsideBody("guardrail", 3.5, 0.3, 0.75),))
     left = Edge("guardrail", paved=1.2, ground="grass", bodies=(RoadsideBody("guardrail", 1.6, 0.3, 0.75),))
-    return Track("highway", seed, "3-lane highway (3 x 3.75 m, R >= 600 m) with shoulders and guardrails",
-                 ref, [3.75] * 3, ["solid_white", "dashed_white", "dashed_white", "solid_yellow"], right, left,
-                 ego_lane=1, lidar_profile=lidar_profile(seed, ref.length, 0.55, 3), painters=_painters(rng))
+    return Track(
+        "highway",
+        seed,
+        "3-lane highway (3 x 3.75 m, R >= 600 m) with shoulders and guardrails",
+        ref,
+        [3.75] * 3,
+        ["solid_white", "dashed_white", "dashed_white", "solid_yellow"],
+        right,
+        left,
+        ego_lane=1,
+        lidar_profile=lidar_profile(seed, ref.length, 0.55, 3),
+        painters=_painters(rng),
+    )
 
 
 LOCAL_BLOCKS = [220.0, 300.0, 260.0, 340.0, 240.0, 300.0]
@@ -143,7 +224,9 @@ def local(seed: int) -> Track:
     s, crossings = 120.0, []
     for k, block in enumerate(blocks):
         if k % 2 == 1:
-            r = _pick(rng, 250.0 if k == 1 else -300.0, 180.0, 400.0) * (1 if rng is None else rng.choice([-1, 1]))
+            r = _pick(rng, 250.0 if k == 1 else -300.0, 180.0, 400.0) * (
+                1 if rng is None else rng.choice([-1, 1])
+            )
             curve = bend(r, math.radians(_pick(rng, 20.0, 10.0, 30.0)), 30.0)
             rest = max(20.0, block - sum(c.length for c in curve))
             segs += [Straight(0.5 * rest), *curve, Straight(0.5 * rest)]
@@ -158,18 +241,36 @@ def local(seed: int) -> Track:
             s += zone + 20.0
     ref = ReferenceLine(Pose(0.0, 0.0, 0.0), segs)
     edge = Edge("curb", paved=0.30, ground="concrete", bodies=(RoadsideBody("curb", 0.30, 0.30, 0.15),))
-    return Track("local", seed, "2-lane local road (3.0-3.5 m lanes) with curbs and intersections every few 100 m",
-                 ref, widths, ["solid_white", "dashed_white", "solid_yellow"], edge, edge,
-                 intersections=crossings, lidar_profile=lidar_profile(seed, ref.length, 0.8, 2),
-                 painters=_painters(rng))
+    return Track(
+        "local",
+        seed,
+        "2-lane local road (3.0-3.5 m lanes) with curbs and intersections every few 100 m",
+        ref,
+        widths,
+        ["solid_white", "dashed_white", "solid_yellow"],
+        edge,
+        edge,
+        intersections=crossings,
+        lidar_profile=lidar_profile(seed, ref.length, 0.8, 2),
+        painters=_painters(rng),
+    )
 
 
 def parking_lot(seed: int) -> Track:
     rng = None if seed == 0 else np.random.default_rng(seed)
     edge = Edge("open", paved=12.0, ground="asphalt", roadside=2.0)
-    return Track("parking-lot", seed, "one 3.5 m straight lane (80 m) marked on open asphalt, for chassis tests",
-                 ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(80.0)]), [3.5], ["solid_white"] * 2, edge, edge,
-                 lidar_profile=lidar_profile(seed, 80.0, 0.9, 0), painters=_painters(rng))
+    return Track(
+        "parking-lot",
+        seed,
+        "one 3.5 m straight lane (80 m) marked on open asphalt, for chassis tests",
+        ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(80.0)]),
+        [3.5],
+        ["solid_white"] * 2,
+        edge,
+        edge,
+        lidar_profile=lidar_profile(seed, 80.0, 0.9, 0),
+        painters=_painters(rng),
+    )
 
 
 PRESETS: dict[str, Callable[[int], Track]] = {

@@ -7,8 +7,10 @@ are indexed 0 = rightmost; lateral offsets t are + left.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +22,9 @@ from tracks.layout import Boundary, CollisionBox, Edge, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter
 from tracks.pose import Pose
 from tracks.texture import Painter
+
+if TYPE_CHECKING:
+    from tracks.semantic_map import TrackMap
 
 SEDAN_WIDTH = 1.90  # m; the vehicle width the presets' lane straddle deviations are quoted for
 
@@ -67,9 +72,9 @@ class Track:
         if lidar_profile is None:
             lidar_profile = (np.array([0.0, self.length]), np.ones(2))
         self._lidar_s, self._lidar_q = lidar_profile
-        self.painters: list[Painter] = list(painters) if painters is not None else [
-            AsphaltPainter(), MarkingPainter()
-        ]
+        self.painters: list[Painter] = (
+            list(painters) if painters is not None else [AsphaltPainter(), MarkingPainter()]
+        )
         self.tile_length = tile_length
         self.px_per_m = px_per_m
 
@@ -101,6 +106,13 @@ class Track:
     def in_intersection(self, s: float) -> bool:
         return any(a <= s < b for a, b in self.intersections)
 
+    @functools.cached_property
+    def map(self) -> TrackMap:
+        """The semantic map of this track (tracks.map_api.SemanticMap)."""
+        from tracks.semantic_map import TrackMap
+
+        return TrackMap(self)
+
     def lane_straddle_dev(self, lane: int | None = None, vehicle_width: float = SEDAN_WIDTH) -> float:
         """(lane width - vehicle width) / 2 for `lane` (default: the ego lane)."""
         return 0.5 * (self.lanes[self.ego_lane if lane is None else lane].width - vehicle_width)
@@ -131,7 +143,7 @@ class Track:
         return self.left.kind if t > 0.5 * (lo + hi) else self.right.kind
 
     def lidar_feature_quality(self, s: float) -> float:
-        """LiDAR map-matching feature richness at arc length s: 1 rich, near 0 feature-poor (smooth, seeded)."""
+        """LiDAR map-matching feature richness at s: 1 rich, near 0 feature-poor (smooth, seeded)."""
         return float(np.interp(s, self._lidar_s, self._lidar_q))
 
     def obstacles(self, tile: int | None = None) -> list[CollisionBox]:
@@ -147,7 +159,7 @@ class Track:
         return texture.tile_frame(self, i)
 
     def tile_texture(self, i: int, rng: np.random.Generator | None = None) -> np.ndarray:
-        """Paint tile i (H×W×3 uint8 RGB); the default rng is seeded by (track seed, i), so it is repeatable."""
+        """Paint tile i (H×W×3 uint8 RGB); the default rng is seeded by (track seed, i): repeatable."""
         return texture.paint_tile(self, i, np.random.default_rng([self.seed, i]) if rng is None else rng)
 
     def tile_mesh(self, i: int, spacing: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

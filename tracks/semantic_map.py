@@ -33,7 +33,9 @@ class TrackMap:
         x, y = pose.x, pose.y
         s, t = self.track.reference.project(x, y)
         if not (0.0 <= s <= self._length and self._reach[0] <= t <= self._reach[1]):
-            raise OffMapError(f"pose ({x:.2f}, {y:.2f}) is off the map of {self.track.name} (s={s:.1f}, t={t:.2f})")
+            raise OffMapError(
+                f"pose ({x:.2f}, {y:.2f}) is off the map of {self.track.name} (s={s:.1f}, t={t:.2f})"
+            )
         if lane is None:
             lane = self._lane_at(t)
         elif not 0 <= lane < len(self._lanes):

@@ -22,7 +22,7 @@ from tracks.pose import Pose
 
 @dataclass(frozen=True)
 class AttackerView:
-    """What a tailgating attacker observes: time, the victim's true pose and signed physical lane deviation."""
+    """What a tailgating attacker sees: time, the victim's true pose, signed physical lane deviation."""
 
     t: float
     true_pose: Pose

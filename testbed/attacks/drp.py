@@ -1,4 +1,4 @@
-"""LD-side attacks modelled on the Dirty Road Patch (DRP) attack (Sato et al., USENIX Security'21; paper §6.2).
+"""LD-side attacks modelled on the Dirty Road Patch (DRP) attack (Sato et al. 2021; paper §6.2).
 
 `DrpTrace` injects a lateral deviation into the lane detector's output: from `start` the detected lines
 shift so that the LD deviation moves by `shift` (m, + left), ramping in over `ramp` seconds and lasting
@@ -29,7 +29,9 @@ class DrpTrace(Attack):
 
     name = "drp-trace"
 
-    def __init__(self, start: float = 10.0, shift: float = 0.7, ramp: float = 1.0, duration: float = 5.0) -> None:
+    def __init__(
+        self, start: float = 10.0, shift: float = 0.7, ramp: float = 1.0, duration: float = 5.0
+    ) -> None:
         super().__init__(start)
         _check(math.isfinite(shift), f"drp-trace shift must be finite, got {shift}")
         _check(math.isfinite(ramp) and ramp >= 0, f"drp-trace ramp must be a time >= 0 s, got {ramp}")
@@ -65,17 +67,29 @@ class DrpTrace(Attack):
         return {"stage": self.stage, "switch_time": None, "offset": self.offset}
 
     def describe(self) -> dict[str, Any]:
-        return {"kind": self.name, "start": self.start_time, "shift": self.shift, "ramp": self.ramp,
-                "duration": self.duration}
+        return {
+            "kind": self.name,
+            "start": self.start_time,
+            "shift": self.shift,
+            "ramp": self.ramp,
+            "duration": self.duration,
+        }
 
 
 class DrpPatch(Attack):
-    """A dark patch painted on the road at arc length `at`, lateral offset `offset` from the reference line."""
+    """A dark patch painted on the road at arc length `at`, offset `offset` from the reference line."""
 
     name = "drp-patch"
 
-    def __init__(self, at: float, length: float = 10.0, width: float = 1.5, offset: float = 0.0,
-                 angle: float = 0.0, darkness: float = 0.5) -> None:
+    def __init__(
+        self,
+        at: float,
+        length: float = 10.0,
+        width: float = 1.5,
+        offset: float = 0.0,
+        angle: float = 0.0,
+        darkness: float = 0.5,
+    ) -> None:
         super().__init__(0.0)
         _check(math.isfinite(at) and at >= 0, f"drp-patch at must be an arc length >= 0 m, got {at}")
         _check(math.isfinite(length) and length > 0, f"drp-patch length must be > 0 m, got {length}")
@@ -89,12 +103,27 @@ class DrpPatch(Attack):
     def painters(self) -> list[Any]:
         from tracks.paint import PatchPainter
 
-        return [PatchPainter(s_center=self.at, t_center=self.offset, length=self.length, width=self.width,
-                             angle=self.angle, darkness=self.darkness)]
+        return [
+            PatchPainter(
+                s_center=self.at,
+                t_center=self.offset,
+                length=self.length,
+                width=self.width,
+                angle=self.angle,
+                darkness=self.darkness,
+            )
+        ]
 
     def state(self) -> dict[str, Any]:
         return {"stage": PAINTED, "switch_time": None, "offset": 0.0}
 
     def describe(self) -> dict[str, Any]:
-        return {"kind": self.name, "at": self.at, "length": self.length, "width": self.width,
-                "offset": self.offset, "angle": self.angle, "darkness": self.darkness}
+        return {
+            "kind": self.name,
+            "at": self.at,
+            "length": self.length,
+            "width": self.width,
+            "offset": self.offset,
+            "angle": self.angle,
+            "darkness": self.darkness,
+        }

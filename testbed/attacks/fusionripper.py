@@ -4,7 +4,8 @@ The attacker tailgates the victim and watches its physical lateral deviation. Fr
 GNSS position sideways by a constant `d` (vulnerability profiling). As soon as the victim's physical
 deviation, in the direction the spoofing pushes it (opposite to the spoofed offset under lane-centring
 control), exceeds `trigger`, it switches to aggressive spoofing: the offset is multiplied by `f` every
-second, d·f^k with k the whole seconds since the switch.
+second, d·f^k with k the whole seconds since the switch. The attacker's view of the deviation (from its own
+sensors, tailgating) carries Gaussian noise `obs_std`, drawn from the scenario's attack stream.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 import math
 from typing import Any
+
+import numpy as np
 
 from testbed.attacks.base import Attack, AttackerView, left_normal
 from testbed.localization.sensors import GnssFix
@@ -24,8 +27,16 @@ class FusionRipper(Attack):
 
     name = "fusionripper"
 
-    def __init__(self, d: float = 0.5, f: float = 1.2, direction: str = "left", start: float = 10.0,
-                 trigger: float = 0.3) -> None:
+    def __init__(
+        self,
+        d: float = 0.5,
+        f: float = 1.2,
+        direction: str = "left",
+        start: float = 10.0,
+        trigger: float = 0.3,
+        obs_std: float = 0.05,
+        rng: np.random.Generator | None = None,
+    ) -> None:
         super().__init__(start)
         if not (math.isfinite(d) and d > 0):
             raise ValueError(f"fusionripper d must be a distance > 0 m, got {d}")
@@ -35,7 +46,10 @@ class FusionRipper(Attack):
             raise ValueError(f"fusionripper direction must be 'left' or 'right', got {direction!r}")
         if not (math.isfinite(trigger) and trigger > 0):
             raise ValueError(f"fusionripper trigger must be a deviation > 0 m, got {trigger}")
+        if not (math.isfinite(obs_std) and obs_std >= 0):
+            raise ValueError(f"fusionripper obs_std must be a deviation >= 0 m, got {obs_std}")
         self.d, self.f, self.direction, self.trigger = d, f, direction, trigger
+        self.obs_std, self.rng = obs_std, rng
         self.sign = 1.0 if direction == "left" else -1.0
         self.stage = IDLE
         self.switch_time: float | None = None
@@ -48,15 +62,17 @@ class FusionRipper(Attack):
             return
         if self.stage == IDLE:
             self.stage = PROFILING
-        pushed = -self.sign * view.phys_dev
+        observed = view.phys_dev
+        if self.rng is not None and self.obs_std > 0:
+            observed += self.obs_std * float(self.rng.normal())
+        pushed = -self.sign * observed
         if self.stage == PROFILING and math.isfinite(pushed) and pushed > self.trigger:
             self.stage, self.switch_time = AGGRESSIVE, t
-        if self.stage == AGGRESSIVE:
-            assert self.switch_time is not None
+        if self.switch_time is None:
+            self.offset = self.sign * self.d
+        else:
             k = math.floor(t - self.switch_time + 1e-9)
             self.offset = self.sign * self.d * self.f**k
-        else:
-            self.offset = self.sign * self.d
 
     def spoof_gnss(self, fix: GnssFix, view: AttackerView) -> GnssFix:
         self._observe(view)
@@ -68,5 +84,11 @@ class FusionRipper(Attack):
         return {"stage": self.stage, "switch_time": self.switch_time, "offset": self.offset}
 
     def describe(self) -> dict[str, Any]:
-        return {"kind": self.name, "d": self.d, "f": self.f, "direction": self.direction,
-                "start": self.start_time, "trigger": self.trigger}
+        return {
+            "kind": self.name,
+            "d": self.d,
+            "f": self.f,
+            "direction": self.direction,
+            "start": self.start_time,
+            "trigger": self.trigger,
+        }

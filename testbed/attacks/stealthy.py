@@ -44,8 +44,13 @@ class StealthyAttack(Attack):
 
     name = "stealthy"
 
-    def __init__(self, knowledge: CusumKnowledge, start: float = 10.0, margin: float | None = None,
-                 direction: str = "left") -> None:
+    def __init__(
+        self,
+        knowledge: CusumKnowledge,
+        start: float = 10.0,
+        margin: float | None = None,
+        direction: str = "left",
+    ) -> None:
         super().__init__(start)
         if direction not in ("left", "right"):
             raise ValueError(f"stealthy direction must be 'left' or 'right', got {direction!r}")
@@ -83,5 +88,12 @@ class StealthyAttack(Attack):
 
     def describe(self) -> dict[str, Any]:
         k = self.knowledge
-        return {"kind": self.name, "start": self.start_time, "margin": self.margin, "direction": self.direction,
-                "b": k.b, "tau": k.tau, "ld_std": k.ld_noise_std}
+        return {
+            "kind": self.name,
+            "start": self.start_time,
+            "margin": self.margin,
+            "direction": self.direction,
+            "b": k.b,
+            "tau": k.tau,
+            "ld_std": k.ld_noise_std,
+        }

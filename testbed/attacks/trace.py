@@ -49,8 +49,9 @@ class Trace:
                     raise ValueError
                 t, dev = float(row[0]), float(row[1])
             except ValueError:
-                raise ValueError(f"{path}:{lineno}: malformed trace CSV row {row!r}, expected two numbers t,dev") \
-                    from None
+                raise ValueError(
+                    f"{path}:{lineno}: malformed trace CSV row {row!r}, expected two numbers t,dev"
+                ) from None
             if not (math.isfinite(t) and math.isfinite(dev)):
                 raise ValueError(f"{path}:{lineno}: trace values must be finite, got {row!r}")
             if ts and t <= ts[-1]:
@@ -68,8 +69,11 @@ class Trace:
         """A trace shipped with the package (testbed/attacks/traces/NAME.csv)."""
         ref = resources.files("testbed.attacks") / "traces" / f"{name}.csv"
         if not ref.is_file():
-            shipped = sorted(p.name.removesuffix(".csv") for p in (resources.files("testbed.attacks") / "traces")
-                             .iterdir() if p.name.endswith(".csv"))
+            shipped = sorted(
+                p.name.removesuffix(".csv")
+                for p in (resources.files("testbed.attacks") / "traces").iterdir()
+                if p.name.endswith(".csv")
+            )
             raise ValueError(f"unknown trace {name!r}; shipped traces: {shipped} (or give a path to a .csv)")
         with resources.as_file(ref) as path:
             trace = cls.load(Path(path))

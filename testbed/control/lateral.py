@@ -1,4 +1,4 @@
-"""Gain-scheduled discrete LQR lateral controller on the path-error bicycle model, with curvature feed-forward.
+"""Gain-scheduled discrete LQR lateral controller on the path-error bicycle model, curvature feed-forward.
 
 δ = δ_ss(v, κ) − K(v)·[e_y, v·sin e_ψ − v·e_ψss, e_ψ − e_ψss, r − v·κ_local], clamped to ±max_steer.
 δ_ss and e_ψss are the steady-state cornering steer (kinematic + understeer) and sideslip heading error,
@@ -42,8 +42,6 @@ class LqrLateralController:
         dt: float,
         q: tuple[float, float, float, float] = (0.5, 0.0, 1.0, 0.0),
         r: float = 25.0,
-        q_integral: float = 0.05,
-        integral_limit: float = 0.03,
         hold_speed: float = 0.1,
     ) -> None:
         self.model = model
@@ -51,28 +49,16 @@ class LqrLateralController:
         self.dt = dt
         self.hold_speed = hold_speed
         self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
-        self.integral_limit = integral_limit
-        q_mat, r_mat = np.diag((q_integral, *q)), np.array([[r]])
+        q_mat, r_mat = np.diag(q), np.array([[r]])
         gains = []
         for v in self.speeds:
-            ad, bd = self.augmented(*discretise(*model.error_dynamics(float(v)), dt), dt)
+            ad, bd = discretise(*model.error_dynamics(float(v)), dt)
             k, _, _ = control.dlqr(ad, bd, q_mat, r_mat)
             gains.append(np.asarray(k, dtype=float).ravel())
         self.gains = np.array(gains)
         self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
         self._kv = model.understeer_gradient
-        self._lr = model.lr
-        self._lf_over_crl = model.lf * model.mass / (model.cr * model.wheelbase)
         self._last = 0.0
-        self._integral = 0.0
-
-    @staticmethod
-    def augmented(ad: np.ndarray, bd: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Prepend the integral of e_y as a state: z[k+1] = z[k] + dt·e_y[k]."""
-        a = np.zeros((5, 5))
-        a[0, 0], a[0, 1] = 1.0, dt
-        a[1:, 1:] = ad
-        return a, np.vstack([np.zeros((1, 1)), bd])
 
     @classmethod
     def from_vehicle(cls, vehicle: Any, dt: float, **tuning: Any) -> LqrLateralController:
@@ -89,7 +75,7 @@ class LqrLateralController:
         return cls(model, vehicle.max_steer, dt, **tuning)
 
     def gain(self, speed: float) -> tuple[float, ...]:
-        """K(v) = [k_∫, k_ey, k_ėy, k_eψ, k_ėψ] linearly interpolated in the schedule (clamped to its range)."""
+        """K(v) = [k_ey, k_ėy, k_eψ, k_ėψ] linearly interpolated in the schedule (clamped to its range)."""
         pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
         i = min(int(pos), len(self._gain_rows) - 2)
         f = pos - i
@@ -97,7 +83,6 @@ class LqrLateralController:
 
     def reset(self) -> None:
         self._last = 0.0
-        self._integral = 0.0
 
     def update(self, plan: Plan, speed: float, yaw_rate: float | None = None) -> float:
         """Steer angle for this tick. `yaw_rate` (rad/s, gyro) is optional: without it the yaw rate is
@@ -107,22 +92,16 @@ class LqrLateralController:
             return self._last
         v = speed
         if yaw_rate is None:
-            yaw_rate = v * self._last / (self.model.wheelbase + self._kv * v * v)
-        kappa = plan.curvature
-        v2k = v * v * kappa
-        steer_ss = self.model.wheelbase * kappa + self._kv * v2k
-        heading_ss = -self._lr * kappa + self._lf_over_crl * v2k
-        ki, k1, k2, k3, k4 = self.gain(v)
+            wheelbase = self.model.wheelbase
+            yaw_rate = v * self._last / max(wheelbase + self._kv * v * v, 0.5 * wheelbase)
+        steer_ss, heading_ss = self.model.steady_state(v, plan.curvature)
+        k1, k2, k3, k4 = self.gain(v)
         steer = (
             steer_ss
-            - ki * self._integral
             - k1 * plan.lateral_error
             - k2 * v * (math.sin(plan.heading_error) - heading_ss)
             - k3 * (plan.heading_error - heading_ss)
             - k4 * (yaw_rate - v * plan.local_curvature)
         )
         self._last = min(max(steer, -self.max_steer), self.max_steer)
-        if steer == self._last:  # anti-windup: integrate only while the command is not clamped
-            limit = self.integral_limit / max(ki, 1e-9)
-            self._integral = min(max(self._integral + self.dt * plan.lateral_error, -limit), limit)
         return self._last

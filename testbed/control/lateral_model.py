@@ -56,12 +56,13 @@ class LateralModel:
     def error_dynamics(self, speed: float) -> tuple[np.ndarray, np.ndarray]:
         """Continuous-time (A, B) of ẋ = A x + B δ at longitudinal speed `speed` (> 0)."""
         m, iz, lf, lr, cf, cr, v = self.mass, self.yaw_inertia, self.lf, self.lr, self.cf, self.cr, speed
+        c0, c1, c2 = cf + cr, lr * cr - lf * cf, lf**2 * cf + lr**2 * cr
         a = np.array(
             [
                 [0.0, 1.0, 0.0, 0.0],
-                [0.0, -(cf + cr) / (m * v), (cf + cr) / m, (lr * cr - lf * cf) / (m * v)],
+                [0.0, -c0 / (m * v), c0 / m, c1 / (m * v)],
                 [0.0, 0.0, 0.0, 1.0],
-                [0.0, (lr * cr - lf * cf) / (iz * v), (lf * cf - lr * cr) / iz, -(lf**2 * cf + lr**2 * cr) / (iz * v)],
+                [0.0, c1 / (iz * v), -c1 / iz, -c2 / (iz * v)],
             ]
         )
         b = np.array([[0.0], [cf / m], [0.0], [lf * cf / iz]])

@@ -11,10 +11,9 @@ import math
 
 import numpy as np
 
+from testbed.control.plan import Plan
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
-
-from testbed.control.plan import Plan
 
 AR_DECEL = 4.0  # paper §4.3: Apollo's maximum allowed safe deceleration (m/s²)
 PREVIEW_STEP = 5.0  # m per step when walking the centreline to the preview point
@@ -59,7 +58,8 @@ class LanePlanner:
             coord = self.map.project(pose, self.lane)
             point, heading = self.map.lane_point(pose, self.lane)
             local_curvature = self.map.lane_curvature(pose, self.lane)
-            preview = self._preview_curvature(point, heading, max(self.min_preview, self.preview_time * speed))
+            distance = max(self.min_preview, self.preview_time * speed)
+            preview = self._preview_curvature(point, heading, distance)
         except OffMapError:
             held = self._last
             return Plan(

@@ -33,7 +33,6 @@ from testbed.loop import ControlLoop, LoopRates, TickRecord
 from testbed.perception.factory import make_detector
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.presets import load_track
-from tracks.semantic_map import TrackMap
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
@@ -71,7 +70,7 @@ class SimRun:
             raise ScenarioError(f"defense {sc.defense!r} needs a lane detector; detector is 'none'")
         seeds = np.random.SeedSequence(sc.seed).spawn(4)
         rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
-        self.smap = TrackMap(self.track)
+        self.smap = self.track.map
         self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
         if not 0 <= self.lane < len(self.track.lanes):
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")

@@ -56,8 +56,16 @@ class MultiSensorFusion:
         self.params = p = params or MsfParams()
         self.nominal = np.array([start_pose.x, start_pose.y, start_pose.yaw, start_speed, 0.0, 0.0])
         self.kf = KalmanFilter(dim_x=6, dim_z=2)
-        self.kf.P = np.diag([p.init_pos_std**2, p.init_pos_std**2, p.init_yaw_std**2, p.init_speed_std**2,
-                             p.init_gyro_bias_std**2, p.init_accel_bias_std**2])
+        self.kf.P = np.diag(
+            [
+                p.init_pos_std**2,
+                p.init_pos_std**2,
+                p.init_yaw_std**2,
+                p.init_speed_std**2,
+                p.init_gyro_bias_std**2,
+                p.init_accel_bias_std**2,
+            ]
+        )
         self.t: float | None = None
         self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
         self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
@@ -86,8 +94,16 @@ class MultiSensorFusion:
         f[2, 4] = -dt
         f[3, 5] = -dt
         self.kf.F = f
-        self.kf.Q = np.diag([0.0, 0.0, p.gyro_noise**2 * dt, p.accel_noise**2 * dt,
-                             p.gyro_bias_walk**2 * dt, p.accel_bias_walk**2 * dt])
+        self.kf.Q = np.diag(
+            [
+                0.0,
+                0.0,
+                p.gyro_noise**2 * dt,
+                p.accel_noise**2 * dt,
+                p.gyro_bias_walk**2 * dt,
+                p.accel_bias_walk**2 * dt,
+            ]
+        )
         self.kf.predict()
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray, h: np.ndarray) -> bool:
@@ -124,8 +140,9 @@ class MultiSensorFusion:
 
     def update_lidar(self, fix: LidarFix) -> bool:
         """Fuse a LiDAR-locator pose; returns False when the innovation gate rejects it."""
-        z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1],
-                      _wrap(fix.yaw - self.nominal[2])])
+        z = np.array(
+            [fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], _wrap(fix.yaw - self.nominal[2])]
+        )
         return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float), _H_LIDAR)
 
     @property

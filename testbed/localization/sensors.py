@@ -94,7 +94,9 @@ class GnssModel:
 class GnssSensor:
     """GNSS receiver: biased, noisy, occasionally multipath-corrupted position fixes."""
 
-    def __init__(self, rng: np.random.Generator, rate_hz: float = 10.0, model: GnssModel | None = None) -> None:
+    def __init__(
+        self, rng: np.random.Generator, rate_hz: float = 10.0, model: GnssModel | None = None
+    ) -> None:
         self.rng = rng
         self.model = model or GnssModel()
         self._schedule = _Schedule(rate_hz)
@@ -115,7 +117,9 @@ class GnssSensor:
         if t >= self._burst_until and self.rng.random() < 1.0 - math.exp(-m.multipath_rate * dt):
             self._burst_until = t + self.rng.uniform(*m.multipath_duration)
             ang = self.rng.uniform(-math.pi, math.pi)
-            self._burst_offset = self.rng.uniform(*m.multipath_offset) * np.array([math.cos(ang), math.sin(ang)])
+            self._burst_offset = self.rng.uniform(*m.multipath_offset) * np.array(
+                [math.cos(ang), math.sin(ang)]
+            )
 
     def in_multipath(self, t: float) -> bool:
         return t < self._burst_until
@@ -154,8 +158,13 @@ class LidarModel:
 class LidarLocator:
     """Map-matching locator seeded at the MSF prediction; weak where features are poor (module docstring)."""
 
-    def __init__(self, rng: np.random.Generator, feature_quality: Callable[[float, float], float],
-                 rate_hz: float = 10.0, model: LidarModel | None = None) -> None:
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        feature_quality: Callable[[float, float], float],
+        rate_hz: float = 10.0,
+        model: LidarModel | None = None,
+    ) -> None:
         self.rng = rng
         self.feature_quality = feature_quality
         self.model = model or LidarModel()
@@ -218,7 +227,9 @@ class ImuModel:
 class Imu:
     """Strapdown IMU reduced to the planar channels the MSF uses."""
 
-    def __init__(self, rng: np.random.Generator, rate_hz: float = 100.0, model: ImuModel | None = None) -> None:
+    def __init__(
+        self, rng: np.random.Generator, rate_hz: float = 100.0, model: ImuModel | None = None
+    ) -> None:
         self.rng = rng
         self.model = model or ImuModel()
         self._schedule = _Schedule(rate_hz)

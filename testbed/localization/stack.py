@@ -42,9 +42,15 @@ def _section(cls: type, values: Any, name: str) -> Any:
     for key, raw in values.items():
         default = getattr(cls(), key)
         if isinstance(default, tuple):
-            if not (isinstance(raw, list | tuple) and len(raw) == 2 and all(_is_num(v) for v in raw)
-                    and 0 <= raw[0] <= raw[1]):
-                raise ValueError(f"localization.{name}.{key} must be a pair [low, high] with 0 <= low <= high")
+            if not (
+                isinstance(raw, list | tuple)
+                and len(raw) == 2
+                and all(_is_num(v) for v in raw)
+                and 0 <= raw[0] <= raw[1]
+            ):
+                raise ValueError(
+                    f"localization.{name}.{key} must be a pair [low, high] with 0 <= low <= high"
+                )
             kwargs[key] = (float(raw[0]), float(raw[1]))
         else:
             if not _is_num(raw) or raw < 0:
@@ -59,7 +65,7 @@ def _is_num(v: Any) -> bool:
 
 @dataclass(frozen=True)
 class LocalizationConfig:
-    """Sensor rates and error models plus MSF tuning; `from_dict` reads the scenario's [localization] table."""
+    """Sensor rates and error models plus MSF tuning; `from_dict` reads a [localization] table."""
 
     gnss_hz: float = 10.0
     lidar_hz: float = 10.0
@@ -75,7 +81,9 @@ class LocalizationConfig:
         rates = ("gnss_hz", "lidar_hz", "imu_hz")
         unknown = sorted(set(d) - set(sections) - set(rates))
         if unknown:
-            raise ValueError(f"unknown localization parameter(s) {unknown}; known: {sorted([*rates, *sections])}")
+            raise ValueError(
+                f"unknown localization parameter(s) {unknown}; known: {sorted([*rates, *sections])}"
+            )
         kwargs: dict[str, Any] = {}
         for key in rates:
             if key in d:
@@ -94,8 +102,14 @@ class LocalizationConfig:
 class LocalizationStack:
     """GNSS, LiDAR locator and IMU models feeding one MSF; `step` is called at the control rate."""
 
-    def __init__(self, config: LocalizationConfig, rng: np.random.Generator,
-                 feature_quality: Callable[[float, float], float], start_pose: Pose, start_speed: float) -> None:
+    def __init__(
+        self,
+        config: LocalizationConfig,
+        rng: np.random.Generator,
+        feature_quality: Callable[[float, float], float],
+        start_pose: Pose,
+        start_speed: float,
+    ) -> None:
         self.config = config
         self.gnss = GnssSensor(rng, config.gnss_hz, config.gnss)
         self.lidar = LidarLocator(rng, feature_quality, config.lidar_hz, config.lidar)
@@ -103,9 +117,13 @@ class LocalizationStack:
         self.msf = MultiSensorFusion(start_pose, start_speed, config.msf)
         self.last_gnss: GnssFix | None = None
 
-    def step(self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None) -> LocalizationEstimate:
+    def step(
+        self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None
+    ) -> LocalizationEstimate:
         if truth.true_pose is None:
-            raise ValueError("LocalizationStack simulates its sensors from the true pose; ChassisState has none")
+            raise ValueError(
+                "LocalizationStack simulates its sensors from the true pose; ChassisState has none"
+            )
         pose = truth.true_pose
         if self.imu.due(t):
             self.msf.predict(self.imu.measure(t, truth.accel, truth.yaw_rate))
@@ -128,7 +146,9 @@ class GroundTruthLocalization:
         self.cov = np.diag([std * std, std * std, (0.1 * std) ** 2])
         self.last_gnss: GnssFix | None = None
 
-    def step(self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None) -> LocalizationEstimate:
+    def step(
+        self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None
+    ) -> LocalizationEstimate:
         if truth.true_pose is None:
             raise ValueError("GroundTruthLocalization needs ChassisState.true_pose")
         return LocalizationEstimate(t, truth.true_pose, self.cov.copy())

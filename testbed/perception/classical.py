@@ -41,7 +41,8 @@ class ClassicalLaneDetector(LaneDetector):
         """(R+G)/2 intensity resampled onto the bird's-eye grid (float32)."""
         rg = 0.5 * (image[:, :, 0].astype(np.float32) + image[:, :, 1].astype(np.float32))
         return cv2.warpPerspective(rg, self.pixel_from_bev, (self.cols, self.rows),
-                                   flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+                                   flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                   borderMode=cv2.BORDER_REPLICATE)
 
     def paint_mask(self, bev: np.ndarray) -> np.ndarray:
         ridge = bev - cv2.blur(bev, (self.box, 1))
@@ -61,7 +62,7 @@ class ClassicalLaneDetector(LaneDetector):
                 hits += 1
                 xs.append(self.x_of_row[rr + r0])
                 ys.append(Y_HALF - (cc + c0) * RES_Y)
-                col = int(round(np.mean(cc) + c0))
+                col = round(float(np.mean(cc))) + c0
         prob = hits / N_WINDOWS
         if hits < 3:
             return None, prob

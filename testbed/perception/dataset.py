@@ -126,7 +126,7 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
         *condition.track_painters(ep.seed),
     ]
     base_rig = CameraRig(get_vehicle(vehicle).camera)
-    streamer = TileStreamer(track, ep.seed, radius_m=55.0)
+    streamer = TileStreamer(track, ahead_m=70.0, behind_m=5.0)
     try:
         lane = track.lanes[int(rng.integers(len(track.lanes)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
@@ -147,7 +147,7 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, base_rig: Camera
     pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
     rig = base_rig.with_jitter(float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)),
                                float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER)))
-    streamer.update(x, y)
+    streamer.update(pose)
     image = sensor_randomise(FrontCamera(streamer.client, rig, condition, rng).render(pose), rng)
     truth = ego_lines(track, pose)
     label = {

@@ -73,12 +73,14 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
         latency.append(time.perf_counter() - t0)
     conditions = sorted({m["condition"] for m in frames.meta})
     cond = np.asarray([m["condition"] for m in frames.meta])
+    per_condition = {c: score(detections, frames, np.flatnonzero(cond == c), existence_threshold)
+                     for c in conditions}
     report: dict = {"detector": type(detector).__name__, "existence_threshold": existence_threshold,
-                    "per_condition": {c: score(detections, frames, np.flatnonzero(cond == c), existence_threshold)
-                                      for c in conditions},
+                    "per_condition": per_condition,
                     "overall": score(detections, frames, np.arange(len(frames)), existence_threshold)}
     lat = np.asarray(latency) * 1e3
-    report["latency_ms"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)), "threads": 1}
+    report["latency_ms"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)),
+                            "threads": 1}
     return report, detections
 
 
@@ -92,13 +94,15 @@ def markdown_table(reports: list[dict]) -> str:
     for rep in reports:
         for name, s in [*rep["per_condition"].items(), ("all", rep["overall"])]:
             lines.append(f"| {rep['detector']} | {name} | {s['frames']} | {f(s['mean_abs_err_m'])} "
-                         f"| {f(s['p95_err_m'])} | {f(s['p99_err_m'])} | {f(s['missing_precision'], '.3f')} "
-                         f"| {f(s['missing_recall'])} | {f(s['present_precision'])} | {f(s['present_recall'])} "
+                         f"| {f(s['p95_err_m'])} | {f(s['p99_err_m'])} | {f(s['missing_precision'])} "
+                         f"| {f(s['missing_recall'])} | {f(s['present_precision'])} "
+                         f"| {f(s['present_recall'])} "
                          f"| {s['no_output']} |")
     lines.append("")
     for rep in reports:
         lat = rep["latency_ms"]
-        lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms")
+        lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, "
+                     f"p99 {lat['p99']:.2f} ms")
     return "\n".join(lines) + "\n"
 
 

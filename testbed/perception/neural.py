@@ -32,11 +32,12 @@ DEFAULT_WEIGHTS = "lanenet.pt"
 
 
 def _block(c_in: int, c_out: int, stride: int) -> nn.Sequential:
-    return nn.Sequential(nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
+    conv = nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False)
+    return nn.Sequential(conv, nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
 
 
 class LaneNet(nn.Module):
-    """CNN: (N, 3, 56, 160) standardised image -> (N, 2 K + 2): left y/Y_SCALE at K anchors, right, 2 logits."""
+    """CNN: (N, 3, 56, 160) standardised image -> (N, 2K + 2): left, right y/Y_SCALE at anchors, 2 logits."""
 
     def __init__(self, widths: tuple[int, ...] = (16, 24, 32, 48, 64), hidden: int = 128) -> None:
         super().__init__()
@@ -50,7 +51,8 @@ class LaneNet(nn.Module):
         for s in strides:
             h, w = (h + 1) // s if s > 1 else h, (w + 1) // s if s > 1 else w
         self.head = nn.Sequential(
-            nn.Flatten(), nn.Linear(c_in * h * w, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, 2 * len(X_ANCHORS) + 2)
+            nn.Flatten(), nn.Linear(c_in * h * w, hidden), nn.ReLU(inplace=True),
+            nn.Linear(hidden, 2 * len(X_ANCHORS) + 2),
         )
         self.widths, self.hidden = widths, hidden
 

@@ -34,7 +34,7 @@ class TrainConfig:
 
 @dataclass
 class Tensors:
-    """Preprocessed inputs (N, 3, 56, 160) float16 and targets: anchor y (N, 2, K) / Y_SCALE, exists (N, 2)."""
+    """Preprocessed inputs (N, 3, 56, 160) float16; targets anchor y (N, 2, K) / Y_SCALE and exists (N, 2)."""
 
     x: torch.Tensor
     y: torch.Tensor
@@ -65,7 +65,8 @@ def loss_fn(out: torch.Tensor, y: torch.Tensor, exists: torch.Tensor) -> torch.T
     return 20.0 * reg + cls
 
 
-def dev_error(model: LaneNet, data: Tensors, lane_width: np.ndarray, deviation: np.ndarray) -> dict[str, float]:
+def dev_error(model: LaneNet, data: Tensors, lane_width: np.ndarray,
+              deviation: np.ndarray) -> dict[str, float]:
     """Alg. 3 on the network output (nearer valid line, map lane width) against the true deviation."""
     model.eval()
     outs = []
@@ -95,10 +96,11 @@ class TrainResult:
     history: list[dict] = field(default_factory=list)
 
 
-def train(train_dirs: list[Path], out: Path, config: TrainConfig = TrainConfig(), val_dir: Path | None = None,
+def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, val_dir: Path | None = None,
           limit: int | None = None, progress: bool = False) -> TrainResult:
     from tqdm import tqdm
 
+    config = config if config is not None else TrainConfig()
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
@@ -135,7 +137,8 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig = TrainConfig()
             total += loss.item()
             bar.update(1)
             bar.set_postfix(epoch=epoch, loss=f"{loss.item():.4f}")
-        row = {"epoch": epoch, "train_loss": total / steps_per_epoch, "minutes": (time.monotonic() - start) / 60}
+        minutes = (time.monotonic() - start) / 60
+        row = {"epoch": epoch, "train_loss": total / steps_per_epoch, "minutes": minutes}
         if val is not None and val_t is not None:
             row.update(dev_error(model, val_t, val.lane_width, val.deviation))
         history.append(row)

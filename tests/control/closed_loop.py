@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 
@@ -35,6 +36,12 @@ def controller_model() -> LateralModel:
     return LateralModel.from_geometry(2.85, 1800.0)
 
 
+@cache
+def shared_lateral() -> LqrLateralController:
+    """One controller for all runs (its gain schedule takes a fraction of a second to build)."""
+    return LqrLateralController(controller_model(), PlantParams().max_steer, DT)
+
+
 def drive(
     smap: PolylineLaneMap,
     speed: float,
@@ -45,24 +52,25 @@ def drive(
     yaw_noise: float = 0.002,
     on_tick: Callable[[float, LanePlanner, BicyclePlant], None] | None = None,
     plant_params: PlantParams | None = None,
-    lateral: LqrLateralController | None = None,
     gyro: bool = True,
+    start_speed: float | None = None,
 ) -> Trace:
-    """Drive lane 0 from s = 5 m at `speed`, starting `offset` m left of the centreline; `gyro` passes
-    the plant's yaw rate to the lateral controller (else it estimates it from its last command)."""
+    """Drive lane 0 from s = 5 m at cruise `speed` (starting at `start_speed`, default the same) and
+    `offset` m left of the centreline; `gyro` passes the plant's yaw rate to the lateral controller
+    (else it estimates it from its last command). `on_tick` may act on the planner (start a stop)."""
     pp = plant_params or PlantParams()
-    plant = BicyclePlant(pp, Pose(smap.xy[50, 0], smap.xy[50, 1] + offset, 0.0), speed)
+    start_speed = speed if start_speed is None else start_speed
+    plant = BicyclePlant(pp, Pose(smap.xy[50, 0], smap.xy[50, 1] + offset, 0.0), start_speed)
     planner = LanePlanner(smap, 0, speed)
-    lateral = lateral or LqrLateralController(controller_model(), pp.max_steer, DT)
+    lateral = shared_lateral()
     lateral.reset()
     longitudinal = SpeedController()
     trace = Trace()
     for i in range(round(duration / DT)):
         t = i * DT
         true = plant.pose()
-        noisy = Pose(
-            true.x + rng.normal(0, pose_noise), true.y + rng.normal(0, pose_noise), true.yaw + rng.normal(0, yaw_noise)
-        )
+        ex, ey, eyaw = rng.normal(0.0, (pose_noise, pose_noise, yaw_noise))
+        noisy = Pose(true.x + ex, true.y + ey, true.yaw + eyaw)
         if on_tick is not None:
             on_tick(t, planner, plant)
         plan = planner.plan(noisy, plant.vx, t)

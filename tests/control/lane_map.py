@@ -44,10 +44,8 @@ class PolylineLaneMap:
         lo, hi = max(self._hint - 200, 0), min(self._hint + 200, len(self.s))
         d2 = (self.xy[lo:hi, 0] - x) ** 2 + (self.xy[lo:hi, 1] - y) ** 2
         k = int(np.argmin(d2))
-        if 0 < k < hi - lo - 1 and d2[k] < 100.0:
-            i = lo + k
-        else:
-            i = int(self.tree.query((x, y))[1])
+        local = 0 < k < hi - lo - 1 and d2[k] < 100.0
+        i = lo + k if local else int(self.tree.query((x, y))[1])
         self._hint = i
         return int(min(max(i, 1), len(self.s) - 2))
 
@@ -66,18 +64,18 @@ class PolylineLaneMap:
             if dist2 < best[0]:
                 side = dx * (y - y0) - dy * (x - x0)
                 best = (dist2, j * SAMPLE + u * SAMPLE, math.copysign(math.sqrt(dist2), side))
-        _, s, l = best
+        _, s, off = best
         if s <= 0.0 or s >= self.s[-1]:
             raise OffMapError("pose beyond the ends of the road")
-        return s, l
+        return s, off
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
-        s, l = self._centreline(pose.x, pose.y)
+        s, off = self._centreline(pose.x, pose.y)
         if lane is None:
-            lane = int(round(l / self.width))
-        if not 0 <= lane < self.n_lanes or abs(l - lane * self.width) > self.width:
+            lane = round(off / self.width)
+        if not 0 <= lane < self.n_lanes or abs(off - lane * self.width) > self.width:
             raise OffMapError("pose is not on the lane")
-        return LaneCoord(lane, s, l - lane * self.width)
+        return LaneCoord(lane, s, off - lane * self.width)
 
     def lane_dev(self, pose: Pose, lane: int | None = None) -> float:
         return self.project(pose, lane).l
@@ -115,14 +113,13 @@ def straight(length: float = 1000.0) -> PolylineLaneMap:
 def curvy_urban() -> PolylineLaneMap:
     """Straight, clothoid into a left R = 60 m arc, clothoid out, then the same to the right."""
     k = 1.0 / 60.0
-    return PolylineLaneMap(
-        [(30, 0, 0), (30, 0, k), (80, k, k), (30, k, 0), (20, 0, 0), (30, 0, -k), (80, -k, -k), (30, -k, 0), (60, 0, 0)]
-    )
+    left = [(30, 0, k), (80, k, k), (30, k, 0)]
+    right = [(30, 0, -k), (80, -k, -k), (30, -k, 0)]
+    return PolylineLaneMap([(30, 0, 0), *left, (20, 0, 0), *right, (60, 0, 0)])
 
 
 def highway() -> PolylineLaneMap:
-    """Straight, clothoids into R = 600 m left and right arcs."""
+    """Straight, clothoid into a left R = 600 m arc, an S-clothoid into a right one, back to straight."""
     k = 1.0 / 600.0
-    return PolylineLaneMap(
-        [(100, 0, 0), (150, 0, k), (300, k, k), (150, k, -k), (300, -k, -k), (150, -k, 0), (300, 0, 0)]
-    )
+    arcs = [(100, 0, k), (150, k, k), (100, k, -k), (150, -k, -k), (100, -k, 0)]
+    return PolylineLaneMap([(50, 0, 0), *arcs, (100, 0, 0)])

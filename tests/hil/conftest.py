@@ -1,4 +1,4 @@
-"""Fixtures of the CAN link tests: a virtual-bus link (ECU + bridge) on a unique channel, a synchronous host."""
+"""Fixtures of the CAN link tests: a virtual-bus link (ECU + bridge) on a unique channel; a sync host."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 
 
 class SampleAndHoldPort(ChassisPort):
-    """The direct-run reference: the 50 Hz rule of hil.timing applied to a plant without any bus in between."""
+    """The direct-run reference: the 50 Hz rule of hil.timing applied to a plant with no bus in between."""
 
     def __init__(self, plant: ChassisPort) -> None:
         self.plant = plant

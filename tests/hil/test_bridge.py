@@ -1,6 +1,7 @@
-"""Bridge over the virtual bus: handshake, agreement with the direct run, faults surfaced, foreign node, recording."""
+"""Bridge over the virtual bus: handshake, agreement with the direct run, faults, foreign node, recording."""
 
 import math
+import time
 
 import can
 import pytest
@@ -12,36 +13,13 @@ from hil.ecu import EcuEmulator, EcuLimits
 from hil.kinematic_plant import KinematicBicyclePlant
 from hil.recorder import FrameRecorder
 from hil.replay import replay_log
+from hil.timing import ClockMode
 from testbed.chassis import ChassisCommand
-from tests.hil.conftest import SampleAndHoldPort
-from tracks.pose import Pose
-
-START = Pose(0.0, 0.8, 0.05)
-
-
-def lane_keeper(state):
-    """Speed to 4 m/s and hold y = 0, with a gentle weave so the steering keeps moving."""
-    pose = state.true_pose
-    steer = -0.3 * pose.y - 0.8 * math.remainder(pose.yaw, math.tau) + 0.01 * math.sin(0.7 * state.t)
-    return ChassisCommand(max(min(steer, 0.4), -0.4), max(min(1.5 * (4.0 - state.speed), 3.0), -4.0))
-
-
-def run(port, ticks):
-    poses = []
-    for _ in range(ticks):
-        state = port.read()
-        poses.append(state.true_pose)
-        port.send(lane_keeper(state))
-        port.advance(0.01)
-    return poses
-
-
-def direct_run(ticks):
-    return run(SampleAndHoldPort(KinematicBicyclePlant(pose=START)), ticks)
+from tests.hil.driving import START, direct_run, run
 
 
 def test_engage_reports_standby_then_self_driving(link):
-    bridge, ecu, _ = link
+    bridge, _, _ = link
     assert bridge.read().mode == "no-report"
     bridge.engage()
     state = bridge.read()
@@ -72,20 +50,73 @@ def test_virtual_bus_run_stays_within_5_cm_of_the_direct_run(channel):
     assert sum(bridge.rejected.values()) == 0
 
 
-def test_command_stop_surfaces_timeout_fault_and_standstill_in_state(link):
-    bridge, ecu, plant = link
-    bridge.engage()
-    for _ in range(200):
-        bridge.send(ChassisCommand(0.0, 2.0))
-        bridge.advance(0.01)
-    assert bridge.read().speed > 3.0
-    bridge.send = lambda cmd: None  # the host keeps stepping but its commands never change...
-    ecu.guard.command_ids = frozenset()  # ...and the VCU hears none of them from now on
-    for _ in range(200):
-        bridge.advance(0.01)
-    state = bridge.read()
+class LossyBus(can.BusABC):
+    """A virtual bus that drops every command frame it is asked to send once `drop_commands` is set."""
+
+    def __init__(self, channel: str) -> None:
+        self.inner = can.Bus(interface="virtual", channel=channel)
+        self.drop_commands = False
+        super().__init__(channel=channel)
+
+    def send(self, msg, timeout=None):
+        if not (self.drop_commands and msg.arbitration_id in (0x130, 0x131, 0x132)):
+            self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout):
+        return self.inner.recv(timeout), False
+
+    def shutdown(self):
+        super().shutdown()
+        self.inner.shutdown()
+
+
+def test_lost_commands_surface_timeout_fault_and_standstill_in_state(channel):
+    ecu_bus, bridge_bus = can.Bus(interface="virtual", channel=channel), LossyBus(channel)
+    plant = KinematicBicyclePlant()
+    ecu = EcuEmulator(ecu_bus, plant)
+    ecu.start()
+    bridge = CanChassisBridge(bridge_bus)
+    try:
+        bridge.engage()
+        for _ in range(200):
+            bridge.send(ChassisCommand(0.0, 2.0))
+            bridge.advance(0.01)
+        assert bridge.read().speed > 3.0
+        bridge_bus.drop_commands = True
+        for _ in range(200):
+            bridge.advance(0.01)
+        state = bridge.read()
+    finally:
+        bridge.close()
+        ecu.stop()
+        bridge_bus.shutdown()
+        ecu_bus.shutdown()
     assert "command_timeout" in state.faults and state.mode == "standby"
     assert state.speed == 0.0 and plant.read().speed == 0.0
+
+
+def test_realtime_clock_drives_and_times_out_on_the_wall_clock(channel):
+    ecu_bus, bridge_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
+    ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(), clock=ClockMode.REALTIME)
+    ecu.start()
+    bridge = CanChassisBridge(bridge_bus, clock=ClockMode.REALTIME)
+    try:
+        bridge.engage()
+        start = time.monotonic()
+        for _ in range(30):
+            bridge.send(ChassisCommand(0.0, 2.0))
+            bridge.advance(0.01)
+        assert time.monotonic() - start == pytest.approx(0.3, abs=0.15)
+        time.sleep(0.05)
+        moving = bridge.read()
+        assert moving.mode == "self-driving" and moving.speed > 0.2
+        bridge.close()  # the 50 Hz sender stops
+        time.sleep(0.4)
+        assert ecu.command_timeout
+    finally:
+        ecu.stop()
+        bridge_bus.shutdown()
+        ecu_bus.shutdown()
 
 
 def test_second_node_on_command_ids_is_detected_by_bridge_and_ecu(link, channel):
@@ -109,7 +140,7 @@ def test_second_node_on_command_ids_is_detected_by_bridge_and_ecu(link, channel)
 
 @pytest.mark.parametrize("suffix", [".asc", ".blf"])
 def test_every_frame_is_recorded_and_replays_onto_a_bus(link, tmp_path, suffix):
-    bridge, ecu, _ = link
+    bridge, _, _ = link
     recorder = FrameRecorder(tmp_path / f"run{suffix}")
     bridge.add_listener(recorder)
     bridge.engage()

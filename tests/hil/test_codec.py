@@ -1,11 +1,11 @@
-"""Codec, integrity and actuator mapping: round trips, checksum and life-counter verification, quantisation."""
+"""Codec, integrity and actuator mapping: round trips, checksum and life-counter checks, quantisation."""
 
 import math
 
 import can
 import pytest
 
-from hil.actuator_map import MAX_BRAKE_DECEL, ActuatorRequest, Gear
+from hil.actuator_map import COMMAND_FRAMES, MAX_BRAKE_DECEL, ActuatorRequest, Gear
 from hil.codec import ChassisCodec, FrameRejected
 from hil.integrity import LifeMonitor, LifeVerdict, checksum_ok, xor_checksum
 from testbed.chassis import ChassisCommand
@@ -29,7 +29,8 @@ def test_xor_checksum_and_life_monitor():
 def test_encode_fills_life_counter_and_checksum_and_decode_round_trips():
     tx, rx = ChassisCodec(), ChassisCodec()
     for k in range(20):
-        frame = tx.encode("ACU_SteerCtrl", {"SteerEnable": 1, "SteerAngleTarget": -12.346, "SteerAngleSpeed": 57.3})
+        signals = {"SteerEnable": 1, "SteerAngleTarget": -12.346, "SteerAngleSpeed": 57.3}
+        frame = tx.encode("ACU_SteerCtrl", signals)
         assert frame.data[6] & 0x0F == k % 16
         assert frame.data[7] == xor_checksum(frame.data)
         decoded = rx.decode(frame)
@@ -68,7 +69,7 @@ def test_command_cycle_survives_the_wire_within_its_resolution(accel, steer):
     tx, rx = ChassisCodec(), ChassisCodec()
     request = ActuatorRequest.from_command(ChassisCommand(steer, accel), enable=True, steer_rate=1.0)
     frames = {name: rx.decode(tx.encode(name, s)).signals for name, s in request.to_signals().items()}
-    back = ActuatorRequest.from_signals(frames["ACU_DriveCtrl"], frames["ACU_BrakeCtrl"], frames["ACU_SteerCtrl"])
+    back = ActuatorRequest.from_signals(*(frames[name] for name in COMMAND_FRAMES))
     assert back.enable and back.gear is Gear.DRIVE
     assert back.accel == pytest.approx(max(accel, -MAX_BRAKE_DECEL), abs=0.0005)
     assert back.steer == pytest.approx(steer, abs=math.radians(0.001) + 1e-12)

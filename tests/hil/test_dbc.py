@@ -15,7 +15,7 @@ def test_dbc_loads_strict_with_the_protocol_layout():
     db = cantools.database.load_file(str(DBC_PATH), strict=True)
     by_id = {m.frame_id: m for m in db.messages}
     assert {i: by_id[i].name for i in COMMANDS} == COMMANDS
-    assert REPORTS <= set(by_id)
+    assert set(by_id) >= REPORTS
     for frame_id in (*COMMANDS, *REPORTS):
         message = by_id[frame_id]
         assert message.length == 8 and not message.is_extended_frame

@@ -1,4 +1,4 @@
-"""ECU emulator: enable handshake, command timeout e-stop, frame rejection, bad-frame run, foreign node, limits."""
+"""ECU emulator: handshake, command-timeout e-stop, frame rejection, bad-frame run, foreign node, limits."""
 
 import math
 
@@ -106,13 +106,14 @@ def test_second_node_on_command_ids_is_detected(sync_ecu):
     host, ecu, _ = sync_ecu
     drive_to_speed(host, ecu, 1.0)
     intruder = type(host)(ecu)  # its own codec: its own life counters
-    for k in range(10):
+    for _ in range(10):
         host.cycle(ChassisCommand(0.0, 0.0))
         intruder.cycle(ChassisCommand(0.2, 3.0))
         host.step(DT)
         host.step(DT)
     assert ecu.guard.foreign_node
-    assert ecu.report().foreign_node and ecu.report().estop in (EStopSource.BAD_FRAMES, EStopSource.FOREIGN_NODE)
+    report = ecu.report()
+    assert report.foreign_node and report.estop in (EStopSource.BAD_FRAMES, EStopSource.FOREIGN_NODE)
     assert ecu.mode is DrivingMode.STANDBY
 
 

@@ -24,7 +24,7 @@ WHEELBASE = 2.8
 
 @dataclass(frozen=True)
 class Lane:
-    """Straight lane along +x (radius None) or an arc turning left of radius `radius`, starting at the origin."""
+    """Straight lane along +x (radius None) or a left-turning arc of radius `radius`, from the origin."""
 
     radius: float | None = None
 
@@ -38,14 +38,18 @@ class Lane:
         return r * (ang + math.pi / 2), r - math.hypot(dx, dy), ang + math.pi / 2, 1.0 / r
 
 
-def banded_quality(period: float = 300.0, poor_len: float = 80.0, poor_q: float = 0.25) -> Callable[[Lane], Callable]:
+def banded_quality(
+    period: float = 300.0, poor_len: float = 80.0, poor_q: float = 0.25
+) -> Callable[[Lane], Callable]:
     """Feature quality 1 except for a `poor_len` stretch of quality `poor_q` every `period` metres of arc."""
 
     def make(lane: Lane) -> Callable[[float, float], float]:
         def q(x: float, y: float) -> float:
             s = lane.frame(x, y)[0]
             return poor_q if (s % period) > period - poor_len else 1.0
+
         return q
+
     return make
 
 
@@ -62,9 +66,15 @@ class Run:
         return {k: np.asarray(v) for k, v in self.__dict__.items()}
 
 
-def run_closed_loop(lane: Lane, speed: float, duration: float, seed: int, attack: Attack | None = None,
-                    quality: Callable[[Lane], Callable[[float, float], float]] | None = None,
-                    config: LocalizationConfig | None = None) -> Run:
+def run_closed_loop(
+    lane: Lane,
+    speed: float,
+    duration: float,
+    seed: int,
+    attack: Attack | None = None,
+    quality: Callable[[Lane], Callable[[float, float], float]] | None = None,
+    config: LocalizationConfig | None = None,
+) -> Run:
     dt = 0.01
     rng = np.random.default_rng(seed)
     quality = quality or banded_quality()
@@ -72,7 +82,7 @@ def run_closed_loop(lane: Lane, speed: float, duration: float, seed: int, attack
     steer = math.atan(WHEELBASE / lane.radius) if lane.radius else 0.0
     stack = LocalizationStack(config or LocalizationConfig(), rng, quality(lane), pose, speed)
     out = Run()
-    for i in range(int(round(duration / dt))):
+    for i in range(round(duration / dt)):
         t = i * dt
         yaw_rate = speed * math.tan(steer) / WHEELBASE
         state = ChassisState(t=t, speed=speed, steer=steer, accel=0.0, true_pose=pose, yaw_rate=yaw_rate)

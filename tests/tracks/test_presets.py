@@ -7,8 +7,14 @@ from tracks.presets import list_presets, load_track
 
 STRADDLE = {"slr": (3.56, 0.83), "urban-straight": (3.90, 1.00), "urban-curvy": (3.40, 0.75)}
 EGO = {"slr": 0, "urban-straight": 0, "urban-curvy": 0, "highway": 1, "local": 0, "parking-lot": 0}
-MIN_LENGTH = {"slr": 1500, "urban-straight": 1500, "urban-curvy": 1500, "highway": 3000, "local": 1500,
-              "parking-lot": 80}
+MIN_LENGTH = {
+    "slr": 1500,
+    "urban-straight": 1500,
+    "urban-curvy": 1500,
+    "highway": 3000,
+    "local": 1500,
+    "parking-lot": 80,
+}
 
 
 def test_list_presets_names_every_family():
@@ -17,7 +23,9 @@ def test_list_presets_names_every_family():
     assert all(desc for _, desc in list_presets())
 
 
-@pytest.mark.parametrize("spec", ["slr", "urban-straight@3", "urban-curvy@7", "highway@2", "local@5", "parking-lot"])
+@pytest.mark.parametrize(
+    "spec", ["slr", "urban-straight@3", "urban-curvy@7", "highway@2", "local@5", "parking-lot"]
+)
 def test_presets_load_with_their_ego_lane_length_and_run_in(spec):
     track = load_track(spec)
     assert track.ego_lane == EGO[track.name]
@@ -53,7 +61,7 @@ def test_local_has_intersections_every_few_hundred_metres(seed):
     assert len(starts) >= 4
     assert np.all((np.diff(starts) > 150.0) & (np.diff(starts) < 450.0))
     assert all(3.0 <= ln.width <= 3.5 for ln in track.lanes)
-    assert all(0.0 == track.reference.curvature_at(s) for a, b in track.intersections for s in (a, b))
+    assert all(track.reference.curvature_at(s) == 0.0 for a, b in track.intersections for s in (a, b))
 
 
 def test_urban_curvy_has_the_divider_left_and_curb_right():
@@ -64,7 +72,7 @@ def test_urban_curvy_has_the_divider_left_and_curb_right():
     curbs = [b for b in track.obstacles(10) if b.kind == "curb"]
     assert div and curbs
     for box in div:
-        s, t = track.reference.project(box.center[0], box.center[1])
+        _s, t = track.reference.project(box.center[0], box.center[1])
         assert t - box.half_extents[1] == pytest.approx(left_line + 0.15, abs=0.03)
     assert all(track.reference.project(b.center[0], b.center[1])[1] < 0.0 for b in curbs)
 

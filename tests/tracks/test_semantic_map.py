@@ -18,8 +18,18 @@ from tracks.semantic_map import TrackMap
 def two_lane_arc() -> Track:
     edge = Edge("shoulder", paved=1.0, ground="grass")
     ref = ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(150.0), Arc(100.0, 150.0), Straight(100.0)])
-    return Track("test", 0, "test road", ref, [3.5, 3.0], ["solid_white", "dashed_white", "solid_white"],
-                 edge, edge, ego_lane=0, intersections=[(50.0, 70.0)])
+    return Track(
+        "test",
+        0,
+        "test road",
+        ref,
+        [3.5, 3.0],
+        ["solid_white", "dashed_white", "solid_white"],
+        edge,
+        edge,
+        ego_lane=0,
+        intersections=[(50.0, 70.0)],
+    )
 
 
 def test_trackmap_matches_the_protocol_signatures():
@@ -70,10 +80,18 @@ def test_intersections_are_flagged(two_lane_arc):
     assert not m.is_intersection(Pose(71.0, 0.0, 0.0))
 
 
-@pytest.mark.parametrize("pose", [
-    Pose(math.nan, 0.0, 0.0), Pose(10.0, math.inf, 0.0), Pose(10.0, 0.0, math.nan),
-    Pose(30.0, -1.75 - 3.01, 0.0), Pose(30.0, 4.75 + 3.01, 0.0), Pose(-5.0, 0.0, 0.0), Pose(5000.0, 9000.0, 0.0),
-])
+@pytest.mark.parametrize(
+    "pose",
+    [
+        Pose(math.nan, 0.0, 0.0),
+        Pose(10.0, math.inf, 0.0),
+        Pose(10.0, 0.0, math.nan),
+        Pose(30.0, -1.75 - 3.01, 0.0),
+        Pose(30.0, 4.75 + 3.01, 0.0),
+        Pose(-5.0, 0.0, 0.0),
+        Pose(5000.0, 9000.0, 0.0),
+    ],
+)
 def test_off_map_raises(two_lane_arc, pose):
     with pytest.raises(OffMapError):
         TrackMap(two_lane_arc).lane_dev(pose)

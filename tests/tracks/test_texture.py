@@ -32,8 +32,8 @@ def test_markings_are_bright_on_the_lines_and_dark_between(curvy):
     img = track.tile_texture(5)
     grey = img.mean(axis=2)
     row = frame.height // 2
-    col_line = int(round(frame.pixel(0.0, track.boundaries[0].t)[1] - 0.5))
-    col_centre = int(round(frame.pixel(0.0, 0.0)[1] - 0.5))
+    col_line = round(frame.pixel(0.0, track.boundaries[0].t)[1] - 0.5)
+    col_centre = round(frame.pixel(0.0, 0.0)[1] - 0.5)
     assert grey[row, col_line] > 200 and grey[row, col_centre] < 130
 
 
@@ -41,7 +41,7 @@ def test_dashes_are_three_metres_on_nine_off():
     track = load_track("highway")
     frame = track.tile_frame(10)
     cov = marking_coverage(frame)
-    col = int(round(frame.pixel(0.0, track.boundaries[1].t)[1] - 0.5))
+    col = round(frame.pixel(0.0, track.boundaries[1].t)[1] - 0.5)
     on = cov[:, col] > 0.5
     s = frame.s_of_rows()
     phase = np.mod(s, 12.0)
@@ -53,7 +53,9 @@ def test_dashes_are_three_metres_on_nine_off():
 def test_patch_changes_pixels_only_inside_it():
     track = load_track("urban-straight")
     before = track.tile_texture(4)
-    track.add_painter(PatchPainter(s_center=90.0, t_center=0.5, length=4.0, width=2.0, angle=0.0, darkness=0.8))
+    track.add_painter(
+        PatchPainter(s_center=90.0, t_center=0.5, length=4.0, width=2.0, angle=0.0, darkness=0.8)
+    )
     after = track.tile_texture(4)
     frame = track.tile_frame(4)
     s = frame.s_of_rows()[:, None]
@@ -73,8 +75,10 @@ def test_wear_fades_markings_and_shadows_darken(curvy):
     track.add_painter(WearPainter(0.8))
     worn = track.tile_texture(3).astype(float)
     assert worn[cov].mean() < clean[cov].mean() - 40
-    np.testing.assert_array_equal(worn[~(marking_coverage(track.tile_frame(3)) > 0)],
-                                  clean[~(marking_coverage(track.tile_frame(3)) > 0)])
+    np.testing.assert_array_equal(
+        worn[~(marking_coverage(track.tile_frame(3)) > 0)],
+        clean[~(marking_coverage(track.tile_frame(3)) > 0)],
+    )
     track.add_painter(ShadowPainter(darkness=0.6, per_100m=10.0))
     shaded = np.mean([track.tile_texture(i).mean() for i in range(3, 8)])
     assert shaded < np.mean([load_track("slr").tile_texture(i).mean() for i in range(3, 8)]) - 3

@@ -1,0 +1,83 @@
+"""`ld3 ld dataset|train|eval`: lane-detector tooling subcommands (argparse), registered by testbed/cli.py."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_ld_parser(subparsers) -> argparse.ArgumentParser:
+    """Register `ld` with its `dataset`, `train` and `eval` subcommands; each sets `func(args) -> int`."""
+    ld = subparsers.add_parser("ld", help="lane detector: render datasets, train, evaluate")
+    sub = ld.add_subparsers(dest="ld_command", required=True)
+
+    p = sub.add_parser("dataset", help="render labelled camera frames from the presets")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--frames", type=int, required=True)
+    p.add_argument("--split", choices=("train", "heldout"), default="train")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--frames-per-episode", type=int, default=30)
+    p.add_argument("--workers", type=int, default=1)
+    p.set_defaults(func=_dataset)
+
+    p = sub.add_parser("train", help="train LaneNet from scratch on CPU")
+    p.add_argument("--data", type=Path, nargs="+", required=True, help="training dataset directories")
+    p.add_argument("--val", type=Path, help="held-out dataset directory (scored every epoch)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--epochs", type=int, default=30)
+    p.add_argument("--minutes", type=float, default=28.0, help="stop after the epoch that passes this")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--limit", type=int, help="use at most this many frames per directory")
+    p.set_defaults(func=_train)
+
+    p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
+    p.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
+    p.add_argument("--detector", nargs="+", choices=("neural", "classical"), default=["neural", "classical"])
+    p.add_argument("--weights", type=Path, help="neural checkpoint (default: the shipped weights)")
+    p.add_argument("--out", type=Path, default=Path("out/ld_eval"))
+    p.add_argument("--limit", type=int)
+    p.set_defaults(func=_eval)
+    return ld
+
+
+def _dataset(args: argparse.Namespace) -> int:
+    from testbed.perception.dataset import build_dataset
+
+    n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
+                      workers=args.workers, progress=True)
+    print(f"wrote {n} {args.split} frames to {args.out}")
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    from testbed.perception.train import TrainConfig, train
+
+    cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes)
+    res = train(args.data, args.out, cfg, val_dir=args.val, limit=args.limit, progress=True)
+    print(f"checkpoint {res.checkpoint}, curve {res.curve}")
+    if res.history:
+        print({k: round(v, 4) if isinstance(v, float) else v for k, v in res.history[-1].items()})
+    return 0
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from testbed.perception.classical import ClassicalLaneDetector
+    from testbed.perception.dataset import load_frames
+    from testbed.perception.evaluate import evaluate, markdown_table, write_report
+    from testbed.perception.neural import NeuralLaneDetector, load_model
+    from vehicles.camera_rig import CameraRig
+    from vehicles.params import get_vehicle
+
+    rig = CameraRig(get_vehicle("sedan").camera)
+    frames = load_frames(args.data, args.limit)
+    reports, grid = [], None
+    for name in args.detector:
+        det = NeuralLaneDetector(load_model(args.weights)) if name == "neural" else ClassicalLaneDetector(rig)
+        rep, dets = evaluate(det, frames, progress=True)
+        reports.append(rep)
+        if grid is None:
+            grid = (frames, dets, rig)
+    paths = write_report(reports, grid, args.out)
+    print(markdown_table(reports))
+    print(", ".join(str(p) for p in paths.values()))
+    return 0

@@ -1,0 +1,96 @@
+import math
+
+import numpy as np
+import pytest
+
+from testbed.localization.sensors import GnssModel, GnssSensor, Imu, LidarLocator, LidarModel
+from tracks.pose import Pose
+
+TRUTH = Pose(10.0, -5.0, 0.3)
+
+
+def gnss_errors(seed: int, n: int = 600, model: GnssModel | None = None) -> np.ndarray:
+    g = GnssSensor(np.random.default_rng(seed), model=model)
+    return np.array([g.measure(i * 0.1, TRUTH).xy - [TRUTH.x, TRUTH.y] for i in range(n)])
+
+
+def test_same_seed_same_fixes_other_seed_differs():
+    assert np.array_equal(gnss_errors(3, 50), gnss_errors(3, 50))
+    assert not np.allclose(gnss_errors(3, 50), gnss_errors(4, 50))
+
+
+def test_gnss_is_due_at_its_rate_on_a_100hz_loop():
+    g = GnssSensor(np.random.default_rng(0), rate_hz=10.0)
+    due = 0
+    for i in range(300):
+        t = i * 0.01
+        if g.due(t):
+            g.measure(t, TRUTH)
+            due += 1
+    assert due == 30
+
+
+def test_gnss_error_wanders_slowly_and_reported_covariance_covers_it():
+    err = gnss_errors(1, n=3000, model=GnssModel(multipath_rate=0.0))
+    rms = float(np.sqrt(np.mean(err**2)))
+    assert 0.03 < rms < GnssModel().reported_std
+    # the bias is slow: consecutive errors are strongly correlated (white noise alone would not be)
+    x = err[:, 0] - err[:, 0].mean()
+    assert float(np.corrcoef(x[:-1], x[1:])[0, 1]) > 0.3
+
+
+def test_multipath_burst_adds_error_and_inflates_reported_covariance():
+    model = GnssModel(multipath_rate=1e6, multipath_offset=(2.0, 2.0), multipath_duration=(5.0, 5.0))
+    g = GnssSensor(np.random.default_rng(2), model=model)
+    g.measure(0.0, TRUTH)
+    fix = g.measure(0.1, TRUTH)
+    assert g.in_multipath(0.1)
+    assert np.linalg.norm(fix.xy - [TRUTH.x, TRUTH.y]) > 1.4
+    assert fix.cov[0, 0] > 4 * model.reported_std**2
+
+
+def lidar(q: float, seed: int = 0) -> LidarLocator:
+    return LidarLocator(np.random.default_rng(seed), lambda x, y: q, model=LidarModel(occlusion_rate=0.0))
+
+
+def mean_fix_offset(q: float, prior_offset: float, n: int = 200) -> tuple[float, float]:
+    loc = lidar(q)
+    prior = Pose(TRUTH.x, TRUTH.y + prior_offset, TRUTH.yaw)
+    fixes = [loc.measure(i * 0.1, TRUTH, prior) for i in range(n)]
+    return float(np.mean([f.xy[1] - TRUTH.y for f in fixes])), float(np.mean([f.cov[0, 0] for f in fixes]))
+
+
+def test_lidar_converges_to_truth_where_features_are_rich():
+    off, var = mean_fix_offset(1.0, 0.3)
+    assert abs(off) < 0.03
+    assert math.sqrt(var) < 2 * LidarModel().reported_std_rich
+
+
+def test_lidar_is_dragged_by_the_prior_where_features_are_poor():
+    off, var = mean_fix_offset(0.0, 0.3)
+    assert 0.2 < off < 0.3
+    assert math.sqrt(var) > 5 * LidarModel().reported_std_rich
+
+
+def test_lidar_beyond_capture_radius_follows_prior_and_reports_it_is_lost():
+    off, var = mean_fix_offset(1.0, 2.0)
+    assert off == pytest.approx(2.0, abs=0.02)
+    assert math.sqrt(var) > LidarModel().lost_reported_std
+
+
+def test_occlusion_episodes_lower_the_effective_quality():
+    loc = LidarLocator(np.random.default_rng(5), lambda x, y: 1.0, model=LidarModel(occlusion_rate=1e6))
+    loc.measure(0.0, TRUTH, TRUTH)
+    loc.measure(0.1, TRUTH, TRUTH)
+    assert loc.quality(0.1, TRUTH.x, TRUTH.y) < 0.5
+    assert lidar(1.0).quality(0.1, TRUTH.x, TRUTH.y) == 1.0
+
+
+def test_imu_measures_truth_plus_bias_and_noise():
+    imu = Imu(np.random.default_rng(7))
+    samples = [imu.measure(i * 0.01, 0.5, 0.1) for i in range(2000)]
+    w = np.array([s.yaw_rate for s in samples])
+    a = np.array([s.accel_long for s in samples])
+    assert abs(w.mean() - 0.1) < 0.005
+    assert abs(a.mean() - 0.5) < 0.2
+    assert w.std() > 0.001

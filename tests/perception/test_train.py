@@ -1,0 +1,54 @@
+import json
+
+import numpy as np
+import torch
+
+from testbed.perception.dataset import LABEL_KEYS, load_frames, write_shard
+from testbed.perception.detection import CameraFrame
+from testbed.perception.neural import LaneNet, NeuralLaneDetector, load_model
+from testbed.perception.train import TrainConfig, mirror, train
+
+
+def _tiny_dataset(path, n=12):
+    path.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    images = [rng.integers(0, 255, (160, 320, 3), dtype=np.uint8) for _ in range(n)]
+    labels = [{"left": np.array([1.7, 0.0, 0.0, 0.0]), "right": np.array([-1.8, 0.0, 0.0, 0.0]),
+               "left_exists": True, "right_exists": bool(i % 2), "lane_width": 3.5, "deviation": 0.05,
+               "meta": {"condition": "day", "pose": [0.0, 0.0, 0.0]}} for i in range(n)]
+    write_shard(path / "shard_00000.npz", images, labels)
+
+
+def test_dataset_shards_round_trip(tmp_path):
+    _tiny_dataset(tmp_path)
+    frames = load_frames(tmp_path)
+    assert len(frames) == 12 and frames.images.shape == (12, 160, 320, 3)
+    assert frames.right_exists.tolist() == [bool(i % 2) for i in range(12)]
+    assert set(LABEL_KEYS) <= set(vars(frames))
+
+
+def test_mirror_swaps_and_negates():
+    x = torch.arange(6.0).reshape(1, 1, 1, 6)
+    y = torch.tensor([[[1.0, 2.0], [-3.0, -4.0]]])
+    ex = torch.tensor([[1.0, 0.0]])
+    mx, my, mex = mirror(x, y, ex)
+    assert mx[0, 0, 0].tolist() == [5.0, 4.0, 3.0, 2.0, 1.0, 0.0]
+    assert my.tolist() == [[[3.0, 4.0], [-1.0, -2.0]]]
+    assert mex.tolist() == [[0.0, 1.0]]
+
+
+def test_training_runs_a_few_steps(tmp_path):
+    _tiny_dataset(tmp_path / "data")
+    res = train([tmp_path / "data"], tmp_path / "out", TrainConfig(epochs=3, batch=4, threads=1),
+                val_dir=tmp_path / "data")
+    assert res.checkpoint.is_file() and res.curve.is_file()
+    assert len(res.history) == 3
+    assert all(np.isfinite(h["train_loss"]) for h in res.history)
+    torch.manual_seed(0)
+    initial = LaneNet().state_dict()
+    trained = load_model(res.checkpoint).state_dict()
+    assert not torch.equal(initial["head.3.weight"], trained["head.3.weight"])
+    assert json.loads((tmp_path / "out" / "history.json").read_text())[0]["epoch"] == 0
+    det = NeuralLaneDetector(load_model(res.checkpoint))
+    ld = det.detect(CameraFrame(0.0, np.zeros((160, 320, 3), np.uint8)))
+    assert ld.x_range == (0.0, 40.0)

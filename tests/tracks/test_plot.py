@@ -1,0 +1,23 @@
+import matplotlib.pyplot as plt
+import numpy as np
+
+from tracks.plot import draw_track, save_track_png
+from tracks.presets import load_track
+
+
+def test_save_track_png_writes_a_picture(tmp_path):
+    path = save_track_png(load_track("local"), tmp_path / "local.png", s_range=(300.0, 420.0))
+    img = plt.imread(path)
+    assert img.shape[0] > 500 and img.shape[1] > 500
+    assert np.unique(img[::8, ::8].reshape(-1, img.shape[2]), axis=0).shape[0] > 10  # not a blank canvas
+
+
+def test_draw_track_draws_on_the_given_axes():
+    track = load_track("urban-curvy")
+    fig, ax = plt.subplots()
+    draw_track(ax, track, s_range=(200.0, 400.0))
+    assert ax.lines and ax.patches
+    x0, x1 = ax.get_xlim()
+    xs = track.reference.points(np.array([200.0, 400.0]))[:, 0]
+    assert x0 <= xs.min() and x1 >= xs.max()
+    plt.close(fig)
