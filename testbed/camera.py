@@ -19,6 +19,7 @@ from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
 NEAR_M, FAR_M = 0.3, 250.0
+GROUND_RGB = (84.0, 107.0, 66.0)
 
 
 @dataclass(frozen=True)
@@ -84,7 +85,19 @@ class ImageEffects:
         rows = np.linspace(0.0, 1.0, h)[:, None, None]
         top, hor = np.array(condition.sky_top, float), np.array(condition.sky_horizon, float)
         self.sky = (top * (1 - rows) + hor * rows) * np.ones((1, w, 1))
-        self.headlight = self._headlight_gain(rig) if condition.headlights else None
+        self.below_horizon = self._below_horizon(rig)
+        gain = np.full((h, w, 1), condition.exposure, np.float32)
+        if condition.headlights:
+            gain += self._headlight_gain(rig).astype(np.float32)
+        self.ground_gain = gain
+        self.sky = self.sky.astype(np.float32)
+
+    @staticmethod
+    def _below_horizon(rig: CameraRig) -> np.ndarray:
+        """Pixels whose ray meets the flat ground (where nothing was drawn there, it is open ground)."""
+        v, u = np.mgrid[0 : rig.height, 0 : rig.width]
+        uv = np.stack([u.ravel() + 0.5, v.ravel() + 0.5], axis=1).astype(float)
+        return np.isfinite(rig.pixel_to_ground(uv)).all(axis=1).reshape(rig.height, rig.width)
 
     @staticmethod
     def _headlight_gain(rig: CameraRig) -> np.ndarray:
@@ -98,21 +111,22 @@ class ImageEffects:
         gain[ok] = 3.8 * np.exp(-((x / 45.0) ** 2)) * np.exp(-((np.arctan2(y, x) / 0.30) ** 2))
         return gain.reshape(rig.height, rig.width, 1)
 
-    def apply(self, rgb: np.ndarray, sky_mask: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    def apply(self, rgb: np.ndarray, empty: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """`empty` marks pixels where nothing was rendered: open ground below the horizon, sky above."""
         c = self.condition
         img = rgb.astype(np.float32)
+        img[empty & self.below_horizon] = GROUND_RGB
+        sky_mask = empty & ~self.below_horizon
+        img *= np.where(sky_mask[..., None], np.float32(1.0), self.ground_gain)
         img[sky_mask] = self.sky[sky_mask]
-        ground = ~sky_mask[..., None]
-        gain = np.where(ground, c.exposure, 1.0)
-        if self.headlight is not None:
-            gain = gain + np.where(ground, self.headlight, 0.0)
-        img = img * gain
-        mean = img.mean()
-        img = (img - mean) * c.contrast + mean
+        if c.contrast != 1.0:
+            mean = float(img.mean())
+            img = cv2.addWeighted(img, c.contrast, img, 0.0, mean * (1.0 - c.contrast))
         if c.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), c.blur_sigma)
         if c.noise_std > 0:
-            img = img + rng.normal(0.0, c.noise_std, img.shape).astype(np.float32)
+            luma_noise = rng.standard_normal(img.shape[:2], dtype=np.float32) * np.float32(c.noise_std)
+            img += luma_noise[..., None]
         return np.clip(img, 0, 255).astype(np.uint8)
 
 

@@ -31,7 +31,8 @@ OBSTACLE_COLOURS: dict[str, tuple[float, float, float, float]] = {
     "divider": (0.85, 0.85, 0.82, 1.0),
     "tree": (0.20, 0.38, 0.16, 1.0),
 }
-GROUND_RGBA = (0.33, 0.42, 0.26, 1.0)
+MESH_SPACING_M = 2.0
+PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
 
 
@@ -133,9 +134,6 @@ class TileStreamer:
 
     def _reset_scene(self) -> None:
         pb.resetSimulation(physicsClientId=self.client)
-        vs = pb.createVisualShape(pb.GEOM_BOX, halfExtents=[5000, 5000, 0.01], rgbaColor=list(GROUND_RGBA),
-                                  physicsClientId=self.client)
-        pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=[0, 0, -0.03], physicsClientId=self.client)
         self.loaded.clear()
         self.textures_loaded = 0
 
@@ -157,7 +155,7 @@ class TileStreamer:
             self.loaded[i] = self._load_tile(i)
 
     def _load_tile(self, i: int) -> list[int]:
-        verts, uvs, idx = self.track.tile_mesh(i)
+        verts, uvs, idx = self.track.tile_mesh(i, spacing=MESH_SPACING_M)
         img = self.track.tile_texture(i)
         path = Path(self._tmp.name) / f"tile{i}.png"
         cv2.imwrite(str(path), np.ascontiguousarray(img[:, :, ::-1]))
@@ -172,15 +170,27 @@ class TileStreamer:
                                   normals=normals, physicsClientId=self.client)
         body = pb.createMultiBody(baseVisualShapeIndex=vs, physicsClientId=self.client)
         pb.changeVisualShape(body, -1, textureUniqueId=tex, rgbaColor=[1, 1, 1, 1], physicsClientId=self.client)
-        return [body] + [self._add_box_visual(box) for box in self.track.obstacles(i)]
+        return [body, *self._add_obstacle_visuals(i)]
 
-    def _add_box_visual(self, box) -> int:
-        colour = OBSTACLE_COLOURS.get(box.kind, (0.6, 0.6, 0.6, 1.0))
-        vs = pb.createVisualShape(pb.GEOM_BOX, halfExtents=list(box.half_extents), rgbaColor=list(colour),
-                                  physicsClientId=self.client)
-        quat = pb.getQuaternionFromEuler((0.0, 0.0, box.yaw))
-        return pb.createMultiBody(baseVisualShapeIndex=vs, basePosition=list(box.center),
-                                  baseOrientation=quat, physicsClientId=self.client)
+    def _add_obstacle_visuals(self, i: int) -> list[int]:
+        """One body per kind of roadside obstacle on tile i (TinyRenderer's cost grows with body count).
+        Curbs are low enough to be seen as their painted strip in the road texture; they get no 3-D body here."""
+        by_kind: dict[str, list] = {}
+        for box in self.track.obstacles(i):
+            if box.kind not in PAINTED_KINDS:
+                by_kind.setdefault(box.kind, []).append(box)
+        bodies = []
+        for kind, boxes in sorted(by_kind.items()):
+            vs = pb.createVisualShapeArray(
+                shapeTypes=[pb.GEOM_BOX] * len(boxes), halfExtents=[list(b.half_extents) for b in boxes],
+                visualFramePositions=[list(b.center) for b in boxes],
+                visualFrameOrientations=[pb.getQuaternionFromEuler((0.0, 0.0, b.yaw)) for b in boxes],
+                physicsClientId=self.client)
+            body = pb.createMultiBody(baseVisualShapeIndex=vs, physicsClientId=self.client)
+            colour = OBSTACLE_COLOURS.get(kind, (0.6, 0.6, 0.6, 1.0))
+            pb.changeVisualShape(body, -1, rgbaColor=list(colour), physicsClientId=self.client)
+            bodies.append(body)
+        return bodies
 
     def close(self) -> None:
         if pb.isConnected(self.client):

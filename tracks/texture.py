@@ -92,11 +92,12 @@ def paint_tile(track: Track, i: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def tile_mesh(track: Track, i: int, spacing: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Grid mesh of tile i at z = 0 (vertices about `spacing` m apart), uvs per the module convention,
-    triangle-list indices wound counter-clockwise seen from above (normals +z)."""
+    """Strip mesh of tile i at z = 0 (rows about `spacing` m apart along the road; a cross-section is a
+    straight line, so each row has just its two ends), uvs per the module convention, triangle-list
+    indices wound counter-clockwise seen from above (normals +z). Few triangles keep TinyRenderer fast."""
     f = tile_frame(track, i)
     s = np.linspace(f.s0, f.s1, max(2, math.ceil((f.s1 - f.s0) / spacing) + 1))
-    t = np.linspace(f.t_min, f.t_max, max(2, math.ceil((f.t_max - f.t_min) / spacing) + 1))
+    t = np.array([f.t_min, f.t_max])
     ss, tt = np.meshgrid(s, t, indexing="ij")
     xy = track.reference.points(ss.ravel(), tt.ravel())
     vertices = np.column_stack([xy, np.zeros(len(xy))])

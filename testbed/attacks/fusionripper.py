@@ -34,7 +34,7 @@ class FusionRipper(Attack):
         direction: str = "left",
         start: float = 10.0,
         trigger: float = 0.3,
-        obs_std: float = 0.05,
+        obs_std: float = 0.02,
         rng: np.random.Generator | None = None,
     ) -> None:
         super().__init__(start)

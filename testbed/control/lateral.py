@@ -62,17 +62,8 @@ class LqrLateralController:
 
     @classmethod
     def from_vehicle(cls, vehicle: Any, dt: float, **tuning: Any) -> LqrLateralController:
-        """Build from any object with `wheelbase`, `mass`, `max_steer` and optionally `lf` (CG to front axle),
-        `yaw_inertia`, `cornering_stiffness_front`, `cornering_stiffness_rear` (per axle, N/rad)."""
-        model = LateralModel.from_geometry(
-            vehicle.wheelbase,
-            vehicle.mass,
-            lf=getattr(vehicle, "lf", None),
-            yaw_inertia=getattr(vehicle, "yaw_inertia", None),
-            cf=getattr(vehicle, "cornering_stiffness_front", None),
-            cr=getattr(vehicle, "cornering_stiffness_rear", None),
-        )
-        return cls(model, vehicle.max_steer, dt, **tuning)
+        """Build from any object with `max_steer` and the attributes `LateralModel.from_vehicle` reads."""
+        return cls(LateralModel.from_vehicle(vehicle), vehicle.max_steer, dt, **tuning)
 
     def gain(self, speed: float) -> tuple[float, ...]:
         """K(v) = [k_ey, k_ėy, k_eψ, k_ėψ] linearly interpolated in the schedule (clamped to its range)."""

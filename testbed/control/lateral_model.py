@@ -7,6 +7,7 @@ road-wheel steer angle δ; cornering stiffnesses are per axle (N/rad) and linear
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,19 @@ class LateralModel:
         cf = DEFAULT_CORNERING_COEFF * mass * GRAVITY * lr / wheelbase if cf is None else cf
         cr = DEFAULT_CORNERING_COEFF * mass * GRAVITY * lf / wheelbase if cr is None else cr
         return cls(wheelbase, mass, yaw_inertia, lf, cf, cr)
+
+    @classmethod
+    def from_vehicle(cls, vehicle: Any) -> LateralModel:
+        """From any object with `wheelbase`, `mass` and optionally `lf` (CG to front axle), `yaw_inertia`,
+        `cornering_stiffness_front`, `cornering_stiffness_rear` (per axle, N/rad)."""
+        return cls.from_geometry(
+            vehicle.wheelbase,
+            vehicle.mass,
+            lf=getattr(vehicle, "lf", None),
+            yaw_inertia=getattr(vehicle, "yaw_inertia", None),
+            cf=getattr(vehicle, "cornering_stiffness_front", None),
+            cr=getattr(vehicle, "cornering_stiffness_rear", None),
+        )
 
     @property
     def lr(self) -> float:

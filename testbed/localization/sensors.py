@@ -148,7 +148,7 @@ class LidarModel:
     yaw_std_rich: float = 0.002
     yaw_std_poor: float = 0.01
     pull_poor: float = 0.15
-    capture_radius: float = 0.6
+    capture_radius: float = 0.5
     lost_reported_std: float = 1.0
     occlusion_rate: float = 1.0 / 12.0
     occlusion_duration: tuple[float, float] = (4.0, 10.0)

@@ -89,5 +89,5 @@ def test_describe_is_the_spec():
         "direction": "right",
         "start": 12.0,
         "trigger": 0.4,
-        "obs_std": 0.05,
+        "obs_std": 0.02,
     }

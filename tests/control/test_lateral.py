@@ -114,7 +114,7 @@ def test_from_vehicle_reads_attributes_and_fills_defaults() -> None:
     assert ctl.model == LateralModel.from_geometry(2.85, 1800.0)
     np.testing.assert_allclose(ctl.gains, shared_lateral().gains)
     custom = SimpleNamespace(wheelbase=2.0, mass=900.0, max_steer=0.5, lf=0.9, cornering_stiffness_front=5e4)
-    model = LqrLateralController.from_vehicle(custom, DT).model
+    model = LateralModel.from_vehicle(custom)
     assert (model.lf, model.lr, model.cf) == (0.9, pytest.approx(1.1), 5e4)
     assert model.cr == pytest.approx(16.0 * 900.0 * 9.81 * 0.9 / 2.0)
 

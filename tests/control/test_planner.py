@@ -1,0 +1,79 @@
+"""LanePlanner: path errors, preview curvature, cruise ramp, stop profile, off-map hold."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from testbed.control.planner import AR_DECEL, LanePlanner
+from tests.control.lane_map import curvy_urban, straight
+from tracks.pose import Pose
+
+
+def test_errors_follow_the_sign_conventions() -> None:
+    smap = straight()
+    p = LanePlanner(smap, 0, 10.0).plan(Pose(100.0, 0.5, 0.1), 10.0, 0.0)
+    assert (p.lateral_error, p.heading_error) == (pytest.approx(0.5), pytest.approx(0.1))
+    p = LanePlanner(smap, 1, 10.0).plan(Pose(100.0, 0.2, -0.05), 10.0, 0.0)  # lane 1 is 3.5 m to the left
+    assert (p.lateral_error, p.heading_error) == (pytest.approx(-3.3), pytest.approx(-0.05))
+    p = LanePlanner(smap, 0, 10.0).plan(Pose(100.0, 0.0, 2 * math.pi - 0.1), 10.0, 0.0)
+    assert p.heading_error == pytest.approx(-0.1)
+    assert p.curvature == 0.0 and p.local_curvature == 0.0 and not p.off_map
+
+
+def test_curvature_is_previewed_along_the_centreline() -> None:
+    smap = curvy_urban()  # clothoid from s = 30 m to 60 m reaching 1/60
+    k = 1.0 / 60.0
+    planner = LanePlanner(smap, 0, 10.0, preview_time=0.5)
+    p = planner.plan(Pose(40.0, 0.0, 0.0), 10.0, 0.0)  # 10 m into the clothoid, preview 5 m
+    assert p.local_curvature == pytest.approx(k * 10 / 30, rel=0.02)
+    assert p.curvature == pytest.approx(k * 15 / 30, rel=0.02)
+    s0 = 65.0  # on the arc: the preview walk stays on the lane
+    x, y, h, _ = smap._at(s0)
+    p = LanePlanner(smap, 0, 20.0, preview_time=1.0).plan(Pose(x, y, h), 20.0, 0.0)
+    assert p.curvature == pytest.approx(k, rel=1e-3)
+    assert abs(p.lateral_error) < 1e-3
+
+
+def test_cruise_ramps_gently_to_the_cruise_speed() -> None:
+    planner = LanePlanner(straight(), 0, 10.0, max_accel=1.0)
+    pose = Pose(50.0, 0.0, 0.0)
+    plans = [planner.plan(pose, 0.0, i * 0.01) for i in range(1500)]
+    assert plans[0].target_speed == 0.0 and plans[0].target_accel == 1.0
+    assert plans[500].target_speed == pytest.approx(5.0) and plans[500].target_accel == 1.0
+    assert all(p.target_speed == 10.0 and p.target_accel == 0.0 for p in plans[1001:])
+    planner.cruise_speed = 8.0  # a lower cruise speed ramps down
+    p = planner.plan(pose, 10.0, 15.99)  # one second after the last plan
+    assert p.target_speed == pytest.approx(9.0) and p.target_accel == -1.0
+
+
+def test_stop_profile_decelerates_then_holds_zero() -> None:
+    planner = LanePlanner(straight(), 0, 20.0)
+    pose = Pose(50.0, 0.0, 0.0)
+    planner.plan(pose, 20.0, 1.0)
+    assert not planner.stopping
+    planner.start_stop(2.0, 20.0)
+    assert planner.stopping
+    p = planner.plan(pose, 19.0, 3.0)
+    assert p.target_speed == pytest.approx(20.0 - AR_DECEL) and p.target_accel == -AR_DECEL
+    assert planner.plan(pose, 1.0, 6.9).target_speed == pytest.approx(0.4)
+    for t in (7.0, 8.0, 100.0):
+        p = planner.plan(pose, 0.0, t)
+        assert (p.target_speed, p.target_accel) == (0.0, 0.0)
+    planner.start_stop(0.0, 27.0, decel=2.5)  # a new stop replaces the profile (chassis runs use < 3 m/s²)
+    assert planner.plan(pose, 27.0, 2.0).target_speed == pytest.approx(22.0)
+    with pytest.raises(ValueError):
+        planner.start_stop(0.0, 10.0, decel=0.0)
+
+
+def test_off_map_holds_the_last_path_terms_and_flags_it() -> None:
+    planner = LanePlanner(straight(), 0, 20.0)
+    assert planner.plan(Pose(50.0, 30.0, 0.0), 20.0, 0.0).off_map  # before any fix: zero path terms
+    good = planner.plan(Pose(50.0, 0.4, 0.02), 20.0, 0.1)
+    planner.start_stop(0.2, 20.0)
+    held = planner.plan(Pose(50.0, 30.0, 0.0), 20.0, 1.2)
+    assert held.off_map and not good.off_map
+    assert (held.lateral_error, held.heading_error) == (good.lateral_error, good.heading_error)
+    assert held.target_speed == pytest.approx(16.0)  # the speed profile keeps running
+    assert planner.plan(Pose(math.nan, 0.0, 0.0), 20.0, 1.3).off_map
