@@ -10,9 +10,11 @@ import argparse
 import json
 import sys
 from collections.abc import Callable
+from importlib.metadata import entry_points
 from pathlib import Path
 
 EXIT_USAGE = 2
+PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcommands here; testbed imports none
 
 
 class UserError(Exception):
@@ -131,6 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
     from testbed.perception.commands import add_ld_parser
 
     add_ld_parser(sub)
+    for plugin in entry_points(group=PLUGIN_GROUP):
+        plugin.load()(sub)
     return parser
 
 

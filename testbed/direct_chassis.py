@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 from testbed.world import PhysicsWorld
 
@@ -9,22 +11,28 @@ from testbed.world import PhysicsWorld
 class DirectChassis(ChassisPort):
     """Drives the PyBullet vehicle of a `PhysicsWorld`; advance() steps physics to the next control instant.
 
-    `hold_s` > 0 applies commands sample-and-hold at that period (the CAN chassis applies them at 50 Hz),
-    so a direct run and a CAN run see the same command timing.
+    With `hold_s` > 0 commands are applied sample-and-hold the way the CAN chassis applies them: at the
+    start of advance(), the latest command is applied only when t >= the next due instant, which then
+    moves to the next multiple of `hold_s` after t. So a direct run and a CAN run see the same timing.
     """
 
     def __init__(self, world: PhysicsWorld, hold_s: float = 0.0) -> None:
         self.world = world
         self.vehicle = world.vehicle
-        self.hold_steps = max(1, round(hold_s / world.dt)) if hold_s > 0 else 1
+        self.hold_s = hold_s
+        self._next_due = 0.0
         self._steps = 0
         self._t_target = 0.0
         self._pending: ChassisCommand | None = None
         self._applied = ChassisCommand(0.0, 0.0)
 
+    @property
+    def t(self) -> float:
+        return self._steps * self.world.dt
+
     def read(self) -> ChassisState:
         v = self.vehicle
-        return ChassisState(t=self._steps * self.world.dt, speed=v.speed(), steer=v.steer_angle(), accel=v.accel(),
+        return ChassisState(t=self.t, speed=v.speed(), steer=v.steer_angle(), accel=v.accel(),
                             true_pose=v.pose(), yaw_rate=v.yaw_rate())
 
     def send(self, cmd: ChassisCommand) -> None:
@@ -34,12 +42,21 @@ class DirectChassis(ChassisPort):
     def applied(self) -> ChassisCommand:
         return self._applied
 
+    def _apply_due_command(self) -> None:
+        if self._pending is None:
+            return
+        t = self._t_target
+        if self.hold_s > 0:
+            if t < self._next_due - 1e-9:
+                return
+            self._next_due = (math.floor(t / self.hold_s + 1e-9) + 1) * self.hold_s
+        self._applied = self._pending
+        self.vehicle.apply(self._applied.steer, self._applied.accel)
+
     def advance(self, dt: float) -> None:
+        self._apply_due_command()
         self._t_target += dt
         target = round(self._t_target / self.world.dt)
         while self._steps < target:
-            if self._pending is not None and self._steps % self.hold_steps == 0:
-                self._applied = self._pending
-                self.vehicle.apply(self._applied.steer, self._applied.accel)
             self.world.step()
             self._steps += 1

@@ -125,7 +125,7 @@ class ControlLoop:
             self.stopping = True
             self.planner.start_stop(t, state.speed, decel)
         plan = self.planner.plan(pose, state.speed, t)
-        steer = self.lateral.update(plan, state.speed)
+        steer = self.lateral.update(plan, state.speed, yaw_rate=state.yaw_rate)
         accel = self.longitudinal.update(plan, state.speed, self.dt)
         self.chassis.send(ChassisCommand(steer=steer, accel=accel))
         self.defense.on_command(t, steer, accel, state.speed)

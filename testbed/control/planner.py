@@ -53,6 +53,7 @@ class LanePlanner:
         self._stop = (t, max(speed, 0.0), decel)
 
     def plan(self, pose: Pose, speed: float, t: float) -> Plan:
+        """The plan for a vehicle at `pose` (the pose control steers on) moving at `speed`, at time `t`."""
         target_speed, target_accel = self._speed_profile(speed, t)
         try:
             coord = self.map.project(pose, self.lane)
@@ -76,14 +77,18 @@ class LanePlanner:
         return self._last
 
     def _preview_curvature(self, point: np.ndarray, heading: float, distance: float) -> float:
-        """Curvature at `distance` ahead along the centreline, walked in steps of at most PREVIEW_STEP."""
+        """Curvature at `distance` ahead along the centreline, walked in steps of at most PREVIEW_STEP
+        (or at the last point reached where the lane ends within the preview)."""
         x, y = float(point[0]), float(point[1])
         remaining = distance
         while remaining > 1e-9:
             step = min(remaining, PREVIEW_STEP)
             remaining -= step
             ahead = Pose(x + step * math.cos(heading), y + step * math.sin(heading), heading)
-            nxt, heading = self.map.lane_point(ahead, self.lane)
+            try:
+                nxt, heading = self.map.lane_point(ahead, self.lane)
+            except OffMapError:
+                break
             x, y = float(nxt[0]), float(nxt[1])
         return self.map.lane_curvature(Pose(x, y, heading), self.lane)
 

@@ -11,11 +11,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from testbed.loop import TickRecord  # noqa: E402
-from tracks.plot import draw_track  # noqa: E402
+from testbed.loop import TickRecord
+from tracks.plot import draw_track
 
 
 def _col(rows: Sequence[TickRecord], name: str) -> np.ndarray:

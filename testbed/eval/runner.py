@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 from testbed.attacks.spec import attack_from_dict
 from testbed.camera import FrontCamera, get_condition
+from testbed.chassis import ChassisPort
 from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
@@ -32,8 +33,8 @@ from testbed.localization.stack import GroundTruthLocalization, LocalizationConf
 from testbed.loop import ControlLoop, LoopRates, TickRecord
 from testbed.perception.factory import make_detector
 from testbed.world import PhysicsWorld, TileStreamer
-from tracks.presets import load_track
 from tracks.pose import Pose
+from tracks.presets import load_track
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -51,10 +52,18 @@ class RunResult:
     stop_t: float | None = None
 
 
+def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
+    """The physics world a scenario runs in (the CAN chassis emulator builds the same one as its plant)."""
+    return PhysicsWorld(track, params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+
+
 class SimRun:
     """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
 
-    def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False) -> None:
+    def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False,
+                 chassis: ChassisPort | None = None, world: PhysicsWorld | None = None) -> None:
+        """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
+        is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -76,9 +85,12 @@ class SimRun:
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
         start = self.track.start_pose(self.lane, sc.start_s)
         self.start = start
-        self.world = PhysicsWorld(self.track, self.params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+        if chassis is None:
+            world = physics_world_for(sc, self.track, self.params, start)
+            chassis = DirectChassis(world, hold_s=sc.rates.get("command_hold_s", 0.0))
+        self.world = world
+        self.chassis = chassis
         rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
-        self.chassis = DirectChassis(self.world)
         self.attack = (attack_from_dict(sc.attack, rng=rng_attack, defense=self.defense_config)
                        if sc.attack else None)
         for painter in self.condition.track_painters(sc.seed):
@@ -147,7 +159,7 @@ class SimRun:
             believed.append((est_pose.x, est_pose.y))
             bar.update(1)
             pose = self.loop.last_state.true_pose
-            contacts = self.world.contact_kinds()
+            contacts = self.world.contact_kinds() if self.world is not None else set()
             edge = self._edge_beyond(pose)
             if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
                 break
@@ -194,7 +206,8 @@ class SimRun:
         }
 
     def close(self) -> None:
-        self.world.close()
+        if self.world is not None:
+            self.world.close()
         if self.streamer is not None:
             self.streamer.close()
 

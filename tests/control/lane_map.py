@@ -113,9 +113,9 @@ def straight(length: float = 1000.0) -> PolylineLaneMap:
 def curvy_urban() -> PolylineLaneMap:
     """Straight, clothoid into a left R = 60 m arc, clothoid out, then the same to the right."""
     k = 1.0 / 60.0
-    left = [(30, 0, k), (80, k, k), (30, k, 0)]
-    right = [(30, 0, -k), (80, -k, -k), (30, -k, 0)]
-    return PolylineLaneMap([(30, 0, 0), *left, (20, 0, 0), *right, (60, 0, 0)])
+    left = [(30, 0, k), (50, k, k), (30, k, 0)]
+    right = [(30, 0, -k), (50, -k, -k), (30, -k, 0)]
+    return PolylineLaneMap([(30, 0, 0), *left, (20, 0, 0), *right, (25, 0, 0)])
 
 
 def highway() -> PolylineLaneMap:

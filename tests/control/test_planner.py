@@ -34,6 +34,10 @@ def test_curvature_is_previewed_along_the_centreline() -> None:
     p = LanePlanner(smap, 0, 20.0, preview_time=1.0).plan(Pose(x, y, h), 20.0, 0.0)
     assert p.curvature == pytest.approx(k, rel=1e-3)
     assert abs(p.lateral_error) < 1e-3
+    end = smap.s[-1]  # the road ends inside the preview: the last reachable curvature, not off-map
+    x, y, h, _ = smap._at(end - 2.0)
+    p = LanePlanner(smap, 0, 20.0).plan(Pose(x, y, h), 20.0, 0.0)
+    assert not p.off_map and p.curvature == 0.0
 
 
 def test_cruise_ramps_gently_to_the_cruise_speed() -> None:

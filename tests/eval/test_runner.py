@@ -1,0 +1,81 @@
+"""Short closed loops on every preset, the output contract, determinism across processes, CLI errors."""
+
+import csv
+import json
+import re
+import subprocess
+import sys
+
+import pytest
+
+from testbed.eval.outputs import SUMMARY_KEYS, TRAJECTORY_COLUMNS
+from testbed.eval.runner import run_scenario
+from testbed.eval.scenario import ScenarioError, load_scenario
+
+PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
+    sc = load_scenario(preset).with_overrides(duration=6.0)
+    result = run_scenario(sc, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert set(SUMMARY_KEYS) <= summary.keys()
+    assert summary["consequence"] == "reach_destination"
+    assert summary["max_abs_dev_m"] < 0.10
+    assert summary["attack"] is None and summary["detected"] is False
+    with (tmp_path / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0].keys()) == TRAJECTORY_COLUMNS
+    assert len(rows) == len(result.rows) == 600
+    speeds = [float(r["speed"]) for r in rows]
+    assert speeds[-1] > 2.0, "the car drives off under physics"
+    assert (tmp_path / "birdseye.png").stat().st_size > 10_000
+
+
+def test_same_seed_gives_identical_trajectory_in_two_processes(tmp_path):
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        cmd = [sys.executable, "-m", "testbed.cli", "run", "urban-curvy", "--duration", "4", "--seed", "3",
+               "--localization", "msf", "--out", str(out)]
+        subprocess.run(cmd, check=True, capture_output=True)
+        outs.append((out / "trajectory.csv").read_bytes())
+    assert outs[0] == outs[1]
+
+
+def test_attacked_run_without_defense_leaves_lane_and_ld3_stops_in_it(tmp_path):
+    base = load_scenario("urban-straight").with_overrides(
+        duration=25.0, attack={"kind": "trace", "trace": "default", "start": 5.0})
+    none = run_scenario(base.with_overrides(defense="none"), tmp_path / "none").summary
+    ld3 = run_scenario(base.with_overrides(defense="ld3"), tmp_path / "ld3").summary
+    assert none["consequence"] in ("hit_curb", "out_of_lane", "hit_barrier")
+    assert ld3["detected"] and ld3["consequence"] == "stop_in_lane"
+    assert abs(ld3["ar_stop_dev_m"]) < ld3["lane_straddle_dev_m"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "no-such-scenario"], "unknown scenario"),
+        (["run", "slr", "--track", "moon"], "unknown"),
+        (["run", "parking-lot", "--speed", "20"], "cannot reach|beyond"),
+        (["run", "slr", "--out", "/proc/forbidden"], "cannot write"),
+        (["run", "slr", "--condition", "fog"], "unknown condition"),
+        (["run", "slr", "--attack", "teleport:x=1"], "attack"),
+    ],
+)
+def test_bad_input_gives_one_line_and_exit_2(args, message):
+    proc = subprocess.run([sys.executable, "-m", "testbed.cli", *args], capture_output=True, text=True)
+    assert proc.returncode == 2
+    err = [line for line in proc.stderr.splitlines() if line.startswith("ld3: error:")]
+    assert len(err) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert re.search(message, err[0]), err[0]
+
+
+def test_malformed_toml_is_a_scenario_error(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("track = [")
+    with pytest.raises(ScenarioError):
+        load_scenario(str(bad))
