@@ -101,6 +101,20 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_campaign(args: argparse.Namespace) -> int:
+    from testbed.eval.campaigns import CAMPAIGNS, run_named
+
+    if args.name == "list":
+        for name, spec in CAMPAIGNS.items():
+            print(f"{name:18s} {spec.description}")
+        return 0
+    out = args.out or Path("runs") / f"campaign-{args.name}"
+    report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty())
+    print(report.read_text())
+    print(f"report: {report}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
@@ -124,6 +138,13 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("name", help="NAME[@SEED]")
     show.add_argument("--out", type=Path)
     p.set_defaults(func=cmd_tracks)
+
+    p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
+    p.add_argument("name", help="campaign name, or `list`")
+    p.add_argument("--out", type=Path, help="output directory (default runs/campaign-NAME); reruns resume")
+    p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
+    p.add_argument("--workers", type=int, default=2, help="worker processes")
+    p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("bench", help="benchmarks (not tests): loop, map, defense")
     p.add_argument("what", choices=["loop", "map", "defense"])

@@ -70,7 +70,8 @@ class ControlLoop:
                  lateral, longitudinal, defense: Defense, detector: LaneDetector | None,
                  camera: Callable[[float, Pose], CameraFrame] | None, attack: Attack | None = None,
                  rates: LoopRates = LoopRates(), on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None,
-                 existence_threshold: float = 0.5) -> None:
+                 existence_threshold: float = 0.5, planned_stop: tuple[float, float] | None = None) -> None:
+        """`planned_stop` = (time, deceleration) of an in-lane stop that is part of the plan, not a response."""
         self.chassis = chassis
         self.localization = localization
         self.smap = smap
@@ -89,6 +90,7 @@ class ControlLoop:
         self.ld_dev = LdDeviation(existence_threshold)
         self.last_ld_dev: float | None = None
         self.stopping = False
+        self.planned_stop = planned_stop
         self.last_state: ChassisState | None = None
         self.last_estimate: LocalizationEstimate | None = None
 
@@ -121,6 +123,8 @@ class ControlLoop:
             self._on_camera_tick(t, state, est, view)
         pose = self.defense.pose_for_control(est, self.smap)
         decel = self.defense.stop_decel
+        if decel is None and self.planned_stop is not None and t >= self.planned_stop[0]:
+            decel = self.planned_stop[1]
         if decel is not None and not self.stopping:
             self.stopping = True
             self.planner.start_stop(t, state.speed, decel)

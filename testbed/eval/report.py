@@ -75,7 +75,8 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r.summary
-        attack = s["attack"]["kind"] if isinstance(s.get("attack"), dict) and "kind" in s["attack"] else _fmt(s["attack"])
+        spec = s.get("attack")
+        attack = spec.get("kind", "?") if isinstance(spec, dict) else _fmt(spec)
         lines.append(
             f"| [{r.label}]({r.run_dir.name}/birdseye.png) | {s['defense']} | {attack} | {s['consequence']} "
             f"| {_fmt(s['detected'])} | {_fmt(s['detection_time_s'])} | {_fmt(s['detection_dev_m'])} "

@@ -122,6 +122,7 @@ class SimRun:
             defense=self.defense, detector=self.detector, camera=self._capture if self.camera else None,
             attack=self.attack, rates=rates, on_frame=self.video.add if self.video else None,
             existence_threshold=self.defense_config.existence_threshold,
+            planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
         )
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width
@@ -147,7 +148,7 @@ class SimRun:
         sc = self.sc
         rows: list[TickRecord] = []
         believed: list[tuple[float, float]] = []
-        n_ticks = int(round(sc.duration * self.loop.rates.control_hz))
+        n_ticks = round(sc.duration * self.loop.rates.control_hz)
         stop_t: float | None = None
         still_since: float | None = None
         wall0 = time.perf_counter()
@@ -163,7 +164,7 @@ class SimRun:
             edge = self._edge_beyond(pose)
             if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
                 break
-            if self.loop.stopping and rec.speed < STOP_SPEED:
+            if self.loop.stopping and abs(rec.speed) < STOP_SPEED:
                 still_since = rec.t if still_since is None else still_since
                 if rec.t - still_since >= 0.5:
                     stop_t = still_since

@@ -37,6 +37,9 @@ class Scenario:
     defense_params: dict[str, Any] = field(default_factory=dict)
     attack: dict[str, Any] | None = None
     rates: dict[str, float] = field(default_factory=dict)
+    stop_at: float | None = None
+    """A planned in-lane stop at this time (s) and `stop_decel`, independent of any defense."""
+    stop_decel: float = 4.0
 
     def with_overrides(self, **overrides: Any) -> Scenario:
         """A copy with the given non-None fields replaced, validated."""

@@ -81,10 +81,10 @@ class _Schedule:
 class GnssModel:
     """GNSS error model parameters (m, s)."""
 
-    bias_std: float = 0.1
+    bias_std: float = 0.08
     bias_tau: float = 60.0
     noise_std: float = 0.08
-    reported_std: float = 0.3
+    reported_std: float = 0.4
     multipath_rate: float = 1.0 / 90.0
     multipath_duration: tuple[float, float] = (2.0, 6.0)
     multipath_offset: tuple[float, float] = (0.5, 2.5)
@@ -142,7 +142,7 @@ class LidarModel:
     """LiDAR-locator error model: std and reported std at feature quality 1 (rich) and 0 (poor)."""
 
     noise_std_rich: float = 0.02
-    noise_std_poor: float = 0.12
+    noise_std_poor: float = 0.06
     reported_std_rich: float = 0.04
     reported_std_poor: float = 0.3
     yaw_std_rich: float = 0.002
@@ -152,7 +152,7 @@ class LidarModel:
     lost_reported_std: float = 1.0
     occlusion_rate: float = 1.0 / 12.0
     occlusion_duration: tuple[float, float] = (4.0, 10.0)
-    occlusion_depth: tuple[float, float] = (0.5, 1.0)
+    occlusion_depth: tuple[float, float] = (0.4, 0.9)
 
 
 class LidarLocator:

@@ -51,7 +51,7 @@ def test_stack_is_seeded_and_tracks_the_truth():
 
 def test_last_gnss_is_the_consumed_possibly_spoofed_fix():
     def spoof(fix):
-        return dataclasses.replace(fix, xy=fix.xy + [0.0, 0.5])
+        return dataclasses.replace(fix, xy=[*fix.xy, 0.0, 0.5])
 
     _, fixes = drive(1, spoof, seconds=1.0)
     consumed = [f for f in fixes if f is not None]

@@ -1,0 +1,221 @@
+"""The named campaigns that reproduce the paper's experiments (`ld3 campaign NAME`), each a list of
+runs and a table of what the paper reports for it.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from testbed.eval.campaign import CampaignRun, run_campaign
+from testbed.eval.scenario import load_scenario
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    description: str
+    build: Callable[[str], list[CampaignRun]]
+    table: Callable[[list[tuple[CampaignRun, dict[str, Any]]], Path], str]
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.3f}"
+    return str(v)
+
+
+def _stats(values: list[float]) -> str:
+    arr = np.array([v for v in values if v is not None], dtype=float)
+    if arr.size == 0:
+        return "–"
+    return f"{arr.mean():.2f} ± {arr.std():.2f} (max {arr.max():.2f})"
+
+
+# ---- foundation: lane keeping with the true pose -----------------------------------------------------
+LANE_KEEPING = (("slr", 10.0, 60.0), ("slr", 27.0, 60.0), ("urban-straight", 12.0, 60.0),
+                ("urban-curvy", 10.0, 120.0), ("highway", 27.0, 90.0))
+
+
+def lane_keeping_runs(detector: str) -> list[CampaignRun]:
+    runs = [CampaignRun(f"{track}-{speed:g}", load_scenario(track).with_overrides(
+        speed=speed, duration=duration, detector="none", localization="truth", name=f"{track}-{speed:g}"),
+        {"track": track, "speed": speed}) for track, speed, duration in LANE_KEEPING]
+    stop = load_scenario("highway").with_overrides(speed=27.0, duration=60.0, detector="none", stop_at=40.0,
+                                                   stop_decel=4.0, name="highway-stop")
+    runs.append(CampaignRun("highway-27-stop", stop, {"track": "highway", "speed": 27.0}))
+    return runs
+
+
+def cruise_speed_error(run_dir: Path, target: float) -> float | None:
+    """Max |speed − target| once the car first came within 0.3 m/s of the target, before any stop."""
+    rows = list(csv.DictReader((run_dir / "trajectory.csv").open()))
+    speeds = np.array([float(r["speed"]) for r in rows])
+    reached = np.flatnonzero(np.abs(speeds - target) <= 0.3)
+    if reached.size == 0:
+        return None
+    cruise = speeds[reached[0]:]
+    below = np.flatnonzero(cruise < target - 1.0)  # a planned stop began
+    cruise = cruise[: below[0]] if below.size else cruise
+    return float(np.max(np.abs(cruise - target)))
+
+
+def lane_keeping_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    lines = ["| run | max abs dev (m) | final dev (m) | cruise speed error max (m/s) | consequence | stop time (s) |",
+             "|---|---|---|---|---|---|"]
+    for run, s in done:
+        err = cruise_speed_error(out / run.run_id, run.tags["speed"])
+        lines.append(f"| {run.run_id} | {_fmt(s['max_abs_dev_m'])} | {_fmt(s['final_dev_m'])} | {_fmt(err)} "
+                     f"| {s['consequence']} | {_fmt(s.get('stop_time_s'))} |")
+    return "\n".join(lines)
+
+
+# ---- LD3 in the closed loop (paper Table 4) ------------------------------------------------------------
+TABLE4_STARTS = (6.0, 8.0, 10.0, 12.0, 14.0)
+DEFENSES = ("none", "ld3-naive-ar", "ld3")
+
+
+def table4_runs(detector: str) -> list[CampaignRun]:
+    base = load_scenario("urban-straight").with_overrides(speed=12.0, duration=40.0, detector=detector,
+                                                          localization="msf")
+    return [CampaignRun(f"{d}-start{start:g}", base.with_overrides(
+        defense=d, attack={"kind": "trace", "trace": "default", "start": start}, name=f"table4-{d}"),
+        {"defense": d, "start": start}) for d in DEFENSES for start in TABLE4_STARTS]
+
+
+def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    lines = ["| defense | runs | consequences | detected | detection dev (m) | AR max dev (m) | stop dev (m) |",
+             "|---|---|---|---|---|---|---|"]
+    by_def: dict[str, list[dict[str, Any]]] = {}
+    for run, s in done:
+        by_def.setdefault(f"{run.tags.get('track', '')} {s['defense']}".strip(), []).append(s)
+    for key, sums in by_def.items():
+        cons: dict[str, int] = {}
+        for s in sums:
+            cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
+        lines.append(
+            f"| {key} | {len(sums)} | {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} "
+            f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
+            f"| {_stats([s['detection_dev_m'] for s in sums])} | {_stats([s['ar_max_dev_m'] for s in sums])} "
+            f"| {_stats([abs(s['ar_stop_dev_m']) if s['ar_stop_dev_m'] is not None else None for s in sums])} |")
+    return "\n".join(lines)
+
+
+# ---- FusionRipper through the MSF, with LD3 --------------------------------------------------------------
+FR_TRACKS = {"local": 12.0, "highway": 27.0}
+FR_BEST = {"d": 1.0, "f": 1.5}
+
+
+def fusionripper_ld3_runs(detector: str) -> list[CampaignRun]:
+    runs = []
+    for track, speed in FR_TRACKS.items():
+        base = load_scenario(track).with_overrides(speed=speed, duration=60.0, detector=detector,
+                                                   localization="msf", defense="ld3")
+        for k in range(10):
+            start = 8.0 + 2.7 * k
+            runs.append(CampaignRun(f"{track}-start{start:g}", base.with_overrides(
+                attack={"kind": "fusionripper", **FR_BEST, "start": start}, name=f"fr-{track}"),
+                {"track": track, "start": start}))
+    return runs
+
+
+# ---- benign false alarms ---------------------------------------------------------------------------------
+BENIGN_PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
+
+
+def benign_runs(detector: str) -> list[CampaignRun]:
+    return [CampaignRun(f"{p}-seed{seed}", load_scenario(p).with_overrides(
+        seed=seed, detector=detector, localization="msf", defense="ld3", duration=min(60.0, load_scenario(p).duration),
+        name=f"benign-{p}"), {"track": p, "seed": seed}) for p in BENIGN_PRESETS for seed in range(5)]
+
+
+def benign_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    lines = ["| track | runs | false alarms | max abs dev (m) | consequences |", "|---|---|---|---|---|"]
+    by_track: dict[str, list[dict[str, Any]]] = {}
+    for run, s in done:
+        by_track.setdefault(run.tags["track"], []).append(s)
+    for track, sums in by_track.items():
+        lines.append(f"| {track} | {len(sums)} | {sum(bool(s['detected']) for s in sums)} "
+                     f"| {_stats([s['max_abs_dev_m'] for s in sums])} "
+                     f"| {', '.join(sorted({s['consequence'] for s in sums}))} |")
+    return "\n".join(lines)
+
+
+# ---- FusionRipper parameter grid without defense (paper Table 2) -----------------------------------------
+GRID_D = (0.3, 0.5, 0.7, 1.0)
+GRID_F = (1.1, 1.2, 1.3, 1.5)
+ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
+
+
+def fr_grid_runs(detector: str) -> list[CampaignRun]:
+    runs = []
+    for track, speed in FR_TRACKS.items():
+        base = load_scenario(track).with_overrides(speed=speed, duration=50.0, detector="none",
+                                                   localization="msf", defense="none")
+        for d in GRID_D:
+            for f in GRID_F:
+                for k in range(20):
+                    start = 8.0 + 1.3 * k
+                    runs.append(CampaignRun(f"{track}-d{d:g}-f{f:g}-start{start:g}", base.with_overrides(
+                        attack={"kind": "fusionripper", "d": d, "f": f, "start": start}, name=f"grid-{track}"),
+                        {"track": track, "d": d, "f": f, "start": start}))
+    return runs
+
+
+def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    cells: dict[tuple[str, float, float], list[bool]] = {}
+    giveway: dict[tuple[str, float, float], list[float]] = {}
+    for run, s in done:
+        key = (run.tags["track"], run.tags["d"], run.tags["f"])
+        goal = ATTACK_GOAL_M[run.tags["track"]]
+        ok = (s["max_abs_dev_m"] or 0.0) > goal or s["consequence"] in ("hit_curb", "hit_barrier", "fall_off_road")
+        cells.setdefault(key, []).append(ok)
+        state = s.get("attack_state") or {}
+        if state.get("switch_time") is not None:
+            giveway.setdefault(key, []).append(state["switch_time"] - run.tags["start"])
+    lines = []
+    for track in FR_TRACKS:
+        lines += [f"**{track}** (goal {ATTACK_GOAL_M[track]} m): success rate, time from attack start to MSF give-way",
+                  "", "| d \\ f | " + " | ".join(f"{f:g}" for f in GRID_F) + " |",
+                  "|---|" + "---|" * len(GRID_F)]
+        for d in GRID_D:
+            row = []
+            for f in GRID_F:
+                res = cells.get((track, d, f), [])
+                gw = giveway.get((track, d, f), [])
+                spread = f"; give-way {np.min(gw):.1f}–{np.max(gw):.1f} s" if gw else ""
+                row.append(f"{100 * np.mean(res):.0f}% ({len(res)}){spread}" if res else "–")
+            lines.append(f"| {d:g} | " + " | ".join(row) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+CAMPAIGNS: dict[str, CampaignSpec] = {
+    "lane-keeping": CampaignSpec("benign lane keeping with the true pose, and a 4 m/s² stop from 27 m/s",
+                                 lane_keeping_runs, lane_keeping_table),
+    "table4": CampaignSpec("urban-straight 12 m/s, default trace injection, 5 start times × none/naive/LD3",
+                           table4_runs, defense_table),
+    "fusionripper-ld3": CampaignSpec("FusionRipper through the MSF on local and highway, 10 start times, LD3",
+                                     fusionripper_ld3_runs, defense_table),
+    "benign": CampaignSpec("benign LD3 runs on every preset, 5 seeds each: false alarms",
+                           benign_runs, benign_table),
+    "fusionripper-grid": CampaignSpec("FusionRipper d×f grid without defense, 20 start times (paper Table 2)",
+                                      fr_grid_runs, fr_grid_table),
+}
+
+
+def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True) -> Path:
+    if name not in CAMPAIGNS:
+        raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
+    spec = CAMPAIGNS[name]
+    done = run_campaign(spec.build(detector), out, workers=workers, progress=progress)
+    report = out / "report.md"
+    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector `{detector}`.\n\n"
+                      f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
+    return report
