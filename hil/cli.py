@@ -1,8 +1,9 @@
-"""Command-line entry points of the CAN link: `ecu` (run the ECU emulator), `replay` (play a log onto a bus).
+"""Command line of the CAN link: `ld3 hil SCENARIO` (a scenario over CAN), `ld3 hil replay LOG` (play a log onto a
+bus) and `ld3 ecu` (the ECU emulator); `python -m hil ecu|replay ...` runs the last two without the ld3 command.
 
-`main(argv)` dispatches `python -m hil ecu|replay ...`; the `ld3` command can call `ecu_main` / `replay_main`.
-A plant is named by `--plant`: "kinematic" (hil.kinematic_plant) or "package.module:factory", called with the
-`--plant-arg KEY=VALUE` pairs as keyword strings and returning a ChassisPort.
+An ECU plant is named by `--plant`: "kinematic" (hil.kinematic_plant), "pybullet" (hil.plants.pybullet_plant,
+the scenario's PyBullet car) or "package.module:factory", called with the `--plant-arg KEY=VALUE` pairs as
+keyword strings and returning a ChassisPort; `--scenario NAME` selects the PyBullet car of that scenario.
 """
 
 from __future__ import annotations
@@ -28,39 +29,63 @@ from hil.timing import ClockMode
 from testbed.chassis import ChassisPort
 
 PlantFactory = Callable[..., ChassisPort]
+REPLAY = "replay"
 
 
 def resolve_plant(spec: str) -> PlantFactory:
-    """"kinematic" or "package.module:callable" -> a factory of ChassisPort."""
+    """"kinematic", "pybullet" or "package.module:callable" -> a factory of ChassisPort."""
     if spec == "kinematic":
         return KinematicBicyclePlant
+    if spec == "pybullet":
+        spec = "hil.plants:pybullet_plant"
     module_name, _, attribute = spec.partition(":")
     if not attribute:
-        raise ValueError(f"plant must be 'kinematic' or 'package.module:factory', got {spec!r}")
-    return getattr(importlib.import_module(module_name), attribute)
+        raise ValueError(f"plant must be 'kinematic', 'pybullet' or 'package.module:factory', got {spec!r}")
+    try:
+        return getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"cannot load plant {spec!r}: {exc}") from None
 
 
-def ecu_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ld3 ecu", description="Run the chassis ECU emulator on a CAN bus.")
-    parser.add_argument("--interface", choices=(*INTERFACES, "slcan-pty"), default="virtual")
+# ---------------------------------------------------------------------- ecu
+def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--interface", choices=(*INTERFACES, "slcan-pty"), default="virtual",
+                        help="slcan-pty: open a pty and act as an SLCAN adapter (prints SLCAN_PTY <path>)")
     parser.add_argument("--channel", default=None, help="virtual channel name, serial path or netdev")
     parser.add_argument("--clock", choices=[m.value for m in ClockMode], default=ClockMode.LOCKSTEP.value)
-    parser.add_argument("--plant", default="kinematic", help="'kinematic' or 'package.module:factory'")
+    parser.add_argument("--plant", default="kinematic", help="'kinematic', 'pybullet' or 'package.module:factory'")
     parser.add_argument("--plant-arg", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--scenario", help="use the PyBullet car of this scenario (name or .toml) as the plant")
     parser.add_argument("--max-steer-deg", type=float, default=math.degrees(EcuLimits.max_steer))
     parser.add_argument("--max-steer-rate-deg", type=float, default=math.degrees(EcuLimits.max_steer_rate))
     parser.add_argument("--estop-decel", type=float, default=EcuLimits.estop_decel)
     parser.add_argument(
         "--duration", type=float, default=None, help="wall seconds to run (default: until SIGTERM)"
     )
+
+
+def ecu_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ld3 ecu", description="Run the chassis ECU emulator on a CAN bus.")
+    add_ecu_arguments(parser)
     return parser
 
 
-def ecu_main(argv: Sequence[str] | None = None, plant_factory: PlantFactory | None = None) -> int:
+def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> ChassisPort:
+    try:
+        kwargs = dict(item.split("=", 1) for item in args.plant_arg)
+    except ValueError:
+        raise ValueError(f"--plant-arg takes KEY=VALUE, got {args.plant_arg}") from None
+    if args.scenario:
+        from hil.plants import plant_args_for, pybullet_plant
+        from testbed.eval.scenario import load_scenario
+
+        return pybullet_plant(**{**plant_args_for(load_scenario(args.scenario)), **kwargs})
+    return (plant_factory or resolve_plant(args.plant))(**kwargs)
+
+
+def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None) -> int:
     """Run the ECU emulator until SIGTERM/SIGINT or --duration; slcan-pty prints `SLCAN_PTY <path>` first."""
-    args = ecu_parser().parse_args(argv)
-    plant_kwargs = dict(item.split("=", 1) for item in args.plant_arg)
-    plant = (plant_factory or resolve_plant(args.plant))(**plant_kwargs)
+    plant = _plant(args, plant_factory)
     limits = EcuLimits(
         max_steer=math.radians(args.max_steer_deg),
         max_steer_rate=math.radians(args.max_steer_rate_deg),
@@ -83,8 +108,15 @@ def ecu_main(argv: Sequence[str] | None = None, plant_factory: PlantFactory | No
     return 0
 
 
+def ecu_main(argv: Sequence[str] | None = None, plant_factory: PlantFactory | None = None) -> int:
+    return run_ecu(ecu_parser().parse_args(argv), plant_factory)
+
+
+# ---------------------------------------------------------------------- replay
 def replay_main(log_path: Path, interface: str = "virtual", channel: str | None = None) -> int:
     """Play the frames of a .asc/.blf log onto the configured bus with their recorded timing."""
+    if not log_path.is_file():
+        raise FileNotFoundError(f"CAN log not found: {log_path}")
     bus = BusConfig(interface, channel).open()
     try:
         count = replay_log(log_path, bus)
@@ -94,16 +126,70 @@ def replay_main(log_path: Path, interface: str = "virtual", channel: str | None 
     return 0
 
 
+# ---------------------------------------------------------------------- hil
+def cmd_hil(args: argparse.Namespace) -> int:
+    """`ld3 hil SCENARIO ...` runs the scenario over CAN; `ld3 hil replay LOG ...` replays a log."""
+    if args.scenario == REPLAY:
+        if args.log is None:
+            raise ValueError("hil replay needs the log file: ld3 hil replay LOG.asc")
+        return replay_main(args.log, args.interface, args.channel)
+    if args.log is not None:
+        raise ValueError(f"unexpected argument {str(args.log)!r} after the scenario")
+    from hil.scenario_run import LinkConfig, run_hil_scenario
+    from testbed.cli import scenario_from_args
+
+    sc = scenario_from_args(args)
+    out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
+    config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None)
+    result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty())
+    s = result.summary
+    print(f"{sc.name} over {s['interface']} ({s['clock']}): consequence {s['consequence']}, "
+          f"max |D| {s['max_abs_dev_m']:.3f} m, detected {s['detected']}, {s['sim_time_s']:.1f} s simulated "
+          f"at {s['real_time_factor']:.1f}x real time")
+    print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
+          f"{s['can_frames_rejected']} rejected; log {s['can_log']}")
+    print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add `ld3 hil` and `ld3 ecu` to the ld3 command (entry point group "ld3.commands")."""
+    from testbed.cli import _add_run_overrides
+
+    p = sub.add_parser("hil", help="run a scenario over CAN (or `ld3 hil replay LOG`: play a CAN log onto a bus)",
+                       description="Run SCENARIO with the CAN bridge as the chassis (outputs as `ld3 run`, plus "
+                                   "the CAN log), or `ld3 hil replay LOG` to play a recorded log onto a bus.")
+    _add_run_overrides(p)
+    p.add_argument("log", nargs="?", type=Path, help="with `replay`: the .asc/.blf log to play")
+    p.add_argument("--interface", choices=INTERFACES, default="virtual",
+                   help="virtual: in-process ECU; slcan: ECU process on a pty (or the adapter at --channel); "
+                        "socketcan: the chassis on --channel")
+    p.add_argument("--channel", default=None, help="virtual channel name, serial path or netdev")
+    p.add_argument("--clock", choices=[m.value for m in ClockMode], default=None,
+                   help="lockstep (default) or realtime (default on socketcan)")
+    p.add_argument("--log", dest="can_log", type=Path, default=None,
+                   help="CAN log file (.asc or .blf; default OUT/can.asc)")
+    p.set_defaults(func=cmd_hil)
+
+    p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)
+    add_ecu_arguments(p)
+    p.set_defaults(func=run_ecu)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv[:1] == ["ecu"]:
-        return ecu_main(argv[1:])
-    if argv[:1] == ["replay"]:
-        parser = argparse.ArgumentParser(prog="ld3 hil replay", description="Play a CAN log onto a bus.")
-        parser.add_argument("log", type=Path)
-        parser.add_argument("--interface", choices=INTERFACES, default="virtual")
-        parser.add_argument("--channel", default=None)
-        args = parser.parse_args(argv[1:])
-        return replay_main(args.log, args.interface, args.channel)
+    try:
+        if argv[:1] == ["ecu"]:
+            return ecu_main(argv[1:])
+        if argv[:1] == [REPLAY]:
+            parser = argparse.ArgumentParser(prog="python -m hil replay", description="Play a CAN log onto a bus.")
+            parser.add_argument("log", type=Path)
+            parser.add_argument("--interface", choices=INTERFACES, default="virtual")
+            parser.add_argument("--channel", default=None)
+            args = parser.parse_args(argv[1:])
+            return replay_main(args.log, args.interface, args.channel)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"ld3: error: {exc}", file=sys.stderr)
+        return 2
     print("usage: python -m hil ecu|replay ...", file=sys.stderr)
     return 2

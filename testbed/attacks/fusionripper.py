@@ -91,4 +91,5 @@ class FusionRipper(Attack):
             "direction": self.direction,
             "start": self.start_time,
             "trigger": self.trigger,
+            "obs_std": self.obs_std,
         }

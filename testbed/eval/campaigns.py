@@ -53,24 +53,25 @@ def lane_keeping_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
-def cruise_speed_error(run_dir: Path, target: float) -> float | None:
-    """Max |speed − target| once the car first came within 0.3 m/s of the target, before any stop."""
-    rows = list(csv.DictReader((run_dir / "trajectory.csv").open()))
+def cruise_speed_error(run_dir: Path, target: float, until: float | None) -> float | None:
+    """Steady-state speed error: max |speed − target| from when the car first came within 0.05 m/s of the
+    target until `until` (a planned stop) or the end."""
+    with (run_dir / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    t = np.array([float(r["t"]) for r in rows])
     speeds = np.array([float(r["speed"]) for r in rows])
-    reached = np.flatnonzero(np.abs(speeds - target) <= 0.3)
+    window = speeds[t < until] if until is not None else speeds
+    reached = np.flatnonzero(np.abs(window - target) <= 0.05)
     if reached.size == 0:
         return None
-    cruise = speeds[reached[0]:]
-    below = np.flatnonzero(cruise < target - 1.0)  # a planned stop began
-    cruise = cruise[: below[0]] if below.size else cruise
-    return float(np.max(np.abs(cruise - target)))
+    return float(np.max(np.abs(window[reached[0]:] - target)))
 
 
 def lane_keeping_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
     lines = ["| run | max abs dev (m) | final dev (m) | cruise speed error max (m/s) | consequence | stop time (s) |",
              "|---|---|---|---|---|---|"]
     for run, s in done:
-        err = cruise_speed_error(out / run.run_id, run.tags["speed"])
+        err = cruise_speed_error(out / run.run_id, run.tags["speed"], run.scenario.stop_at)
         lines.append(f"| {run.run_id} | {_fmt(s['max_abs_dev_m'])} | {_fmt(s['final_dev_m'])} | {_fmt(err)} "
                      f"| {s['consequence']} | {_fmt(s.get('stop_time_s'))} |")
     return "\n".join(lines)

@@ -1,17 +1,17 @@
-"""Neural lane detector: a small CNN regressing the ego lines at fixed ground distances, decoded to cubics.
+"""Neural lane detector: row-anchor column classification (Ultra-Fast-Lane-Detection style) on the camera frame.
 
-Model (`LaneNet`): the ground part of the frame (rows below the top 30 %, horizon included) is area-
-resized to 56×160, standardised per channel (exposure invariance) and passed through five strided
-conv-BN-ReLU blocks and a two-layer head. The head outputs, for the left and the right line, the lateral
-offset y (m, vehicle frame) at the anchor distances `X_ANCHORS` (x = 0 included: the network learns the
-extrapolation to the reference point, which is what Alg. 3 reads) and an existence logit. A weighted
-least-squares cubic through the anchors gives the `LaneDetection` coefficients.
+Anchors are the image rows that see fixed ground distances `X_ANCHORS` ahead (nominal rig). The ground part
+of the frame is area-resized to 56×160 and standardised per channel (exposure invariance); a fully
+convolutional backbone keeps 40 columns (8 px each) and widens its lateral view with dilated convs. For each
+line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax expectation
+over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m) at that
+anchor's distance. A weighted least-squares cubic through the present anchors (ridge on c2, c3) is the
+`LaneDetection` line; c0 is its extrapolation to the reference point. A pooled branch gives the existence
+logit of each line.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -21,43 +21,51 @@ import torch
 from torch import nn
 
 from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from vehicles.camera_rig import CameraRig
+from vehicles.params import CameraParams
 
-X_ANCHORS = (0.0, 4.0, 8.0, 12.0, 16.0, 20.0, 25.0, 30.0, 35.0, 40.0)
-ANCHOR_WEIGHTS = (8.0, 4.0, 2.0, 1.5, 1.0, 1.0, 0.7, 0.5, 0.4, 0.3)  # fit and loss emphasis near x = 0
-Y_SCALE = 4.0  # m: targets are y / Y_SCALE
+X_ANCHORS = (5.0, 6.0, 7.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0, 30.0)
+ANCHOR_WEIGHTS = (3.0, 3.0, 2.5, 2.0, 1.5, 1.2, 1.0, 0.8, 0.6, 0.4, 0.3)  # fit emphasis near the car
+RIDGE = (0.0, 0.0, 1e2, 1e5)  # penalty on c0..c3 in the fit (keeps sparse anchor sets well posed)
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
 INPUT_SHAPE = (56, 160)  # network input (H, W)
+N_COLS = 40  # column cells; cell j covers full-resolution columns [8j, 8j + 8)
 DEFAULT_WEIGHTS = "lanenet.pt"
 
 
-def _block(c_in: int, c_out: int, stride: int) -> nn.Sequential:
-    conv = nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False)
+def _block(c_in: int, c_out: int, stride: tuple[int, int], dilation: tuple[int, int] = (1, 1)) -> nn.Sequential:
+    conv = nn.Conv2d(c_in, c_out, 3, stride, dilation, dilation=dilation, bias=False)
     return nn.Sequential(conv, nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
 
 
 class LaneNet(nn.Module):
-    """CNN: (N, 3, 56, 160) standardised image -> (N, 2K + 2): left, right y/Y_SCALE at anchors, 2 logits."""
+    """(N, 3, 56, 160) image -> column logits (N, 2, K, N_COLS + 1) (last: absent), existence logits (N, 2)."""
 
-    def __init__(self, widths: tuple[int, ...] = (16, 24, 32, 48, 64), hidden: int = 128) -> None:
+    def __init__(self, width: int = 32) -> None:
         super().__init__()
-        strides = (2, 2, 2, 1, 2)
-        layers, c_in = [], 3
-        for c_out, s in zip(widths, strides, strict=True):
-            layers.append(_block(c_in, c_out, s))
-            c_in = c_out
-        self.features = nn.Sequential(*layers)
-        h, w = INPUT_SHAPE
-        for s in strides:
-            h, w = (h + 1) // s if s > 1 else h, (w + 1) // s if s > 1 else w
-        self.head = nn.Sequential(
-            nn.Flatten(), nn.Linear(c_in * h * w, hidden), nn.ReLU(inplace=True),
-            nn.Linear(hidden, 2 * len(X_ANCHORS) + 2),
+        self.width = width
+        k = len(X_ANCHORS)
+        self.features = nn.Sequential(
+            _block(3, 16, (2, 2)), _block(16, 24, (2, 2)), _block(24, width, (2, 1)),
+            _block(width, width, (1, 1)), _block(width, width, (1, 1), (1, 2)),
+            _block(width, width, (1, 1), (1, 4)),
         )
-        self.widths, self.hidden = widths, hidden
+        rows = 7
+        self.columns = nn.Conv1d(width * rows + 1, 2 * k, 1)
+        self.pool = nn.AdaptiveAvgPool2d((rows, 8))
+        self.glob = nn.Sequential(nn.Flatten(), nn.Linear(width * rows * 8, 64), nn.ReLU(inplace=True),
+                                  nn.Linear(64, 2 * k + 2))
+        self.register_buffer("coord", torch.linspace(-1.0, 1.0, N_COLS)[None, None, :], persistent=False)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.head(self.features(x))
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        f = self.features(x)
+        n, k = x.shape[0], len(X_ANCHORS)
+        flat = torch.cat([f.flatten(1, 2), self.coord.expand(n, 1, N_COLS)], dim=1)
+        cols = self.columns(flat).view(n, 2, k, N_COLS)
+        g = self.glob(self.pool(f))
+        absent = g[:, : 2 * k].view(n, 2, k, 1)
+        return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
 
 
 def preprocess(image: np.ndarray) -> np.ndarray:
@@ -69,30 +77,48 @@ def preprocess(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x.transpose(2, 0, 1))
 
 
-def _fit_matrix() -> np.ndarray:
-    """(4, K) matrix mapping anchor offsets to weighted least-squares cubic coefficients (ascending)."""
-    x = np.asarray(X_ANCHORS)
-    w = np.sqrt(np.asarray(ANCHOR_WEIGHTS))
-    vander = np.vander(x, 4, increasing=True)
-    return np.linalg.pinv(vander * w[:, None]) * w[None, :]
+class AnchorGeometry:
+    """Nominal-rig geometry of the anchors: y = scale_k (u - cx) at anchor k; cell centres in pixels."""
+
+    def __init__(self, params: CameraParams | None = None) -> None:
+        rig = CameraRig(params if params is not None else CameraParams())
+        x = np.asarray(X_ANCHORS)
+        uv0 = rig.ground_to_pixel(np.column_stack([x, np.zeros_like(x)]))
+        uv1 = rig.ground_to_pixel(np.column_stack([x, np.ones_like(x)]))
+        self.cx = float(uv0[0, 0])
+        self.rows = uv0[:, 1]
+        self.scale = 1.0 / (uv1[:, 0] - uv0[:, 0])  # m per pixel (negative: u grows to the right)
+        self.cell_u = 8.0 * np.arange(N_COLS) + 3.5
+
+    def y_to_u(self, y: np.ndarray) -> np.ndarray:
+        return y / self.scale + self.cx
+
+    def u_to_y(self, u: np.ndarray) -> np.ndarray:
+        return (u - self.cx) * self.scale
 
 
-FIT = _fit_matrix()
+GEOMETRY = AnchorGeometry()
 
 
-@dataclass(frozen=True)
-class DecodedLines:
-    """Network output in metres: anchor offsets (2, K) for left and right and existence probabilities (2,)."""
+def fit_cubics(y: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
+    """Weighted ridge least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K)."""
+    x = torch.tensor(X_ANCHORS, dtype=y.dtype)
+    vander = torch.stack([x**p for p in range(4)], dim=-1)  # (K, 4)
+    w = torch.tensor(ANCHOR_WEIGHTS, dtype=y.dtype) * present
+    a = torch.einsum("...k,ki,kj->...ij", w, vander, vander) + torch.diag(torch.tensor(RIDGE, dtype=y.dtype))
+    b = torch.einsum("...k,ki,...k->...i", w, vander, y)
+    return torch.linalg.solve(a, b.unsqueeze(-1)).squeeze(-1)
 
-    anchors_y: np.ndarray
-    probs: np.ndarray
 
-
-def decode(output: np.ndarray) -> DecodedLines:
-    k = len(X_ANCHORS)
-    y = output[: 2 * k].reshape(2, k) * Y_SCALE
-    probs = 1.0 / (1.0 + np.exp(-output[2 * k :]))
-    return DecodedLines(y, probs)
+def decode(cols: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Column logits (…, K, N_COLS + 1) -> anchor offsets y (…, K) in metres and presence probabilities (…, K)."""
+    p = torch.softmax(cols, dim=-1)
+    u_cells = torch.tensor(GEOMETRY.cell_u, dtype=cols.dtype)
+    col_p = p[..., :N_COLS]
+    mass = col_p.sum(-1).clamp(min=1e-6)
+    u = (col_p * u_cells).sum(-1) / mass
+    y = (u - GEOMETRY.cx) * torch.tensor(GEOMETRY.scale, dtype=cols.dtype)
+    return y, 1.0 - p[..., N_COLS]
 
 
 def load_model(path: str | Path | None = None) -> LaneNet:
@@ -103,44 +129,42 @@ def load_model(path: str | Path | None = None) -> LaneNet:
             ckpt = torch.load(p, map_location="cpu", weights_only=True)
     else:
         ckpt = torch.load(Path(path), map_location="cpu", weights_only=True)
-    model = LaneNet(tuple(ckpt["widths"]), int(ckpt["hidden"]))
+    model = LaneNet(int(ckpt["width"]))
     model.load_state_dict(ckpt["state_dict"])
     return model.eval()
 
 
 class NeuralLaneDetector(LaneDetector):
-    """Runs LaneNet on a frame; lines whose existence probability is under 0.5 are reported as None."""
+    """Runs LaneNet on a frame; a line under 0.5 existence probability or with < 3 present anchors is None."""
 
     def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
         if threads is not None:
             torch.set_num_threads(threads)
         self.model = model if model is not None else load_model()
-        self.last_latency_s = 0.0
 
     @staticmethod
     def valid_image(image: np.ndarray | None) -> bool:
-        return (
-            isinstance(image, np.ndarray)
-            and image.shape == (*FRAME_SHAPE, 3)
-            and (image.dtype == np.uint8 or bool(np.isfinite(image).all()))
-        )
+        if not isinstance(image, np.ndarray) or image.shape != (*FRAME_SHAPE, 3):
+            return False
+        return image.dtype == np.uint8 or bool(np.isfinite(image).all())
 
-    def predict(self, image: np.ndarray) -> DecodedLines:
-        """Raw decoded network output for one valid frame."""
-        x = torch.from_numpy(preprocess(np.asarray(image, dtype=np.uint8)))[None]
+    def infer(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""
+        if image.dtype != np.uint8:
+            image = np.clip(image, 0, 255).astype(np.uint8)
+        x = torch.from_numpy(preprocess(image))[None]
         with torch.inference_mode():
-            out = self.model(x)[0].numpy().astype(np.float64)
-        return decode(out)
+            cols, exist = self.model(x)
+            y, present = decode(cols[0].double())
+            mask = (present > 0.5).double()
+            coeffs = fit_cubics(y, mask)
+        enough = mask.sum(-1).numpy() >= 3
+        probs = torch.sigmoid(exist[0].double()).numpy() * enough
+        return coeffs.numpy(), probs
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
-        start = time.perf_counter()
         if not self.valid_image(frame.image):
             return LaneDetection.empty(frame.t)
-        dec = self.predict(frame.image)
-        lines = []
-        for i in range(2):
-            coeffs = FIT @ dec.anchors_y[i]
-            lines.append(coeffs if dec.probs[i] >= 0.5 else None)
-        self.last_latency_s = time.perf_counter() - start
-        return LaneDetection(frame.t, lines[0], lines[1], float(dec.probs[0]), float(dec.probs[1]),
-                             (X_ANCHORS[0], X_ANCHORS[-1]))
+        coeffs, probs = self.infer(frame.image)
+        left, right = (coeffs[i] if probs[i] >= 0.5 else None for i in range(2))
+        return LaneDetection(frame.t, left, right, float(probs[0]), float(probs[1]), (0.0, X_ANCHORS[-1]))

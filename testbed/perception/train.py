@@ -1,14 +1,16 @@
 """Training of LaneNet from scratch on CPU, from dataset shards (`ld3 ld dataset`).
 
-Targets are the true lines' offsets y(x) at the anchor distances (masked where a line is not painted)
-and the two existence flags. Loss = anchor-weighted smooth-L1 on y / Y_SCALE + binary cross-entropy on
-existence. Every batch is mirrored left-right with probability 1/2 (the image flips, left and right lines
-swap and negate), AdamW with a one-cycle schedule. Writes the checkpoint and a training-curve PNG.
+Targets come from the label cubics: each line's column cell at every anchor row (absent where the line is
+unpainted or out of the image), its offsets y (m) at the anchors, its c0 and its existence. Loss = column
+cross-entropy + L1 on the decoded offsets + L1 on the fitted c0 + existence BCE. Each batch is mirrored
+left-right with probability 1/2 (image flipped, lines swapped and negated). AdamW, warm-up then cosine decay
+over whichever runs out first, the epochs or the time budget. Writes the checkpoint and a training-curve PNG.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +20,16 @@ import torch
 from torch import nn
 
 from testbed.perception.dataset import FrameSet, load_frames
-from testbed.perception.neural import ANCHOR_WEIGHTS, X_ANCHORS, Y_SCALE, LaneNet, decode, preprocess
+from testbed.perception.neural import (
+    ANCHOR_WEIGHTS,
+    GEOMETRY,
+    N_COLS,
+    X_ANCHORS,
+    LaneNet,
+    decode,
+    fit_cubics,
+    preprocess,
+)
 
 
 @dataclass
@@ -34,59 +45,86 @@ class TrainConfig:
 
 @dataclass
 class Tensors:
-    """Preprocessed inputs (N, 3, 56, 160) float16; targets anchor y (N, 2, K) / Y_SCALE and exists (N, 2)."""
+    """Inputs (N, 3, 56, 160) float16; targets: anchor offsets y (N, 2, K) m, column class (N, 2, K)
+    (N_COLS = absent), offset c0 (N, 2) m and existence (N, 2)."""
 
     x: torch.Tensor
     y: torch.Tensor
+    cls: torch.Tensor
+    c0: torch.Tensor
     exists: torch.Tensor
+
+    def take(self, idx: torch.Tensor) -> Tensors:
+        return Tensors(self.x[idx].float(), self.y[idx], self.cls[idx], self.c0[idx], self.exists[idx])
 
 
 def to_tensors(frames: FrameSet) -> Tensors:
     x = np.stack([preprocess(img) for img in frames.images]).astype(np.float16)
     anchors = np.asarray(X_ANCHORS)
-    y = np.stack([np.polynomial.polynomial.polyval(anchors, frames.left.T),
-                  np.polynomial.polynomial.polyval(anchors, frames.right.T)], axis=1) / Y_SCALE
-    exists = np.stack([frames.left_exists, frames.right_exists], axis=1).astype(np.float32)
-    return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(exists))
+    coeffs = np.stack([frames.left, frames.right], axis=1)  # (N, 2, 4)
+    y = np.polynomial.polynomial.polyval(anchors, coeffs.reshape(-1, 4).T).reshape(len(x), 2, -1)
+    exists = np.stack([frames.left_exists, frames.right_exists], axis=1)
+    u = GEOMETRY.y_to_u(y)
+    cls = np.floor(u / 8.0).astype(np.int64)
+    visible = (u >= 0.0) & (u < 8.0 * N_COLS) & exists[..., None]
+    cls[~visible] = N_COLS
+    return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(cls),
+                   torch.from_numpy(coeffs[..., 0].astype(np.float32)),
+                   torch.from_numpy(exists.astype(np.float32)))
 
 
-def mirror(x: torch.Tensor, y: torch.Tensor, exists: torch.Tensor) -> tuple[torch.Tensor, ...]:
-    """Left-right mirror: flip the image columns, swap left/right lines and negate their offsets."""
-    return x.flip(-1), -y.flip(1), exists.flip(1)
+def mirror(b: Tensors) -> Tensors:
+    """Left-right mirror: flip the image columns, swap left/right lines, negate offsets, mirror column cells."""
+    cls = b.cls.flip(1)
+    cls = torch.where(cls == N_COLS, cls, N_COLS - 1 - cls)
+    return Tensors(b.x.flip(-1), -b.y.flip(1), cls, -b.c0.flip(1), b.exists.flip(1))
 
 
-def loss_fn(out: torch.Tensor, y: torch.Tensor, exists: torch.Tensor) -> torch.Tensor:
-    k = len(X_ANCHORS)
-    pred = out[:, : 2 * k].reshape(-1, 2, k)
-    w = torch.tensor(ANCHOR_WEIGHTS) / sum(ANCHOR_WEIGHTS) * k
-    reg = nn.functional.smooth_l1_loss(pred, y, reduction="none", beta=0.02) * w
-    reg = (reg * exists[..., None]).sum() / (exists.sum() * k).clamp(min=1.0)
-    cls = nn.functional.binary_cross_entropy_with_logits(out[:, 2 * k :], exists)
-    return 20.0 * reg + cls
+def loss_fn(cols: torch.Tensor, exist_logits: torch.Tensor, b: Tensors) -> torch.Tensor:
+    """Column cross-entropy + L1 on decoded offsets and on the fitted c0 (m) + existence BCE."""
+    ce = nn.functional.cross_entropy(cols.reshape(-1, N_COLS + 1), b.cls.reshape(-1))
+    y, _ = decode(cols)
+    present = (b.cls < N_COLS).float()
+    w = torch.tensor(ANCHOR_WEIGHTS)
+    l1 = ((y - b.y).abs() * present * w).sum() / (present * w).sum().clamp(min=1.0)
+    fitted = fit_cubics(y, present)[..., 0]
+    usable = b.exists * (present.sum(-1) >= 3).float()
+    c0 = ((fitted - b.c0).abs() * usable).sum() / usable.sum().clamp(min=1.0)
+    bce = nn.functional.binary_cross_entropy_with_logits(exist_logits, b.exists)
+    return ce + 5.0 * l1 + 5.0 * c0 + bce
 
 
 def dev_error(model: LaneNet, data: Tensors, lane_width: np.ndarray,
               deviation: np.ndarray) -> dict[str, float]:
-    """Alg. 3 on the network output (nearer valid line, map lane width) against the true deviation."""
+    """Alg. 3 on the detector output (nearer valid line, map lane width) against the true deviation."""
     model.eval()
-    outs = []
+    c0s, probs = [], []
     with torch.inference_mode():
         for i in range(0, len(data.x), 256):
-            outs.append(model(data.x[i : i + 256].float()).numpy())
-    out = np.concatenate(outs)
-    errs, correct = [], 0
-    exists = data.exists.numpy() > 0.5
-    for o, lw, d, ex in zip(out, lane_width, deviation, exists, strict=True):
-        dec = decode(o.astype(np.float64))
-        correct += int(((dec.probs >= 0.5) == ex).sum())
-        ok = dec.probs >= 0.5
-        dist = np.where(ok, np.abs(dec.anchors_y[:, 0]), np.inf)
-        if np.isfinite(dist).any():
-            d_ld = lw / 2 - dist[0] if dist[0] <= dist[1] else dist[1] - lw / 2
-            errs.append(abs(d_ld - d))
-    errs_a = np.asarray(errs) if errs else np.asarray([np.nan])
-    return {"mean_abs_dev_err": float(errs_a.mean()), "p99_dev_err": float(np.percentile(errs_a, 99)),
-            "existence_acc": correct / (2 * len(out))}
+            cols, exist = model(data.x[i : i + 256].float())
+            y, present = decode(cols.double())
+            mask = (present > 0.5).double()
+            c0s.append(fit_cubics(y, mask)[..., 0].numpy())
+            probs.append((torch.sigmoid(exist.double()) * (mask.sum(-1) >= 3)).numpy())
+    c0, prob = np.concatenate(c0s), np.concatenate(probs)
+    ok = prob >= 0.5
+    dist = np.where(ok, np.abs(c0), np.inf)
+    use_left = dist[:, 0] <= dist[:, 1]
+    d_ld = np.where(use_left, lane_width / 2 - dist[:, 0], dist[:, 1] - lane_width / 2)
+    has = np.isfinite(dist).any(axis=1)
+    errs = np.abs(d_ld - deviation)[has]
+    if not len(errs):
+        errs = np.asarray([np.nan])
+    acc = float((ok == (data.exists.numpy() > 0.5)).mean())
+    return {"mean_abs_dev_err": float(errs.mean()), "p99_dev_err": float(np.percentile(errs, 99)),
+            "existence_acc": acc}
+
+
+def lr_at(peak: float, done: float) -> float:
+    """Linear warm-up over the first 5 % of training, then cosine decay to 1 % of `peak` at done = 1."""
+    if done < 0.05:
+        return peak * (0.1 + 0.9 * done / 0.05)
+    return peak * (0.01 + 0.99 * 0.5 * (1.0 + math.cos(math.pi * min(1.0, (done - 0.05) / 0.95))))
 
 
 @dataclass
@@ -106,15 +144,13 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     rng = np.random.default_rng(config.seed)
     frames = [load_frames(d, limit) for d in train_dirs]
     parts = [to_tensors(f) for f in frames]
-    data = Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "exists")))
+    data = Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "cls", "c0", "exists")))
     val = load_frames(val_dir) if val_dir is not None else None
     val_t = to_tensors(val) if val is not None else None
     model = LaneNet()
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     n = len(data.x)
     steps_per_epoch = max(1, n // config.batch)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, config.lr, total_steps=config.epochs * steps_per_epoch,
-                                                pct_start=0.15)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     history: list[dict] = []
@@ -123,27 +159,33 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     for epoch in range(config.epochs):
         model.train()
         order = rng.permutation(n)
-        total = 0.0
+        total, steps = 0.0, 0
         for b in range(steps_per_epoch):
             idx = torch.from_numpy(order[b * config.batch : (b + 1) * config.batch])
-            x, y, ex = data.x[idx].float(), data.y[idx], data.exists[idx]
+            done = max((epoch * steps_per_epoch + b) / (config.epochs * steps_per_epoch),
+                       (time.monotonic() - start) / 60.0 / config.max_minutes)
+            if done >= 1.0:
+                break
+            for group in opt.param_groups:
+                group["lr"] = lr_at(config.lr, done)
+            batch = data.take(idx)
             if rng.random() < 0.5:
-                x, y, ex = mirror(x, y, ex)
-            loss = loss_fn(model(x), y, ex)
+                batch = mirror(batch)
+            loss = loss_fn(*model(batch.x), batch)
             opt.zero_grad()
             loss.backward()
             opt.step()
-            sched.step()
             total += loss.item()
+            steps += 1
             bar.update(1)
             bar.set_postfix(epoch=epoch, loss=f"{loss.item():.4f}")
         minutes = (time.monotonic() - start) / 60
-        row = {"epoch": epoch, "train_loss": total / steps_per_epoch, "minutes": minutes}
+        row = {"epoch": epoch, "train_loss": total / max(1, steps), "minutes": minutes}
         if val is not None and val_t is not None:
             row.update(dev_error(model, val_t, val.lane_width, val.deviation))
         history.append(row)
         save_checkpoint(model, out / "lanenet.pt", history)
-        if row["minutes"] > config.max_minutes:
+        if done >= 1.0:
             break
     bar.close()
     curve = plot_curve(history, out / "training_curve.png")
@@ -153,7 +195,7 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
 
 def save_checkpoint(model: LaneNet, path: Path, history: list[dict]) -> None:
     state = {k: v.detach().clone() for k, v in model.state_dict().items()}
-    torch.save({"state_dict": state, "widths": list(model.widths), "hidden": model.hidden,
+    torch.save({"state_dict": state, "width": model.width,
                 "history": json.dumps(history)}, path)
 
 

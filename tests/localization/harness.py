@@ -39,14 +39,14 @@ class Lane:
 
 
 def banded_quality(
-    period: float = 300.0, poor_len: float = 80.0, poor_q: float = 0.25
-) -> Callable[[Lane], Callable]:
-    """Feature quality 1 except for a `poor_len` stretch of quality `poor_q` every `period` metres of arc."""
+    period: float = 400.0, poor_len: float = 60.0, poor_q: float = 0.4, rich_q: float = 0.85
+) -> Callable[[Lane], Callable[[float, float], float]]:
+    """Feature quality `rich_q` except for a `poor_len` stretch of `poor_q` every `period` metres of arc."""
 
     def make(lane: Lane) -> Callable[[float, float], float]:
         def q(x: float, y: float) -> float:
             s = lane.frame(x, y)[0]
-            return poor_q if (s % period) > period - poor_len else 1.0
+            return poor_q if (s % period) > period - poor_len else rich_q
 
         return q
 

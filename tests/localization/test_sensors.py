@@ -61,7 +61,7 @@ def mean_fix_offset(q: float, prior_offset: float, n: int = 200) -> tuple[float,
 
 
 def test_lidar_converges_to_truth_where_features_are_rich():
-    off, var = mean_fix_offset(1.0, 0.3)
+    off, var = mean_fix_offset(1.0, 0.15)
     assert abs(off) < 0.03
     assert math.sqrt(var) < 2 * LidarModel().reported_std_rich
 

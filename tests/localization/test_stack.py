@@ -9,9 +9,7 @@ from tracks.pose import Pose
 
 
 def drive(seed: int, spoof=None, seconds: float = 2.0):
-    stack = LocalizationStack(
-        LocalizationConfig(), np.random.default_rng(seed), lambda x, y: 0.9, Pose(0, 0, 0), 10.0
-    )
+    stack = LocalizationStack(LocalizationConfig(), np.random.default_rng(seed), lambda x, y: 0.9, Pose(0, 0, 0), 10.0)
     ests, fixes = [], []
     for i in range(round(seconds * 100)):
         t = i * 0.01
@@ -51,7 +49,7 @@ def test_stack_is_seeded_and_tracks_the_truth():
 
 def test_last_gnss_is_the_consumed_possibly_spoofed_fix():
     def spoof(fix):
-        return dataclasses.replace(fix, xy=[*fix.xy, 0.0, 0.5])
+        return dataclasses.replace(fix, xy=fix.xy + np.array([0.0, 0.5]))
 
     _, fixes = drive(1, spoof, seconds=1.0)
     consumed = [f for f in fixes if f is not None]

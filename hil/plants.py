@@ -1,0 +1,47 @@
+"""Plants for the ECU emulator: the PyBullet car of a scenario, driven through a DirectChassis without command
+hold (the ECU applies commands on its own 50 Hz schedule, so holding them again would delay them)."""
+
+from __future__ import annotations
+
+from testbed.direct_chassis import DirectChassis
+from testbed.eval.runner import physics_world_for
+from testbed.eval.scenario import Scenario
+from tracks.presets import load_track
+from vehicles.params import get_vehicle
+
+
+def scenario_plant(sc: Scenario) -> DirectChassis:
+    """The PyBullet car in the physics world `ld3 run` builds for `sc` (its `world` is the PhysicsWorld)."""
+    track = load_track(sc.track)
+    params = get_vehicle(sc.vehicle)
+    lane = sc.lane if sc.lane is not None else track.ego_lane
+    start = track.start_pose(lane, sc.start_s)
+    return DirectChassis(physics_world_for(sc, track, params, start), hold_s=0.0)
+
+
+def pybullet_plant(
+    track: str,
+    vehicle: str = "sedan",
+    start_s: str | float = 20.0,
+    lane: str | int | None = None,
+    physics_hz: str | float = 240.0,
+) -> DirectChassis:
+    """Factory for `ld3 ecu --plant pybullet --plant-arg track=parking-lot ...` (values may be strings)."""
+    sc = Scenario(
+        name="ecu-plant",
+        track=track,
+        vehicle=vehicle,
+        start_s=float(start_s),
+        lane=None if lane in (None, "") else int(lane),
+        rates={"physics_hz": float(physics_hz)},
+    )
+    return scenario_plant(sc)
+
+
+def plant_args_for(sc: Scenario) -> dict[str, str]:
+    """The `pybullet_plant` keyword strings that rebuild `sc`'s plant in an ECU process."""
+    args = {"track": sc.track, "vehicle": sc.vehicle, "start_s": repr(sc.start_s)}
+    args["physics_hz"] = repr(float(sc.rates.get("physics_hz", 240.0)))
+    if sc.lane is not None:
+        args["lane"] = str(sc.lane)
+    return args

@@ -1,0 +1,159 @@
+"""A scenario driven over the CAN link: the loop, outputs and summary of `ld3 run`, with the CAN bridge as the
+chassis port and every frame the bridge sends or receives logged next to the outputs (can.Logger).
+
+Where the vehicle sits, by interface: `virtual` -> an ECU emulator in this process (lockstep) on its own
+virtual channel, its plant the PyBullet world the run also checks for curb and barrier contacts; `slcan`
+without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); `slcan` with
+a channel or `socketcan` -> an external VCU (socketcan defaults to the realtime clock, real hardware).
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+
+from hil.bridge import CanChassisBridge
+from hil.bus_config import INTERFACES, BusConfig
+from hil.ecu import EcuEmulator
+from hil.ecu_process import EcuProcess
+from hil.plants import plant_args_for, scenario_plant
+from hil.recorder import LOG_SUFFIXES, FrameRecorder
+from hil.timing import ClockMode
+from testbed.eval.birdseye import save_birdseye
+from testbed.eval.outputs import write_summary, write_trajectory
+from testbed.eval.runner import RunResult, SimRun
+from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.world import PhysicsWorld
+
+ECU_PLANT = "hil.plants:pybullet_plant"
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """Which bus carries the run and how time advances on it (None: lockstep, realtime on socketcan)."""
+
+    interface: str = "virtual"
+    channel: str | None = None
+    clock: ClockMode | None = None
+
+    def __post_init__(self) -> None:
+        if self.interface not in INTERFACES:
+            raise ValueError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")
+        if self.interface == "socketcan" and not self.channel:
+            raise ValueError("socketcan needs --channel: the CAN network interface, e.g. can0")
+
+    @property
+    def clock_mode(self) -> ClockMode:
+        if self.clock is not None:
+            return self.clock
+        return ClockMode.REALTIME if self.interface == "socketcan" else ClockMode.LOCKSTEP
+
+
+class HilLink:
+    """An engaged CanChassisBridge and the emulated vehicle behind it (if any); `close()` tears both down."""
+
+    def __init__(self, sc: Scenario, config: LinkConfig, reply_timeout: float = 5.0) -> None:
+        self.config = config
+        self.world: PhysicsWorld | None = None
+        self.channel = config.channel
+        self._ecu: EcuEmulator | None = None
+        self._ecu_bus: can.BusABC | None = None
+        self._process: EcuProcess | None = None
+        clock = config.clock_mode
+        if config.interface == "virtual":
+            self.channel = config.channel or f"ld3-hil-{uuid.uuid4().hex[:12]}"
+            plant = scenario_plant(sc)
+            self.world = plant.world
+            self._ecu_bus = BusConfig("virtual", self.channel).open()
+            self._ecu = EcuEmulator(self._ecu_bus, plant, clock=clock)
+            self._ecu.start()
+        elif config.interface == "slcan" and not config.channel:
+            self._process = EcuProcess(plant=ECU_PLANT, plant_args=plant_args_for(sc), clock=clock)
+            self.channel = self._process.tty_path
+        try:
+            self.bus = BusConfig(config.interface, self.channel).open()
+        except Exception:
+            self._stop_vehicle()
+            raise
+        self.bridge = CanChassisBridge(self.bus, clock=clock, reply_timeout=reply_timeout)
+
+    @property
+    def ecu_process(self) -> EcuProcess | None:
+        return self._process
+
+    def engage(self, timeout: float = 5.0) -> None:
+        self.bridge.engage(timeout=timeout)
+
+    def close(self) -> None:
+        """Hand control back (best effort), stop the bridge, the ECU and the buses."""
+        try:
+            self.bridge.release(timeout=1.0)
+        except Exception:  # noqa: BLE001 - a vehicle that no longer answers must not mask the run's outcome
+            pass
+        self.bridge.close()
+        self.bus.shutdown()
+        self._stop_vehicle()
+
+    def _stop_vehicle(self) -> None:
+        if self._ecu is not None:
+            self._ecu.stop()
+        if self._ecu_bus is not None:
+            self._ecu_bus.shutdown()
+        if self._process is not None:
+            self._process.stop()
+
+
+def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
+                     log_path: Path | None = None, progress: bool = False) -> RunResult:
+    """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
+    (`log_path`, default OUT/can.asc). The summary gains interface, channel, clock and frame counts."""
+    if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
+        raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
+    if out_dir is not None:
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
+        log_path = log_path or out_dir / "can.asc"
+    recorder = FrameRecorder(log_path) if log_path is not None else None
+    link = HilLink(sc, config)
+    sim: SimRun | None = None
+    try:
+        if recorder is not None:
+            link.bridge.add_listener(recorder)
+        link.engage()
+        sim = SimRun(sc, chassis=link.bridge, world=link.world)
+        result = sim.run(progress=progress)
+    finally:
+        link.close()
+        if recorder is not None:
+            recorder.stop()
+        if sim is not None:
+            sim.close()
+        elif link.world is not None:
+            link.world.close()
+    bridge = link.bridge
+    result.summary.update({
+        "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
+        "can_log": str(log_path) if log_path is not None else None,
+        "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
+        "can_frames_rejected": sum(bridge.rejected.values()),
+        "can_frames_logged": recorder.frames if recorder is not None else 0,
+    })
+    if out_dir is not None:
+        write_outputs(out_dir, sim, result)
+    return result
+
+
+def write_outputs(out_dir: Path, sim: SimRun, result: RunResult) -> None:
+    """summary.json, trajectory.csv and birdseye.png of a finished run, as `ld3 run` writes them."""
+    write_trajectory(out_dir / "trajectory.csv", result.rows)
+    write_summary(out_dir / "summary.json", result.summary)
+    save_birdseye(out_dir / "birdseye.png", sim.track, result.rows, lane_width=sim.lane_width,
+                  straddle_dev=sim.monitor.straddle_dev, believed_xy=result.believed_xy,
+                  detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
+                  title=f"{sim.sc.name} · {sim.sc.track} · defense {sim.sc.defense} · "
+                        f"{result.summary['consequence']} · CAN {result.summary['interface']}")

@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+
+from testbed.attacks.base import AttackerView
+from testbed.attacks.drp import DrpPatch, DrpTrace
+from testbed.perception.detection import LaneDetection
+from tracks.pose import Pose
+
+
+def ld(t: float, right: bool = True) -> LaneDetection:
+    return LaneDetection(
+        t,
+        np.array([1.75, 0.0, 0.001, 0.0]),
+        np.array([-1.75, 0.0, 0.001, 0.0]) if right else None,
+        0.9,
+        0.9,
+        (0.0, 40.0),
+    )
+
+
+def view(t: float) -> AttackerView:
+    return AttackerView(t, Pose(0, 0, 0), 0.0, 0.0, 10.0)
+
+
+def ld_dev(d: LaneDetection) -> float:
+    return -(d.left[0] + d.right[0]) / 2.0
+
+
+def test_drp_trace_shifts_ld_deviation_with_ramp_and_end():
+    a = DrpTrace(start=10.0, shift=0.7, ramp=1.0, duration=5.0)
+    assert ld_dev(a.tamper_ld(ld(9.0), view(9.0))) == pytest.approx(0.0)
+    assert a.state()["stage"] == "idle"
+    assert ld_dev(a.tamper_ld(ld(10.5), view(10.5))) == pytest.approx(0.35)
+    out = a.tamper_ld(ld(12.0), view(12.0))
+    assert ld_dev(out) == pytest.approx(0.7)
+    assert out.left[2] == pytest.approx(0.001) and a.state() == {"stage": "active", "switch_time": None, "offset": 0.7}
+    assert ld_dev(a.tamper_ld(ld(15.5), view(15.5))) == pytest.approx(0.0)
+    assert a.state()["stage"] == "over"
+
+
+def test_drp_trace_keeps_missing_lines_missing():
+    out = DrpTrace(start=0.0, shift=-0.4, ramp=0.0).tamper_ld(ld(1.0, right=False), view(1.0))
+    assert out.right is None and out.left[0] == pytest.approx(1.75 + 0.4)
+
+
+def test_drp_patch_describes_itself_and_validates():
+    a = DrpPatch(at=120.0, width=1.0)
+    assert a.describe()["at"] == 120.0 and a.state()["stage"] == "painted"
+    original = ld(1.0)
+    assert a.tamper_ld(original, view(1.0)) is original
+    for bad in ({"at": -1.0}, {"at": 1.0, "length": 0.0}, {"at": 1.0, "darkness": 1.5}):
+        with pytest.raises(ValueError, match="drp-patch"):
+            DrpPatch(**bad)

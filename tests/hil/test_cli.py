@@ -1,0 +1,52 @@
+"""The `ld3 hil` / `ld3 ecu` commands: outputs of a short run, replay of its log, one-line user errors."""
+
+import json
+
+import can
+import pytest
+
+from hil.cli import ecu_main, resolve_plant
+from hil.plants import pybullet_plant
+from testbed.cli import main
+
+
+def test_ld3_hil_writes_the_outputs_and_its_log_replays_onto_a_bus(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["hil", "parking-lot", "--duration", "0.5", "--seed", "2", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["seed"] == 2 and summary["interface"] == "virtual"
+    assert "over virtual (lockstep)" in capsys.readouterr().out
+
+    listener_bus = can.Bus(interface="virtual", channel="hil-cli-replay")
+    try:
+        assert main(["hil", "replay", str(out / "can.asc"), "--channel", "hil-cli-replay"]) == 0
+        received = 0
+        while listener_bus.recv(0.0) is not None:
+            received += 1
+    finally:
+        listener_bus.shutdown()
+    assert received == summary["can_frames_logged"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["hil", "replay", "/nonexistent/frames.asc"], "CAN log not found"),
+        (["hil", "replay"], "needs the log file"),
+        (["hil", "parking-lot", "--log", "frames.txt", "--out", "/nonexistent/out"], "must end in .asc or .blf"),
+        (["hil", "parking-lot", "--interface", "socketcan"], "socketcan needs --channel"),
+        (["hil", "no-such-scenario"], "unknown scenario"),
+        (["ecu", "--plant", "no_such_module:factory"], "cannot load plant"),
+        (["ecu", "--plant-arg", "novalue"], "KEY=VALUE"),
+    ],
+)
+def test_user_errors_are_one_line_and_exit_2(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("ld3: error:") and message in err and "\n" not in err
+
+
+def test_pybullet_plant_is_named_by_its_short_name_and_ecu_runs_a_scenario_plant():
+    assert resolve_plant("pybullet") is pybullet_plant
+    assert ecu_main(["--scenario", "parking-lot", "--channel", "hil-cli-ecu", "--duration", "0.05"]) == 0
