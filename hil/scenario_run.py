@@ -9,13 +9,14 @@ a channel or `socketcan` -> an external VCU (socketcan defaults to the realtime 
 
 from __future__ import annotations
 
+import contextlib
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
 import can
 
-from hil.bridge import CanChassisBridge
+from hil.bridge import BridgeError, CanChassisBridge
 from hil.bus_config import INTERFACES, BusConfig
 from hil.ecu import EcuEmulator
 from hil.ecu_process import EcuProcess
@@ -89,10 +90,8 @@ class HilLink:
 
     def close(self) -> None:
         """Hand control back (best effort), stop the bridge, the ECU and the buses."""
-        try:
+        with contextlib.suppress(BridgeError, can.CanError, OSError):  # must not mask the run's own outcome
             self.bridge.release(timeout=1.0)
-        except Exception:  # noqa: BLE001 - a vehicle that no longer answers must not mask the run's outcome
-            pass
         self.bridge.close()
         self.bus.shutdown()
         self._stop_vehicle()

@@ -28,7 +28,8 @@ class DirectChassis(ChassisPort):
 
     @property
     def t(self) -> float:
-        return self._steps * self.world.dt
+        """Control time: the sum of the advance() steps (what a chassis reports), not the physics grid."""
+        return round(self._t_target, 9)
 
     def read(self) -> ChassisState:
         v = self.vehicle

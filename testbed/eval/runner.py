@@ -107,8 +107,7 @@ class SimRun:
             self.camera = FrontCamera(self.streamer.client, self.rig, self.condition, rng_camera)
         self.video = VideoWriter(self.rig) if video else None
         if sc.localization == "msf":
-            self.localization = LocalizationStack(LocalizationConfig.from_dict(sc.rates.get("localization", {})),
-                                                  rng_loc, self._lidar_quality, start, 0.0)
+            self.localization = LocalizationStack(self._localization_config(), rng_loc, self._lidar_quality, start, 0.0)
         else:
             self.localization = GroundTruthLocalization()
         self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
@@ -127,6 +126,15 @@ class SimRun:
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width
         self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
+
+    def _localization_config(self) -> LocalizationConfig:
+        """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
+        table = dict(self.sc.rates.get("localization", {}))
+        table["msf"] = {"lever": -self.params.rear_axle_x, **table.get("msf", {})}
+        try:
+            return LocalizationConfig.from_dict(table)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
 
     def _lidar_quality(self, x: float, y: float) -> float:
         """LiDAR feature richness at a world point (the track's profile along the road)."""

@@ -1,9 +1,11 @@
 """Multi-sensor fusion in the style of Apollo's MSF: an error-state Kalman filter around IMU dead reckoning.
 
-Nominal state (x, y, yaw, v, gyro bias, accel bias) is propagated with each IMU sample:
-yaw += (ω − b_g) dt, v += (a − b_a) dt, (x, y) += v (cos yaw, sin yaw) dt. The filterpy KalmanFilter holds
-the 6-D error state δ = (δx, δy, δyaw, δv, δb_g, δb_a) and its covariance; its transition is the
-linearisation of the propagation above. GNSS (x, y) and LiDAR (x, y, yaw) fixes update the error state
+Nominal state (x, y, yaw, v, gyro bias, accel bias, lateral-velocity residual u) is propagated with each
+IMU sample: ω = ω_m − b_g, yaw += ω dt, v += (a − b_a) dt, and the reference point (ahead of the rear axle
+by `lever`) moves with body velocity (v, lever·ω + u): the kinematic sideslip of a car's centre plus a
+random-walk residual for tyre slip. The filterpy KalmanFilter holds the 7-D error state
+δ = (δx, δy, δyaw, δv, δb_g, δb_a, δu) and its covariance; its transition is the linearisation of the
+propagation above. GNSS (x, y) and LiDAR (x, y, yaw) fixes update the error state
 with the covariances their sensors report, after a chi-square innovation gate (Mahalanobis distance of
 the innovation against H P Hᵀ + R); the accepted correction is injected into the nominal state and δ
 reset to zero. The LiDAR locator is the filter's anchor: rejected for `lidar_reset_after` seconds in a
@@ -24,8 +26,9 @@ from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix, ImuSample, LidarFix
 from tracks.pose import Pose
 
-_H_GNSS = np.hstack([np.eye(2), np.zeros((2, 4))])
-_H_LIDAR = np.hstack([np.eye(3), np.zeros((3, 3))])
+_N = 7
+_H_GNSS = np.hstack([np.eye(2), np.zeros((2, _N - 2))])
+_H_LIDAR = np.hstack([np.eye(3), np.zeros((3, _N - 3))])
 
 
 def _wrap(a: float) -> float:
@@ -45,6 +48,8 @@ class MsfParams:
     init_speed_std: float = 0.1
     init_accel_bias_std: float = 0.05
     init_gyro_bias_std: float = 0.001
+    lat_vel_walk: float = 0.05
+    lever: float = 1.4
     gate_prob: float = 0.999
     lidar_reset_after: float = 3.0
 
@@ -54,8 +59,8 @@ class MultiSensorFusion:
 
     def __init__(self, start_pose: Pose, start_speed: float, params: MsfParams | None = None) -> None:
         self.params = p = params or MsfParams()
-        self.nominal = np.array([start_pose.x, start_pose.y, start_pose.yaw, start_speed, 0.0, 0.0])
-        self.kf = KalmanFilter(dim_x=6, dim_z=2)
+        self.nominal = np.array([start_pose.x, start_pose.y, start_pose.yaw, start_speed, 0.0, 0.0, 0.0])
+        self.kf = KalmanFilter(dim_x=_N, dim_z=2)
         self.kf.P = np.diag(
             [
                 p.init_pos_std**2,
@@ -64,6 +69,7 @@ class MultiSensorFusion:
                 p.init_speed_std**2,
                 p.init_gyro_bias_std**2,
                 p.init_accel_bias_std**2,
+                0.0,
             ]
         )
         self.t: float | None = None
@@ -83,14 +89,19 @@ class MultiSensorFusion:
         if dt <= 0.0:
             return
         p = self.params
-        x, y, yaw, v, bg, ba = self.nominal
+        x, y, yaw, v, bg, ba, u = self.nominal
         c, s = math.cos(yaw), math.sin(yaw)
-        yaw = _wrap(yaw + (imu.yaw_rate - bg) * dt)
-        v = v + (imu.accel_long - ba) * dt
-        self.nominal[:4] = (x + v * c * dt, y + v * s * dt, yaw, v)
-        f = np.eye(6)
-        f[0, 2], f[0, 3] = -v * s * dt, c * dt
-        f[1, 2], f[1, 3] = v * c * dt, s * dt
+        omega = imu.yaw_rate - bg
+        vl = p.lever * omega + u
+        self.nominal[:4] = (
+            x + (v * c - vl * s) * dt,
+            y + (v * s + vl * c) * dt,
+            _wrap(yaw + omega * dt),
+            v + (imu.accel_long - ba) * dt,
+        )
+        f = np.eye(_N)
+        f[0, 2], f[0, 3], f[0, 4], f[0, 6] = (-v * s - vl * c) * dt, c * dt, p.lever * s * dt, -s * dt
+        f[1, 2], f[1, 3], f[1, 4], f[1, 6] = (v * c - vl * s) * dt, s * dt, -p.lever * c * dt, c * dt
         f[2, 4] = -dt
         f[3, 5] = -dt
         self.kf.F = f
@@ -102,6 +113,7 @@ class MultiSensorFusion:
                 p.accel_noise**2 * dt,
                 p.gyro_bias_walk**2 * dt,
                 p.accel_bias_walk**2 * dt,
+                p.lat_vel_walk**2 * dt,
             ]
         )
         self.kf.predict()
@@ -114,7 +126,7 @@ class MultiSensorFusion:
             if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
                 self._readmit(source, t, z)
             return False
-        self.kf.x = np.zeros(6)
+        self.kf.x = np.zeros(_N)
         self.kf.update(z, R=r, H=h)
         self._inject()
         self._last_accepted[source] = t
@@ -131,7 +143,7 @@ class MultiSensorFusion:
         dx = self.kf.x
         self.nominal += dx
         self.nominal[2] = _wrap(self.nominal[2])
-        self.kf.x = np.zeros(6)
+        self.kf.x = np.zeros(_N)
 
     def update_gnss(self, fix: GnssFix) -> bool:
         """Fuse a GNSS fix; returns False when the innovation gate rejects it."""
@@ -140,9 +152,7 @@ class MultiSensorFusion:
 
     def update_lidar(self, fix: LidarFix) -> bool:
         """Fuse a LiDAR-locator pose; returns False when the innovation gate rejects it."""
-        z = np.array(
-            [fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], _wrap(fix.yaw - self.nominal[2])]
-        )
+        z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], _wrap(fix.yaw - self.nominal[2])])
         return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float), _H_LIDAR)
 
     @property

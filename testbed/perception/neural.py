@@ -26,7 +26,7 @@ from vehicles.params import CameraParams
 
 X_ANCHORS = (5.0, 6.0, 7.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0, 30.0)
 ANCHOR_WEIGHTS = (3.0, 3.0, 2.5, 2.0, 1.5, 1.2, 1.0, 0.8, 0.6, 0.4, 0.3)  # fit emphasis near the car
-RIDGE = (0.0, 0.0, 1e2, 1e5)  # penalty on c0..c3 in the fit (keeps sparse anchor sets well posed)
+RIDGE = (1e-6, 1e-4, 1e2, 1e5)  # penalty on c0..c3 in the fit (keeps sparse anchor sets well posed)
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
 INPUT_SHAPE = (56, 160)  # network input (H, W)

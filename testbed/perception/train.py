@@ -65,8 +65,8 @@ def to_tensors(frames: FrameSet) -> Tensors:
     y = np.polynomial.polynomial.polyval(anchors, coeffs.reshape(-1, 4).T).reshape(len(x), 2, -1)
     exists = np.stack([frames.left_exists, frames.right_exists], axis=1)
     u = GEOMETRY.y_to_u(y)
-    cls = np.floor(u / 8.0).astype(np.int64)
-    visible = (u >= 0.0) & (u < 8.0 * N_COLS) & exists[..., None]
+    cls = np.floor((u + 0.5) / 8.0).astype(np.int64)  # cell j holds pixel centres 8j .. 8j + 7
+    visible = (u >= -0.5) & (u < 8.0 * N_COLS - 0.5) & exists[..., None]
     cls[~visible] = N_COLS
     return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(cls),
                    torch.from_numpy(coeffs[..., 0].astype(np.float32)),

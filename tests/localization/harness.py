@@ -20,6 +20,7 @@ from testbed.localization.stack import LocalizationConfig, LocalizationStack
 from tracks.pose import Pose
 
 WHEELBASE = 2.8
+REF_AHEAD_OF_REAR_AXLE = 1.4
 
 
 @dataclass(frozen=True)
@@ -107,5 +108,6 @@ def run_closed_loop(
         out.stage.append(st["stage"])
         out.offset.append(st["offset"])
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-        pose = Pose(pose.x + speed * c * dt, pose.y + speed * s * dt, pose.yaw + yaw_rate * dt)
+        lat = REF_AHEAD_OF_REAR_AXLE * yaw_rate  # the reference point (footprint centre) side-slips on curves
+        pose = Pose(pose.x + (speed * c - lat * s) * dt, pose.y + (speed * s + lat * c) * dt, pose.yaw + yaw_rate * dt)
     return out

@@ -25,3 +25,12 @@ def track() -> Track:
 def pose_on(track: Track, lane: int, s: float, offset: float = 0.0, dyaw: float = 0.0) -> Pose:
     x, y = track.lanes[lane].position(s, offset)
     return Pose(x, y, track.lanes[lane].heading_at(s) + dyaw)
+
+
+@pytest.fixture(scope="session")
+def heldout_frames() -> list:
+    """28 frames rendered now from held-out track seeds (day on a straight road, dusk on the highway)."""
+    from testbed.perception.dataset import HELD_OUT_SEEDS, Episode, render_episode
+
+    eps = (Episode("urban-straight", HELD_OUT_SEEDS[3], "day"), Episode("highway", HELD_OUT_SEEDS[7], "dusk"))
+    return [frame for ep in eps for frame in render_episode(ep, 14)]

@@ -6,14 +6,14 @@ import torch
 from testbed.perception.dataset import LABEL_KEYS, load_frames, write_shard
 from testbed.perception.detection import CameraFrame
 from testbed.perception.neural import LaneNet, NeuralLaneDetector, load_model
-from testbed.perception.train import TrainConfig, mirror, train
+from testbed.perception.train import TrainConfig, mirror, to_tensors, train
 
 
 def _tiny_dataset(path, n=12):
     path.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(0)
     images = [rng.integers(0, 255, (160, 320, 3), dtype=np.uint8) for _ in range(n)]
-    labels = [{"left": np.array([1.7, 0.0, 0.0, 0.0]), "right": np.array([-1.8, 0.0, 0.0, 0.0]),
+    labels = [{"left": np.array([1.7, 0.05, 1e-3, 0.0]), "right": np.array([-1.8, 0.05, 1e-3, 0.0]),
                "left_exists": True, "right_exists": bool(i % 2), "lane_width": 3.5, "deviation": 0.05,
                "meta": {"condition": "day", "pose": [0.0, 0.0, 0.0]}} for i in range(n)]
     write_shard(path / "shard_00000.npz", images, labels)
@@ -27,14 +27,19 @@ def test_dataset_shards_round_trip(tmp_path):
     assert set(LABEL_KEYS) <= set(vars(frames))
 
 
-def test_mirror_swaps_and_negates():
-    x = torch.arange(6.0).reshape(1, 1, 1, 6)
-    y = torch.tensor([[[1.0, 2.0], [-3.0, -4.0]]])
-    ex = torch.tensor([[1.0, 0.0]])
-    mx, my, mex = mirror(x, y, ex)
-    assert mx[0, 0, 0].tolist() == [5.0, 4.0, 3.0, 2.0, 1.0, 0.0]
-    assert my.tolist() == [[[3.0, 4.0], [-1.0, -2.0]]]
-    assert mex.tolist() == [[0.0, 1.0]]
+def test_mirror_matches_labels_of_the_mirrored_scene(tmp_path):
+    _tiny_dataset(tmp_path, 4)
+    frames = load_frames(tmp_path)
+    mirrored = load_frames(tmp_path)
+    mirrored.images = frames.images[:, :, ::-1].copy()
+    mirrored.left, mirrored.right = -frames.right, -frames.left
+    mirrored.left_exists, mirrored.right_exists = frames.right_exists, frames.left_exists
+    flipped, expected = mirror(to_tensors(frames)), to_tensors(mirrored)
+    assert torch.equal(flipped.cls, expected.cls)
+    torch.testing.assert_close(flipped.y, expected.y)
+    torch.testing.assert_close(flipped.c0, expected.c0)
+    torch.testing.assert_close(flipped.x.float(), expected.x.float(), atol=1e-2, rtol=0)
+    assert torch.equal(flipped.exists, expected.exists)
 
 
 def test_training_runs_a_few_steps(tmp_path):

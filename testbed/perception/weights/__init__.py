@@ -1,0 +1,1 @@
+"""Shipped LaneNet weights (lanenet.pt), loaded by `testbed.perception.neural.load_model`."""

@@ -1,0 +1,30 @@
+import numpy as np
+import pytest
+
+from testbed.camera import CONDITIONS
+from testbed.perception.dataset import HELD_OUT_SEEDS, TRAIN_SEEDS, episodes, erase_stretches
+from tracks.presets import PRESETS
+
+
+def test_held_out_seeds_are_disjoint_from_training_seeds():
+    assert not set(TRAIN_SEEDS) & set(HELD_OUT_SEEDS)
+    train = episodes("train", 72, 0)
+    held = episodes("heldout", 36, 0)
+    assert all(ep.seed in TRAIN_SEEDS for ep in train)
+    assert all(ep.seed in HELD_OUT_SEEDS for ep in held)
+    assert {(ep.preset, ep.condition) for ep in held} == {(p, c) for p in PRESETS for c in CONDITIONS}
+    with pytest.raises(ValueError):
+        episodes("test", 3, 0)
+
+
+def test_erased_stretches_keep_the_runs_tiling_the_road(track):
+    before = [b.t for b in track.boundaries]
+    erase_stretches(track, np.random.default_rng(4), per_km=20.0)
+    assert [b.t for b in track.boundaries] == before
+    erased = 0.0
+    for b in track.boundaries:
+        assert b.runs[0].s0 == 0.0 and b.runs[-1].s1 == pytest.approx(track.length)
+        for r0, r1 in zip(b.runs, b.runs[1:], strict=False):
+            assert r0.s1 == pytest.approx(r1.s0)
+        erased += sum(r.s1 - r.s0 for r in b.runs if r.kind == "none")
+    assert erased > 100.0
