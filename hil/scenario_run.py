@@ -23,10 +23,8 @@ from hil.ecu_process import EcuProcess
 from hil.plants import plant_args_for, scenario_plant
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.timing import ClockMode
-from testbed.eval.birdseye import save_birdseye
-from testbed.eval.outputs import write_summary, write_trajectory
-from testbed.eval.runner import RunResult, SimRun
-from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
+from testbed.eval.scenario import Scenario
 from testbed.world import PhysicsWorld
 
 ECU_PLANT = "hil.plants:pybullet_plant"
@@ -112,10 +110,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
+        prepare_out_dir(out_dir)
         log_path = log_path or out_dir / "can.asc"
     recorder = FrameRecorder(log_path) if log_path is not None else None
     link = HilLink(sc, config)
@@ -143,16 +138,5 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         "can_frames_logged": recorder.frames if recorder is not None else 0,
     })
     if out_dir is not None:
-        write_outputs(out_dir, sim, result)
+        sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
     return result
-
-
-def write_outputs(out_dir: Path, sim: SimRun, result: RunResult) -> None:
-    """summary.json, trajectory.csv and birdseye.png of a finished run, as `ld3 run` writes them."""
-    write_trajectory(out_dir / "trajectory.csv", result.rows)
-    write_summary(out_dir / "summary.json", result.summary)
-    save_birdseye(out_dir / "birdseye.png", sim.track, result.rows, lane_width=sim.lane_width,
-                  straddle_dev=sim.monitor.straddle_dev, believed_xy=result.believed_xy,
-                  detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
-                  title=f"{sim.sc.name} · {sim.sc.track} · defense {sim.sc.defense} · "
-                        f"{result.summary['consequence']} · CAN {result.summary['interface']}")

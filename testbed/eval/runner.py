@@ -214,6 +214,19 @@ class SimRun:
             "attack_state": self.attack.state() if self.attack is not None else None,
         }
 
+    def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
+        """summary.json, trajectory.csv, birdseye.png (and camera.mp4 when recorded) of a finished run."""
+        sc = self.sc
+        write_trajectory(out_dir / "trajectory.csv", result.rows)
+        write_summary(out_dir / "summary.json", result.summary)
+        save_birdseye(out_dir / "birdseye.png", self.track, result.rows, lane_width=self.lane_width,
+                      straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
+                      detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
+                      title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}"
+                            + title_suffix)
+        if self.video is not None:
+            self.video.write(out_dir / "camera.mp4")
+
     def close(self) -> None:
         if self.world is not None:
             self.world.close()
@@ -221,29 +234,27 @@ class SimRun:
             self.streamer.close()
 
 
+def prepare_out_dir(out_dir: Path) -> None:
+    """Create the output directory and prove it writable, or raise a one-line ScenarioError."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
+
+
 def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, progress: bool = False,
                  render: bool | None = None) -> RunResult:
     """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4)."""
     if out_dir is not None:
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-            probe = out_dir / ".write-test"
-            probe.write_text("")
-            probe.unlink()
-        except OSError as exc:
-            raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
+        prepare_out_dir(out_dir)
     sim = SimRun(sc, render=render, video=video)
     try:
         result = sim.run(progress=progress)
         if out_dir is not None:
-            write_trajectory(out_dir / "trajectory.csv", result.rows)
-            write_summary(out_dir / "summary.json", result.summary)
-            save_birdseye(out_dir / "birdseye.png", sim.track, result.rows, lane_width=sim.lane_width,
-                          straddle_dev=sim.monitor.straddle_dev, believed_xy=result.believed_xy,
-                          detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
-                          title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}")
-            if sim.video is not None:
-                sim.video.write(out_dir / "camera.mp4")
+            sim.write_outputs(out_dir, result)
         return result
     finally:
         sim.close()
