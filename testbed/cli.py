@@ -88,7 +88,7 @@ def cmd_tracks(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from testbed.eval import bench
 
-    result = bench.run(args.what, seconds=args.seconds)
+    result = bench.run(args.what, seconds=args.seconds, detector=args.detector)
     print(json.dumps(result, indent=2))
     return 0
 
@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="benchmarks (not tests): loop, map, defense")
     p.add_argument("what", choices=["loop", "map", "defense"])
     p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
+    p.add_argument("--detector", default="neural", help="lane detector for `loop` (its camera is rendered anyway)")
     p.set_defaults(func=cmd_bench)
 
     from testbed.perception.commands import add_ld_parser

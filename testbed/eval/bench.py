@@ -64,9 +64,9 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     }
 
 
-def run(what: str, seconds: float = 20.0) -> dict[str, Any]:
+def run(what: str, seconds: float = 20.0, detector: str = "neural") -> dict[str, Any]:
     if what == "loop":
-        return bench_loop(seconds)
+        return bench_loop(seconds, detector=detector)
     if what == "map":
         from tracks.bench import map_query_benchmark
         from tracks.presets import load_track

@@ -3,8 +3,9 @@
 The frame is warped to a bird's-eye grid over the ground (x in [X_NEAR, X_FAR] m ahead, |y| <= Y_HALF m)
 with the rig's flat-ground homography. Paint is a bright ridge: the (R+G)/2 channel minus its 1 m wide
 horizontal box mean, thresholded at a multiple of its robust spread (so the threshold follows exposure).
-Left and right lines start at the strongest column-histogram peaks either side of the car and are traced
-by sliding windows; pixels found are fitted with np.polyfit (quadratic, stored as a cubic with c3 = 0).
+Left and right lines start at the column-histogram peaks nearest the car either side (weak peaks
+ignored) and are traced by sliding windows; the pixels found are fitted with np.polyfit (quadratic,
+stored as a cubic with c3 = 0).
 Existence probability is the fraction of windows that found paint.
 """
 
@@ -23,10 +24,24 @@ WINDOW_HALF = 0.5  # m: lateral half width of a search window
 MIN_PIXELS = 4
 
 
+def nearest_peak(hist: np.ndarray, share: float = 0.4) -> int:
+    """Index of the first local maximum holding at least `share` of the strongest column count."""
+    smooth = np.convolve(hist, np.ones(5), mode="same")
+    top = smooth.max()
+    if top <= 0:
+        return int(np.argmax(smooth))
+    for i in range(len(smooth)):
+        left = smooth[i - 1] if i > 0 else -1.0
+        right = smooth[i + 1] if i + 1 < len(smooth) else -1.0
+        if smooth[i] >= share * top and smooth[i] >= left and smooth[i] >= right:
+            return i
+    return int(np.argmax(smooth))
+
+
 class ClassicalLaneDetector(LaneDetector):
     """IPM + sliding-window lane detector for one camera rig."""
 
-    def __init__(self, rig: CameraRig, ridge_k: float = 4.0) -> None:
+    def __init__(self, rig: CameraRig, ridge_k: float = 3.5) -> None:
         self.rig = rig
         self.ridge_k = ridge_k
         self.rows = round((X_FAR - X_NEAR) / RES_X)
@@ -82,8 +97,8 @@ class ClassicalLaneDetector(LaneDetector):
         hist = mask[self.rows // 2 :].sum(axis=0)
         centre = self.cols // 2
         lo, hi = round(0.4 / RES_Y), round(3.8 / RES_Y)
-        left_col = centre - hi + int(np.argmax(hist[centre - hi : centre - lo]))
-        right_col = centre + lo + int(np.argmax(hist[centre + lo : centre + hi]))
+        left_col = centre - lo - nearest_peak(hist[centre - hi : centre - lo][::-1])
+        right_col = centre + lo + nearest_peak(hist[centre + lo : centre + hi])
         left, lp = self._trace(mask, left_col)
         right, rp = self._trace(mask, right_col)
         return LaneDetection(frame.t, left, right, lp if left is not None else 0.0,

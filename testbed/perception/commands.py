@@ -28,6 +28,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--minutes", type=float, default=28.0, help="stop after the epoch that passes this")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--limit", type=int, help="use at most this many frames per directory")
+    p.add_argument("--init", type=Path, help="continue from this checkpoint instead of from scratch")
+    p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
     p.set_defaults(func=_train)
 
     p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
@@ -52,8 +54,8 @@ def _dataset(args: argparse.Namespace) -> int:
 def _train(args: argparse.Namespace) -> int:
     from testbed.perception.train import TrainConfig, train
 
-    cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes)
-    res = train(args.data, args.out, cfg, val_dir=args.val, limit=args.limit, progress=True)
+    cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr)
+    res = train(args.data, args.out, cfg, val_dir=args.val, limit=args.limit, progress=True, init=args.init)
     print(f"checkpoint {res.checkpoint}, curve {res.curve}")
     if res.history:
         print({k: round(v, 4) if isinstance(v, float) else v for k, v in res.history[-1].items()})

@@ -39,9 +39,9 @@ def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray,
             no_output += 1
         else:
             errs.append(abs(d - float(frames.deviation[i])))
-        for coeffs, prob, truth in ((ld.left, ld.left_prob, frames.left_exists[i]),
-                                    (ld.right, ld.right_prob, frames.right_exists[i])):
-            said = coeffs is not None and prob >= existence_threshold
+        for coeffs, prob, truth in ((ld.left, ld.left_prob, bool(frames.left_exists[i])),
+                                    (ld.right, ld.right_prob, bool(frames.right_exists[i]))):
+            said = bool(coeffs is not None and prob >= existence_threshold)
             tp += said and truth
             fp += said and not truth
             fn += (not said) and truth

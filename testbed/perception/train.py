@@ -28,6 +28,7 @@ from testbed.perception.neural import (
     LaneNet,
     decode,
     fit_cubics,
+    load_model,
     preprocess,
 )
 
@@ -135,7 +136,8 @@ class TrainResult:
 
 
 def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, val_dir: Path | None = None,
-          limit: int | None = None, progress: bool = False) -> TrainResult:
+          limit: int | None = None, progress: bool = False, init: Path | None = None) -> TrainResult:
+    """Train (from scratch, or on from the checkpoint `init`) and write checkpoint, history and curve to `out`."""
     from tqdm import tqdm
 
     config = config if config is not None else TrainConfig()
@@ -147,7 +149,7 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     data = Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "cls", "c0", "exists")))
     val = load_frames(val_dir) if val_dir is not None else None
     val_t = to_tensors(val) if val is not None else None
-    model = LaneNet()
+    model = load_model(init).train() if init is not None else LaneNet()
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     n = len(data.x)
     steps_per_epoch = max(1, n // config.batch)
