@@ -22,18 +22,23 @@ from tracks.pose import Pose
 
 
 class StraightRoadMap:
-    """`lanes` lanes of width `width` along +x; lane 0's centreline is y = 0, lane i's is y = i·width."""
+    """`lanes` lanes of width `width` along +x; lane 0's centreline is y = 0, lane i's is y = i·width.
+    A pose more than width/2 + `margin` (default width/2) from its lane, or not finite, is off the map;
+    `intersections` are x intervals flagged by is_intersection."""
 
-    def __init__(self, lanes: int = 2, width: float = 3.5) -> None:
+    def __init__(self, lanes: int = 2, width: float = 3.5, margin: float | None = None,
+                 intersections: tuple[tuple[float, float], ...] = ()) -> None:
         self.lanes = lanes
         self.width = width
+        self.margin = width / 2 if margin is None else margin
+        self.intersections = intersections
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
         if not pose.is_finite():
             raise OffMapError(f"pose {pose} is not finite")
         i = min(max(round(pose.y / self.width), 0), self.lanes - 1) if lane is None else lane
         offset = pose.y - i * self.width
-        if abs(offset) > self.width:
+        if abs(offset) > self.width / 2 + self.margin:
             raise OffMapError(f"pose {pose} is {offset:.2f} m from lane {i}")
         return LaneCoord(i, pose.x, offset)
 
@@ -54,7 +59,7 @@ class StraightRoadMap:
 
     def is_intersection(self, pose: Pose) -> bool:
         self.project(pose)
-        return False
+        return any(lo <= pose.x <= hi for lo, hi in self.intersections)
 
 
 def _timings(call: Callable[[int], object], n: int) -> dict[str, float]:
