@@ -1,8 +1,9 @@
 """The front camera: TinyRenderer images of the streamed road, and the image effects of each condition.
 
 A condition is a lighting set-up passed in full on every render (PyBullet's lighting arguments are
-sticky), a sky, track painters (worn markings, shadow bands) and a sensor model applied to the image
-in this order: sky fill, exposure, headlight cone (night), contrast, blur, noise.
+sticky) and baked into the ground canvas, a sky, track painters (worn markings, shadow bands) and a
+sensor model applied to the image in this order: exposure and headlight cone (night), sky fill,
+contrast, blur, noise.
 """
 
 from __future__ import annotations
@@ -13,13 +14,16 @@ import cv2
 import numpy as np
 import pybullet as pb
 
+from testbed.ground import OPEN_GROUND_RGB, Lighting
 from testbed.perception.detection import CameraFrame
+from testbed.world import TileStreamer
 from tracks.paint import ShadowPainter, WearPainter
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
 NEAR_M, FAR_M = 0.3, 250.0
-GROUND_RGB = (84.0, 107.0, 66.0)
+EMPTY_DEPTH = 0.9999
+"""TinyRenderer depth at or beyond which nothing was drawn."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,10 @@ class Condition:
     headlights: bool = False
     wear: float = 0.0
     shadows: bool = False
+
+    @property
+    def lighting(self) -> Lighting:
+        return Lighting(self.ambient, self.diffuse, self.light_dir, self.light_rgb)
 
     def track_painters(self, seed: int) -> list:
         """Painters the condition adds to the road texture (worn markings, shadow bands)."""
@@ -86,11 +94,13 @@ class ImageEffects:
         top, hor = np.array(condition.sky_top, float), np.array(condition.sky_horizon, float)
         self.sky = (top * (1 - rows) + hor * rows) * np.ones((1, w, 1))
         self.below_horizon = self._below_horizon(rig)
-        gain = np.full((h, w, 1), condition.exposure, np.float32)
+        self.first_ground_row = int(np.argmax(self.below_horizon.any(axis=1)))
+        self.ground_gain: np.ndarray | None = None
+        """Per-pixel gain (exposure plus headlight cone) where it varies; None when it is the exposure alone."""
         if condition.headlights:
-            gain += self._headlight_gain(rig).astype(np.float32)
-        self.ground_gain = gain
+            self.ground_gain = (condition.exposure + self._headlight_gain(rig)).astype(np.float32)
         self.sky = self.sky.astype(np.float32)
+        self._noise_bank: np.ndarray | None = None
 
     @staticmethod
     def _below_horizon(rig: CameraRig) -> np.ndarray:
@@ -111,30 +121,42 @@ class ImageEffects:
         gain[ok] = 3.8 * np.exp(-((x / 45.0) ** 2)) * np.exp(-((np.arctan2(y, x) / 0.30) ** 2))
         return gain.reshape(rig.height, rig.width, 1)
 
-    def apply(self, rgb: np.ndarray, empty: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """`empty` marks pixels where nothing was rendered: open ground below the horizon, sky above."""
+    def apply(self, rgb: np.ndarray, sky: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """`rgb`: the lit scene (uint8); `sky`: pixels where nothing was drawn above the horizon."""
         c = self.condition
         img = rgb.astype(np.float32)
-        img[empty & self.below_horizon] = GROUND_RGB
-        sky_mask = empty & ~self.below_horizon
-        img *= np.where(sky_mask[..., None], np.float32(1.0), self.ground_gain)
-        img[sky_mask] = self.sky[sky_mask]
+        if self.ground_gain is not None:
+            img *= self.ground_gain
+        elif c.exposure != 1.0:
+            img *= np.float32(c.exposure)
+        cv2.copyTo(self.sky, sky.view(np.uint8), img)
         if c.contrast != 1.0:
             mean = float(img.mean())
             img = cv2.addWeighted(img, c.contrast, img, 0.0, mean * (1.0 - c.contrast))
         if c.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), c.blur_sigma)
         if c.noise_std > 0:
-            luma_noise = rng.standard_normal(img.shape[:2], dtype=np.float32) * np.float32(c.noise_std)
-            img += luma_noise[..., None]
-        return np.clip(img, 0, 255).astype(np.uint8)
+            noise = self._noise(rng)
+            img = cv2.scaleAdd(cv2.merge([noise, noise, noise]), c.noise_std, img)
+        return np.clip(img, 0, 255, out=img).astype(np.uint8)
+
+    def _noise(self, rng: np.random.Generator) -> np.ndarray:
+        """Unit luma noise for one frame: a random window of a bank drawn once (2× the frame each way) from
+        `rng`, so each frame costs one offset draw instead of a fresh normal per pixel."""
+        h, w = self.sky.shape[:2]
+        if self._noise_bank is None:
+            self._noise_bank = rng.standard_normal((2 * h, 2 * w), dtype=np.float32)
+        oy, ox = (int(v) for v in rng.integers(0, (h, w)))
+        return np.ascontiguousarray(self._noise_bank[oy : oy + h, ox : ox + w])
 
 
 class FrontCamera:
-    """Renders the rig's view from the render client and applies the condition's effects."""
+    """Renders the rig's view: the road surface from the streamer's ground canvas (or TinyRenderer's
+    ground meshes), roadside bodies from TinyRenderer, the sky, then the condition's effects."""
 
-    def __init__(self, render_client: int, rig: CameraRig, condition: Condition, rng: np.random.Generator) -> None:
-        self.client = render_client
+    def __init__(self, streamer: TileStreamer, rig: CameraRig, condition: Condition, rng: np.random.Generator) -> None:
+        self.streamer = streamer
+        self.client = streamer.client
         self.rig = rig
         self.condition = condition
         self.rng = rng
@@ -149,9 +171,18 @@ class FrontCamera:
             lightAmbientCoeff=c.ambient, lightDiffuseCoeff=c.diffuse, lightSpecularCoeff=0.0,
             renderer=pb.ER_TINY_RENDERER, flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client,
         )
-        rgb = np.reshape(np.asarray(rgba, dtype=np.uint8), (self.rig.height, self.rig.width, 4))[:, :, :3]
-        sky = np.reshape(np.asarray(depth), (self.rig.height, self.rig.width)) >= 0.9999
-        return self.effects.apply(rgb, sky, self.rng)
+        shape = (self.rig.height, self.rig.width)
+        rgb = cv2.cvtColor(np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4)), cv2.COLOR_RGBA2RGB)
+        empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
+        below = self.effects.below_horizon
+        canvas = self.streamer.canvas
+        ground = (below & empty).view(np.uint8)
+        if canvas is not None:
+            top = self.effects.first_ground_row
+            cv2.copyTo(canvas.view(self.rig, pose, top), ground[top:], rgb[top:])
+        else:
+            rgb[ground.view(bool)] = OPEN_GROUND_RGB
+        return self.effects.apply(rgb, empty & ~below, self.rng)
 
     def capture(self, t: float, pose: Pose) -> CameraFrame:
         return CameraFrame(t=t, image=self.render(pose), true_pose=pose)

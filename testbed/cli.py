@@ -88,7 +88,7 @@ def cmd_tracks(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from testbed.eval import bench
 
-    result = bench.run(args.what, seconds=args.seconds, detector=args.detector)
+    result = bench.run(args.what, seconds=args.seconds, detector=args.detector, ground=args.ground)
     print(json.dumps(result, indent=2))
     return 0
 
@@ -146,10 +146,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="worker processes")
     p.set_defaults(func=cmd_campaign)
 
-    p = sub.add_parser("bench", help="benchmarks (not tests): loop, map, defense")
-    p.add_argument("what", choices=["loop", "map", "defense"])
+    p = sub.add_parser("bench", help="benchmarks (not tests): loop, render, map, defense")
+    p.add_argument("what", choices=["loop", "render", "map", "defense"])
     p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
     p.add_argument("--detector", default="neural", help="lane detector for `loop` (its camera is rendered anyway)")
+    p.add_argument("--ground", default="canvas", choices=["canvas", "mesh"],
+                   help="how `loop` draws the road surface: ground canvas (default) or TinyRenderer meshes")
     p.set_defaults(func=cmd_bench)
 
     from testbed.perception.commands import add_ld_parser

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import pybullet as pb
 
+from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
 from tracks.pose import Pose
 from vehicles.params import VehicleParams
 from vehicles.pybullet_vehicle import PyBulletVehicle
@@ -31,7 +32,8 @@ OBSTACLE_COLOURS: dict[str, tuple[float, float, float, float]] = {
     "divider": (0.85, 0.85, 0.82, 1.0),
     "tree": (0.20, 0.38, 0.16, 1.0),
 }
-MESH_SPACING_M = 2.0
+MESH_SPACING_M = SEGMENT_SPACING_M
+GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
 
@@ -118,14 +120,24 @@ class PhysicsWorld:
 
 
 class TileStreamer:
-    """Render client holding the road tiles near the car; reset when its texture budget is spent."""
+    """The track around the car, streamed into the render client (roadside bodies) and a ground canvas.
 
-    def __init__(self, track, ahead_m: float = 100.0, behind_m: float = 10.0, texture_budget: int = 40) -> None:
+    `ground="canvas"` (default): the road surface goes into a `GroundCanvas` that the camera draws by
+    homography; only roadside bodies go to TinyRenderer. `ground="mesh"`: the tiles are textured meshes
+    TinyRenderer rasterises (the reference the canvas is tested against, and several times slower). In
+    mesh mode the render client is reset when its texture budget is spent.
+    """
+
+    def __init__(self, track, lighting: Lighting, ahead_m: float = 100.0, behind_m: float = 10.0,
+                 ground: str = "canvas", texture_budget: int = 40) -> None:
+        if ground not in GROUND_MODES:
+            raise ValueError(f"unknown ground mode {ground!r}; choose one of {', '.join(GROUND_MODES)}")
         self.track = track
         self.ahead = ahead_m
         self.behind = behind_m
         self.budget = texture_budget
         self.client = pb.connect(pb.DIRECT)
+        self.canvas = GroundCanvas(track, lighting) if ground == "canvas" else None
         self._tmp = tempfile.TemporaryDirectory(prefix="ld3-tiles-")
         self.loaded: dict[int, list[int]] = {}
         self.textures_loaded = 0
@@ -144,7 +156,7 @@ class TileStreamer:
         cx, cy = pose.x + shift * math.cos(pose.yaw), pose.y + shift * math.sin(pose.yaw)
         wanted = set(self.track.tiles_near(cx, cy, half))
         missing = wanted - self.loaded.keys()
-        if self.textures_loaded + len(missing) > self.budget:
+        if self.canvas is None and self.textures_loaded + len(missing) > self.budget:
             self.resets += 1
             self._reset_scene()
             missing = wanted
@@ -153,8 +165,12 @@ class TileStreamer:
                 pb.removeBody(body, physicsClientId=self.client)
         for i in sorted(missing):
             self.loaded[i] = self._load_tile(i)
+        if self.canvas is not None:
+            self.canvas.set_tiles(wanted)
 
     def _load_tile(self, i: int) -> list[int]:
+        if self.canvas is not None:
+            return self._add_obstacle_visuals(i)
         verts, uvs, idx = self.track.tile_mesh(i, spacing=MESH_SPACING_M)
         img = self.track.tile_texture(i)
         path = Path(self._tmp.name) / f"tile{i}.png"

@@ -41,10 +41,10 @@ def value_noise(frame: TileFrame, cell: float, salt: int) -> np.ndarray:
     ks, ms = np.floor(s).astype(int), np.floor(t).astype(int)
     fs, ft = s - ks, t - ms
     fs, ft = fs * fs * (3 - 2 * fs), ft * ft * (3 - 2 * ft)
+    along_t = (lattice[:, ms] * (1 - ft) + lattice[:, ms + 1] * ft).astype(np.float32)  # separable: t first
     r = ks - k0
-    top = lattice[r][:, ms] * (1 - ft) + lattice[r][:, ms + 1] * ft
-    bottom = lattice[r + 1][:, ms] * (1 - ft) + lattice[r + 1][:, ms + 1] * ft
-    return top * (1 - fs)[:, None] + bottom * fs[:, None]
+    w = fs.astype(np.float32)[:, None]
+    return along_t[r] * (1 - w) + along_t[r + 1] * w
 
 
 def _blend(img: np.ndarray, colour: np.ndarray | tuple[float, ...], alpha: np.ndarray) -> None:
@@ -80,14 +80,15 @@ class AsphaltPainter:
                 if body.kind in BODY_COLOURS and body.spacing == 0.0:
                     near, far = outer + side * body.gap, outer + side * (body.gap + body.thickness)
                     ground[(t >= min(near, far)) & (t <= max(near, far))] = BODY_COLOURS[body.kind]
-        layer = np.broadcast_to(ground, (frame.height, frame.width, 3)).copy()
+        layer = np.broadcast_to(ground.astype(np.float32), (frame.height, frame.width, 3)).copy()
         s = frame.s_of_rows()
         crossing = np.array([track.in_intersection(v) for v in s])
         layer[crossing] = np.asarray(ASPHALT) * self.tone
-        tone = 1.0 + self.tone_variation * (2.0 * value_noise(frame, 2.0, 31) - 1.0)
+        tone = 1.0 + np.float32(self.tone_variation) * (2.0 * value_noise(frame, 2.0, 31) - 1.0)
+        grain = rng.standard_normal((frame.height, frame.width), dtype=np.float32) * np.float32(self.grain)
         layer *= tone[..., None]
-        layer += rng.normal(0.0, self.grain, (frame.height, frame.width))[..., None]
-        img[:] = np.clip(layer + 0.5, 0, 255).astype(np.uint8)
+        layer += (grain + np.float32(0.5))[..., None]
+        img[:] = np.clip(layer, 0, 255, out=layer).astype(np.uint8)
 
 
 class Stroke(NamedTuple):

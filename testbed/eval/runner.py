@@ -61,9 +61,10 @@ class SimRun:
     """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False,
-                 chassis: ChassisPort | None = None, world: PhysicsWorld | None = None) -> None:
+                 chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas") -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
-        is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both."""
+        is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
+        `ground` is how the camera draws the road surface (`TileStreamer`)."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -103,8 +104,8 @@ class SimRun:
         self.streamer: TileStreamer | None = None
         self.camera: FrontCamera | None = None
         if needs_camera or video:
-            self.streamer = TileStreamer(self.track)
-            self.camera = FrontCamera(self.streamer.client, self.rig, self.condition, rng_camera)
+            self.streamer = TileStreamer(self.track, self.condition.lighting, ground=ground)
+            self.camera = FrontCamera(self.streamer, self.rig, self.condition, rng_camera)
         self.video = VideoWriter(self.rig) if video else None
         if sc.localization == "msf":
             self.localization = LocalizationStack(self._localization_config(), rng_loc, self._lidar_quality, start, 0.0)

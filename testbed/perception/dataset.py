@@ -126,7 +126,7 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
         *condition.track_painters(ep.seed),
     ]
     base_rig = CameraRig(get_vehicle(vehicle).camera)
-    streamer = TileStreamer(track, ahead_m=70.0, behind_m=5.0)
+    streamer = TileStreamer(track, condition.lighting, ahead_m=70.0, behind_m=5.0)
     try:
         lane = track.lanes[int(rng.integers(len(track.lanes)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
@@ -148,7 +148,7 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, base_rig: Camera
     rig = base_rig.with_jitter(float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)),
                                float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER)))
     streamer.update(pose)
-    image = sensor_randomise(FrontCamera(streamer.client, rig, condition, rng).render(pose), rng)
+    image = sensor_randomise(FrontCamera(streamer, rig, condition, rng).render(pose), rng)
     truth = ego_lines(track, pose)
     label = {
         "left": truth.left.coeffs, "right": truth.right.coeffs,

@@ -1,0 +1,81 @@
+"""The ground canvas against TinyRenderer drawing the same textured tile meshes, and its tile bookkeeping."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from testbed.camera import FrontCamera, get_condition
+from testbed.ground import OPEN_GROUND_RGB, GroundCanvas
+from testbed.world import TileStreamer
+from tracks.pose import Pose
+from tracks.presets import load_track
+from vehicles.camera_rig import CameraRig
+from vehicles.params import get_vehicle
+
+
+def _frames(preset: str, condition: str, ground: str, stations: list[float]) -> list[np.ndarray]:
+    track = load_track(preset)
+    cond = get_condition(condition)
+    for painter in cond.track_painters(track.seed):
+        track.add_painter(painter)
+    streamer = TileStreamer(track, cond.lighting, ground=ground)
+    rig = CameraRig(get_vehicle("sedan").camera)
+    camera = FrontCamera(streamer, rig, cond, np.random.default_rng(3))
+    lane = track.lanes[track.ego_lane]
+    out = []
+    try:
+        for s in stations:
+            pose = Pose(*lane.position(s, 0.4), lane.heading_at(s) - 0.03)
+            streamer.update(pose)
+            out.append(camera.render(pose))
+    finally:
+        streamer.close()
+    return out
+
+
+@pytest.mark.parametrize(("preset", "condition"), [("urban-curvy", "day"), ("highway", "night")])
+def test_canvas_draws_the_road_as_tinyrenderer_draws_its_meshes(preset, condition):
+    stations = [15.0, 140.0, 260.0]
+    canvas = _frames(preset, condition, "canvas", stations)
+    mesh = _frames(preset, condition, "mesh", stations)
+    for a, b in zip(canvas, mesh, strict=True):
+        a16, b16 = a.astype(np.int16), b.astype(np.int16)
+        assert np.abs(a16 - b16).mean() < 4.0  # sampling of the asphalt grain differs (bilinear vs nearest)
+        assert abs(a16.mean() - b16.mean()) < 1.0  # same lighting: no bias
+        gray_a, gray_b = cv2.cvtColor(a, cv2.COLOR_RGB2GRAY), cv2.cvtColor(b, cv2.COLOR_RGB2GRAY)
+        level = np.percentile(gray_b, 97)  # lane markings (and light roadside concrete), day or night
+        bright_a, bright_b = gray_a > level, gray_b > level
+        near_b = cv2.dilate(bright_b.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        assert bright_a.sum() > 200
+        assert (bright_a & near_b).sum() / bright_a.sum() > 0.9  # markings land on the same pixels (±1 px)
+
+
+def test_canvas_holds_exactly_the_wanted_tiles_while_it_recentres():
+    track = load_track("urban-curvy")
+    canvas = GroundCanvas(track, get_condition("day").lighting, margin_m=15.0)
+    for first in range(0, 12):
+        canvas.set_tiles(set(range(first, first + 4)))
+    assert canvas.rebuilds >= 2
+    assert canvas.tiles == set(range(11, 15))
+
+    def canvas_rgb(s: float, t: float) -> np.ndarray:
+        x, y = track.reference.points(np.array([s]), np.array([t]))[0]
+        col, row = (np.array([x, y]) - np.asarray(canvas.origin)) * canvas.ppm - 0.5
+        assert 0 <= row < canvas.image.shape[0] and 0 <= col < canvas.image.shape[1]
+        return canvas.image[round(row), round(col)].astype(int)
+
+    L = track.tile_length
+    assert (canvas_rgb(10.5 * L, 0.0) == OPEN_GROUND_RGB).all()  # dropped when the window moved on
+    held = canvas_rgb(12.5 * L, 0.0)
+    f = track.tile_frame(12)
+    row, col = (math.floor(v) for v in f.pixel(12.5 * L, 0.0))
+    lit = np.clip(track.tile_texture(12)[row, col] * canvas.gain, 0, 255)
+    assert np.abs(held - lit).max() <= 25  # the texel there (neighbours differ by the grain)
+    assert not (held == OPEN_GROUND_RGB).all()
+
+
+def test_unknown_ground_mode_is_a_clear_error():
+    with pytest.raises(ValueError, match="ground mode"):
+        TileStreamer(load_track("slr"), get_condition("day").lighting, ground="voxels")
