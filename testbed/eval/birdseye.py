@@ -22,6 +22,19 @@ def _col(rows: Sequence[TickRecord], name: str) -> np.ndarray:
     return np.array([np.nan if getattr(r, name) is None else getattr(r, name) for r in rows], dtype=float)
 
 
+def _frame_equal(ax, x: np.ndarray, y: np.ndarray, pad: float) -> None:
+    """Limits around the path (plus `pad` m) widened on one axis to the axes' shape: 1 m is 1 m both ways."""
+    fig_w, fig_h = ax.figure.get_size_inches()
+    box = ax.get_position()
+    shape = (box.width * fig_w) / (box.height * fig_h)
+    cx, cy = (np.nanmin(x) + np.nanmax(x)) / 2.0, (np.nanmin(y) + np.nanmax(y)) / 2.0
+    half_w, half_h = (np.nanmax(x) - np.nanmin(x)) / 2.0 + pad, (np.nanmax(y) - np.nanmin(y)) / 2.0 + pad
+    half_w, half_h = max(half_w, half_h * shape), max(half_h, half_w / shape)
+    ax.set_xlim(cx - half_w, cx + half_w)
+    ax.set_ylim(cy - half_h, cy + half_h)
+    ax.set_aspect("equal", adjustable="box")
+
+
 def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
                   believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str) -> None:
     t = _col(rows, "t")
@@ -29,16 +42,13 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
     fig, (ax_map, ax_dev) = plt.subplots(2, 1, figsize=(10, 9), gridspec_kw={"height_ratios": [3, 2]})
     draw_track(ax_map, track)
-    pad = 25.0
-    ax_map.set_xlim(np.nanmin(x) - pad, np.nanmax(x) + pad)
-    ax_map.set_ylim(np.nanmin(y) - pad, np.nanmax(y) + pad)
+    _frame_equal(ax_map, x, y, pad=25.0)
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
     for when, marker, label in ((detection_t, "*", "detection"), (stop_t, "s", "stop")):
         if when is not None:
             i = int(np.searchsorted(t, when).clip(0, len(t) - 1))
             ax_map.plot(x[i], y[i], marker=marker, color="k", ms=12, ls="", label=label)
-    ax_map.set_aspect("equal", adjustable="datalim")
     ax_map.legend(loc="best", fontsize=8)
     ax_map.set_title(title)
 
