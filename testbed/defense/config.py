@@ -3,6 +3,12 @@
 Defaults follow the paper where it gives a number: CUSUM b = 0.6, τ = 0.1 (§5.2), AR deceleration
 4 m/s² (§4.3). The paper gives no window size w or weight λ for Alg. 4; the defaults here (w = 20
 detections, i.e. 1 s of LD at 20 Hz, and λ = 0.8) are this testbed's choice.
+
+NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
+stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,
+`FLAGS_longitudinal_acceleration_lower_bound = -4.5` m/s² (modules/planning/common/planning_gflags.cc).
+The car's own brake limit (8 m/s² for the sedan) is what the actuator can do, not what an AD planner
+asks for in an emergency in-lane stop, so it is not NaiveAR's deceleration.
 """
 
 from __future__ import annotations
@@ -55,8 +61,8 @@ class DefenseConfig:
     """Initial variance of the 1-D fusion Kalman filter at AR onset (m²); its state starts at d = 0."""
     ar_decel: float = 4.0
     """LD3 (and SAVIOR) attack-response deceleration (m/s²)."""
-    max_decel: float = 8.0
-    """NaiveAR's maximum deceleration (m/s²)."""
+    max_decel: float = 4.5
+    """NaiveAR's maximum deceleration (m/s²): Apollo's planner lower bound (module docstring)."""
     existence_threshold: float = 0.5
     """A detected lane line with existence probability below this is not valid."""
     savior_b: float = 1.0

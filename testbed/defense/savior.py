@@ -67,7 +67,7 @@ class SaviorDefense(Defense):
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         """SAVIOR ignores the lane lines; the first finite MSF estimate initialises its EKF."""
         if self.ekf is None and msf.pose.is_finite():
-            self._start(msf)
+            self.start_from(msf)
 
     def on_command(self, t: float, steer: float, accel: float, speed: float) -> None:
         if not all(math.isfinite(v) for v in (t, steer, accel)):
@@ -122,7 +122,8 @@ class SaviorDefense(Defense):
             cusum=self.cusum.statistic,
         )
 
-    def _start(self, msf: LocalizationEstimate) -> None:
+    def start_from(self, msf: LocalizationEstimate) -> None:
+        """Initialise the EKF at a finite MSF estimate, with the last measured speed."""
         ekf = ExtendedKalmanFilter(dim_x=4, dim_z=2)
         p = msf.pose
         ekf.x = np.array([[p.x], [p.y], [p.yaw], [self._speed]])

@@ -28,24 +28,33 @@ class CampaignRun:
     tags: dict[str, Any]
 
 
-def _execute(job: tuple[CampaignRun, Path]) -> tuple[str, dict[str, Any] | None, str | None]:
+RunExecutor = Callable[[CampaignRun, Path], dict[str, Any]]
+"""Runs one campaign run into its folder and returns its summary; summary.json must be its last output
+(its presence marks the run done). A module-level function, so that worker processes can import it."""
+
+
+def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+    """The default executor: `run_scenario` with the standard outputs."""
     from testbed.eval.runner import run_scenario
 
-    run, out = job
-    run_dir = out / run.run_id
+    return run_scenario(run.scenario, run_dir).summary
+
+
+def _execute(job: tuple[CampaignRun, Path, RunExecutor]) -> tuple[str, dict[str, Any] | None, str | None]:
+    run, out, execute = job
     try:
-        result = run_scenario(run.scenario, run_dir)
-        return run.run_id, result.summary, None
+        return run.run_id, execute(run, out / run.run_id), None
     except Exception as exc:  # a failing run is reported, never allowed to sink the campaign
         return run.run_id, None, f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}"
 
 
-def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2,
-                 progress: bool = True) -> list[tuple[CampaignRun, dict[str, Any]]]:
-    """Run every campaign run not yet done; returns (run, summary) for all runs that have a summary."""
+def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progress: bool = True,
+                 execute: RunExecutor = run_and_write) -> list[tuple[CampaignRun, dict[str, Any]]]:
+    """Run every campaign run not yet done with `execute`; returns (run, summary) for all runs that have a
+    summary."""
     out.mkdir(parents=True, exist_ok=True)
     by_id = {r.run_id: r for r in runs}
-    todo = [(r, out) for r in runs if not (out / r.run_id / "summary.json").exists()]
+    todo = [(r, out, execute) for r in runs if not (out / r.run_id / "summary.json").exists()]
     failures: list[str] = []
     if todo:
         ctx = mp.get_context("spawn")
@@ -78,5 +87,3 @@ def _write_runs_csv(path: Path, done: Iterable[tuple[CampaignRun, dict[str, Any]
         writer.writeheader()
         writer.writerows(rows)
 
-
-CampaignBuilder = Callable[[int], list[CampaignRun]]

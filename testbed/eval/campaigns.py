@@ -12,15 +12,20 @@ from typing import Any
 
 import numpy as np
 
-from testbed.eval.campaign import CampaignRun, run_campaign
+from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
+from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
+from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import load_scenario
 
 
 @dataclass(frozen=True)
 class CampaignSpec:
+    """A named campaign: its runs for a lane detector, how each is executed, and its report table."""
+
     description: str
     build: Callable[[str], list[CampaignRun]]
     table: Callable[[list[tuple[CampaignRun, dict[str, Any]]], Path], str]
+    execute: RunExecutor = run_and_write
 
 
 def _fmt(v: Any) -> str:
@@ -91,8 +96,9 @@ def table4_runs(detector: str) -> list[CampaignRun]:
 
 
 def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
-    lines = ["| defense | runs | consequences | detected | detection dev (m) | AR max dev (m) | stop dev (m) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| defense | runs | lane straddle dev (m) | max dev (m) | consequences | detected | detection dev (m) "
+             "| AR max dev (m) | stop dev (m) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     by_def: dict[str, list[dict[str, Any]]] = {}
     for run, s in done:
         by_def.setdefault(f"{run.tags.get('track', '')} {s['defense']}".strip(), []).append(s)
@@ -101,7 +107,9 @@ def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
         for s in sums:
             cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
         lines.append(
-            f"| {key} | {len(sums)} | {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} "
+            f"| {key} | {len(sums)} | {sums[0]['lane_straddle_dev_m']:.2f} "
+            f"| {_stats([s['max_abs_dev_m'] for s in sums])} "
+            f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} "
             f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
             f"| {_stats([s['detection_dev_m'] for s in sums])} | {_stats([s['ar_max_dev_m'] for s in sums])} "
             f"| {_stats([abs(s['ar_stop_dev_m']) if s['ar_stop_dev_m'] is not None else None for s in sums])} |")
@@ -151,18 +159,19 @@ def benign_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> s
 # ---- FusionRipper parameter grid without defense (paper Table 2) -----------------------------------------
 GRID_D = (0.3, 0.5, 0.7, 1.0)
 GRID_F = (1.1, 1.2, 1.3, 1.5)
-ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
 
 
 def fr_grid_runs(detector: str) -> list[CampaignRun]:
+    """Start time outermost, so that a campaign stopped part-way has the same start times in every cell."""
     runs = []
-    for track, speed in FR_TRACKS.items():
-        base = load_scenario(track).with_overrides(speed=speed, duration=50.0, detector="none",
-                                                   localization="msf", defense="none")
-        for d in GRID_D:
-            for f in GRID_F:
-                for k in range(20):
-                    start = 8.0 + 1.3 * k
+    bases = {track: load_scenario(track).with_overrides(speed=speed, duration=50.0, detector="none",
+                                                        localization="msf", defense="none")
+             for track, speed in FR_TRACKS.items()}
+    for k in range(20):
+        start = round(8.0 + 1.3 * k, 1)
+        for track, base in bases.items():
+            for d in GRID_D:
+                for f in GRID_F:
                     runs.append(CampaignRun(f"{track}-d{d:g}-f{f:g}-start{start:g}", base.with_overrides(
                         attack={"kind": "fusionripper", "d": d, "f": f, "start": start}, name=f"grid-{track}"),
                         {"track": track, "d": d, "f": f, "start": start}))
@@ -174,9 +183,7 @@ def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
     giveway: dict[tuple[str, float, float], list[float]] = {}
     for run, s in done:
         key = (run.tags["track"], run.tags["d"], run.tags["f"])
-        goal = ATTACK_GOAL_M[run.tags["track"]]
-        ok = (s["max_abs_dev_m"] or 0.0) > goal or s["consequence"] in ("hit_curb", "hit_barrier", "fall_off_road")
-        cells.setdefault(key, []).append(ok)
+        cells.setdefault(key, []).append(attack_succeeded(run.tags["track"], s["max_abs_dev_m"], s["consequence"]))
         state = s.get("attack_state") or {}
         if state.get("switch_time") is not None:
             giveway.setdefault(key, []).append(state["switch_time"] - run.tags["start"])
@@ -208,6 +215,8 @@ CAMPAIGNS: dict[str, CampaignSpec] = {
                            benign_runs, benign_table),
     "fusionripper-grid": CampaignSpec("FusionRipper d×f grid without defense, 20 start times (paper Table 2)",
                                       fr_grid_runs, fr_grid_table),
+    "roc": CampaignSpec("LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
+                        "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
 }
 
 
@@ -215,7 +224,7 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
     if name not in CAMPAIGNS:
         raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
     spec = CAMPAIGNS[name]
-    done = run_campaign(spec.build(detector), out, workers=workers, progress=progress)
+    done = run_campaign(spec.build(detector), out, workers=workers, progress=progress, execute=spec.execute)
     report = out / "report.md"
     report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector `{detector}`.\n\n"
                       f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")

@@ -21,6 +21,15 @@ CONTACT_CONSEQUENCE = {
 }
 CONSEQUENCES = ("reach_destination", "stop_in_lane", "stop_with_lane_straddle", "hit_curb", "hit_barrier",
                 "hit_lane_divider", "fall_off_road", "out_of_lane")
+ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
+"""FusionRipper's attack goal deviation per road type (paper Table 2)."""
+LEFT_ROAD = ("hit_curb", "hit_barrier", "fall_off_road")
+
+
+def attack_succeeded(road: str, max_abs_dev: float | None, consequence: str) -> bool:
+    """Paper Table 2's success: the physical deviation went beyond the attack goal of the road type, or
+    the car left the road (on `local` the curb stops the car at about 0.8 m, before the 1.3 m goal)."""
+    return (max_abs_dev or 0.0) > ATTACK_GOAL_M[road] or consequence in LEFT_ROAD
 
 
 def footprint_corners(x: float, y: float, yaw: float, length: float, width: float) -> list[tuple[float, float]]:

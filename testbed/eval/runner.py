@@ -21,6 +21,7 @@ from testbed.chassis import ChassisPort
 from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
+from testbed.defense.base import Defense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.factory import make_defense
 from testbed.direct_chassis import DirectChassis
@@ -61,10 +62,12 @@ class SimRun:
     """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False,
-                 chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas") -> None:
+                 chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
+                 defense: Defense | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
-        `ground` is how the camera draws the road surface (`TileStreamer`)."""
+        `ground` is how the camera draws the road surface (`TileStreamer`). `defense` replaces the one the
+        scenario names (e.g. a passive detection recorder)."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -112,7 +115,7 @@ class SimRun:
         else:
             self.localization = GroundTruthLocalization()
         self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
-        self.defense = make_defense(sc.defense, self.defense_config)
+        self.defense = defense if defense is not None else make_defense(sc.defense, self.defense_config)
         dt = 1.0 / rates.control_hz
         self.loop = ControlLoop(
             chassis=self.chassis, localization=self.localization, smap=self.smap, lane=self.lane,

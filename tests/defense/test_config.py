@@ -9,6 +9,13 @@ def test_defaults_follow_the_paper():
     assert (c.b, c.tau, c.ar_decel) == (0.6, 0.1, 4.0)
 
 
+def test_naive_ar_brakes_at_apollos_planner_bound_not_the_cars_brake_limit():
+    # NaiveAR models Apollo's in-lane stop (paper §5.3): Apollo's planner never asks for more than 4.5 m/s²
+    c = DefenseConfig()
+    assert c.max_decel == 4.5 and c.max_decel > c.ar_decel
+    assert make_defense("ld3-naive-ar", c).stop_decel is None  # only once alarmed
+
+
 def test_from_dict_accepts_ints_for_floats():
     c = DefenseConfig.from_dict({"b": 1, "tau": 0.2, "window": 10, "ar_decel": 2.5})
     assert (c.b, c.tau, c.window, c.ar_decel) == (1.0, 0.2, 10, 2.5)

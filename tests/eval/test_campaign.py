@@ -1,0 +1,66 @@
+"""Campaign plumbing: custom executors, resuming, failures; the run lists of the grid and ROC campaigns."""
+
+import json
+from collections import Counter
+from pathlib import Path
+
+from testbed.eval.campaign import CampaignRun, run_campaign
+from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, fr_grid_runs
+from testbed.eval.roc import record_detection_run, roc_runs
+from testbed.eval.scenario import load_scenario
+
+
+def write_fake_summary(run: CampaignRun, run_dir: Path) -> dict:
+    """Executor double: fails for runs tagged `fail`, else writes a summary counting its calls."""
+    if run.tags.get("fail"):
+        raise RuntimeError("boom")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    calls = run_dir.parent / "calls.txt"
+    calls.write_text(calls.read_text() + run.run_id + "\n" if calls.exists() else run.run_id + "\n")
+    summary = {"run": run.run_id, "consequence": "reach_destination"}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    return summary
+
+
+def test_custom_executor_resume_and_failures(tmp_path):
+    sc = load_scenario("slr")
+    runs = [CampaignRun("a", sc, {"k": 1}), CampaignRun("b", sc, {"k": 2, "fail": True}), CampaignRun("c", sc, {})]
+    done = run_campaign(runs, tmp_path, workers=1, progress=False, execute=write_fake_summary)
+    assert [r.run_id for r, _ in done] == ["a", "c"]
+    assert "b: RuntimeError: boom" in (tmp_path / "failures.txt").read_text()
+    rows = (tmp_path / "runs.csv").read_text().splitlines()
+    assert rows == ["run_id,k,run,consequence", "a,1,a,reach_destination", "c,,c,reach_destination"]
+    run_campaign(runs[:1] + runs[2:], tmp_path, workers=1, progress=False, execute=write_fake_summary)
+    assert (tmp_path / "calls.txt").read_text().split() == ["a", "c"]  # the rerun resumed: nothing ran twice
+
+
+def test_grid_runs_cover_every_cell_with_20_start_times_start_time_outermost():
+    runs = fr_grid_runs("oracle")
+    assert len({r.run_id for r in runs}) == len(runs) == 2 * len(GRID_D) * len(GRID_F) * 20
+    cells = Counter((r.tags["track"], r.tags["d"], r.tags["f"]) for r in runs)
+    assert set(cells.values()) == {20}
+    first = runs[: len(cells)]
+    assert {(r.tags["track"], r.tags["d"], r.tags["f"]) for r in first} == set(cells)
+    assert {r.tags["start"] for r in first} == {8.0}
+    assert all(r.scenario.defense == "none" and r.scenario.localization == "msf" for r in runs)
+
+
+def test_roc_campaign_records_benign_fit_and_attacked_drives():
+    assert CAMPAIGNS["roc"].execute is record_detection_run
+    runs = roc_runs("oracle")
+    roles = Counter((r.tags["track"], r.tags["role"]) for r in runs)
+    assert roles == {("local", "benign"): 10, ("local", "fit"): 2, ("local", "attacked"): 10,
+                     ("highway", "benign"): 10, ("highway", "fit"): 2, ("highway", "attacked"): 10}
+    for r in runs:
+        assert r.scenario.defense == "none" and r.scenario.detector == "oracle"
+        assert (r.scenario.attack is None) == (r.tags["role"] != "attacked")
+
+
+def test_attack_success_is_the_goal_deviation_or_leaving_the_road():
+    from testbed.eval.consequence import attack_succeeded
+
+    assert attack_succeeded("highway", 1.95, "out_of_lane")
+    assert not attack_succeeded("highway", 1.85, "out_of_lane")
+    assert attack_succeeded("local", 0.8, "hit_curb")  # the curb stops the car before the 1.3 m goal
+    assert not attack_succeeded("local", 1.2, "stop_with_lane_straddle")
+    assert not attack_succeeded("local", None, "reach_destination")
