@@ -79,8 +79,8 @@ def test_ar_pose_is_fused_deviation_on_the_locked_ego_lane():
     assert s.d_msf == pytest.approx(2.5)  # measured against lane 0, not the nearer lane 1
     assert s.kalman_gain_msf < s.kalman_gain_ld
     pose = d.pose_for_control(msf_at(0.2, 7.0, 2.5, yaw=0.02), smap)
-    # lane 0 centreline point (7, 0) shifted by the fused d along +y, heading along the lane (not the MSF yaw)
-    assert (pose.x, pose.y, pose.yaw) == pytest.approx((7.0, s.fused_dev, 0.0))
+    # lane 0 centreline point (7, 0) shifted by the fused d along +y, MSF yaw
+    assert (pose.x, pose.y, pose.yaw) == pytest.approx((7.0, s.fused_dev, 0.02))
     assert abs(s.fused_dev) < 1.0
 
 
