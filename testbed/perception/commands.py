@@ -25,7 +25,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--val", type=Path, help="held-out dataset directory (scored every epoch)")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--epochs", type=int, default=30)
-    p.add_argument("--minutes", type=float, default=28.0, help="stop after the epoch that passes this")
+    p.add_argument("--minutes", type=float, default=27.0, help="training time budget (wall clock, after loading)")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--limit", type=int, help="use at most this many frames per directory")
     p.add_argument("--init", type=Path, help="continue from this checkpoint instead of from scratch")

@@ -4,8 +4,9 @@ An episode is one preset track at one seed under one condition: the camera is pl
 along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera pitch and height jitter),
 the frame rendered and labelled from the map (`labels.ego_lines`). On top of the preset's own look the
 episode randomises asphalt tone, marking brightness, exposure, blur and noise, and erases the paint of
-random lane-line stretches (unmarked edges and gaps) so missing lines are common. Track seeds for
-training come from `TRAIN_SEEDS`; `HELD_OUT_SEEDS` is reserved for evaluation and never trained on.
+random lane-line stretches (unmarked edges, gaps, and the one-sided lines of lane splits and merges) so
+missing lines are common; the run of poses starts anywhere along the track (bends, intersections). Track
+seeds for training come from `TRAIN_SEEDS`; `HELD_OUT_SEEDS` is reserved for evaluation, never trained on.
 Shards are `.npz` files: images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
 """
 
@@ -38,6 +39,7 @@ MAX_YAW_OFFSET = math.radians(5.0)
 PITCH_JITTER = math.radians(0.5)
 HEIGHT_JITTER = 0.05  # m
 POSES_PER_STATION = 2  # frames rendered at each station along the road (different pose and rig)
+ERASED_PER_KM = 5.0  # unpainted stretches (15-80 m) per km of each lane line
 LABEL_KEYS = ("left", "right", "left_exists", "right_exists", "lane_width", "deviation")
 
 
@@ -57,7 +59,7 @@ class MarkingFadePainter:
         img[:] = np.clip(work + 0.5, 0, 255).astype(np.uint8)
 
 
-def erase_stretches(track, rng: np.random.Generator, per_km: float = 3.0) -> None:
+def erase_stretches(track, rng: np.random.Generator, per_km: float = ERASED_PER_KM) -> None:
     """Replace random stretches (15-80 m) of each lane line by 'none': unmarked edges and gaps."""
     new = []
     for boundary in track.boundaries:
@@ -130,7 +132,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
     try:
         lane = track.lanes[int(rng.integers(len(track.lanes)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
-        s = float(rng.uniform(0.0, min(40.0, 0.2 * track.length)))
+        run = mean_step * n_frames / POSES_PER_STATION
+        s = float(rng.uniform(0.0, max(1.0, track.length - run - 2.0)))
         for i in range(n_frames):
             if s > track.length - 2.0:
                 break

@@ -2,16 +2,19 @@
 
 Anchors are the image rows that see fixed ground distances `X_ANCHORS` ahead (nominal rig). The ground part
 of the frame is area-resized to 56×160 and standardised per channel (exposure invariance); a fully
-convolutional backbone keeps 40 columns (8 px each) and widens its lateral view with dilated convs. For each
+convolutional backbone keeps 40 columns (8 px each) and widens its lateral view with 1×9 convs. For each
 line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax expectation
 over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m) at that
-anchor's distance. A weighted least-squares cubic through the present anchors (ridge on c2, c3) is the
-`LaneDetection` line; c0 is its extrapolation to the reference point. A pooled branch gives the existence
-logit of each line.
+anchor's distance. A weighted least-squares polynomial through the present anchors is the `LaneDetection`
+cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1); c0 is its
+extrapolation to the reference point. A pooled branch gives the existence logit of each line. For inference
+BatchNorm is folded into the convolutions (`fuse_batchnorm`).
 """
 
 from __future__ import annotations
 
+import copy
+import functools
 from importlib import resources
 from pathlib import Path
 
@@ -19,6 +22,7 @@ import cv2
 import numpy as np
 import torch
 from torch import nn
+from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from vehicles.camera_rig import CameraRig
@@ -27,7 +31,9 @@ from vehicles.params import CameraParams
 X_ANCHORS = (5.0, 6.0, 7.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0, 30.0)
 ANCHOR_WEIGHTS = (3.0, 3.0, 2.5, 2.0, 1.5, 1.2, 1.0, 0.8, 0.6, 0.4, 0.3)  # fit emphasis near the car
 FIT_SCALE = 30.0  # m: the fit runs in t = x / FIT_SCALE, which keeps its normal equations well conditioned
-RIDGE = (1e-6, 1e-6, 1e-6, 1e-2)  # t-basis ridge: only c3 is pulled to 0 (arcs fit unbiased; few anchors OK)
+RIDGE = 1e-9  # t-basis ridge on every coefficient: numerical safety only (no visible bias; fit in float64)
+PINNED = 1e3  # t-basis ridge that holds a coefficient at 0 when too few anchors are present to fit it
+CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
 INPUT_SHAPE = (56, 160)  # network input (H, W)
@@ -35,8 +41,9 @@ N_COLS = 40  # column cells; cell j covers full-resolution columns [8j, 8j + 8)
 DEFAULT_WEIGHTS = "lanenet.pt"
 
 
-def _block(c_in: int, c_out: int, stride: tuple[int, int], dilation: tuple[int, int] = (1, 1)) -> nn.Sequential:
-    conv = nn.Conv2d(c_in, c_out, 3, stride, dilation, dilation=dilation, bias=False)
+def _block(c_in: int, c_out: int, stride: tuple[int, int] = (1, 1),
+           kernel: tuple[int, int] = (3, 3)) -> nn.Sequential:
+    conv = nn.Conv2d(c_in, c_out, kernel, stride, (kernel[0] // 2, kernel[1] // 2), bias=False)
     return nn.Sequential(conv, nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
 
 
@@ -48,9 +55,8 @@ class LaneNet(nn.Module):
         self.width = width
         k = len(X_ANCHORS)
         self.features = nn.Sequential(
-            _block(3, 16, (2, 2)), _block(16, 24, (2, 2)), _block(24, width, (2, 1)),
-            _block(width, width, (1, 1)), _block(width, width, (1, 1), (1, 2)),
-            _block(width, width, (1, 1), (1, 4)),
+            _block(3, 16, (2, 2)), _block(16, 32, (2, 2)), _block(32, width, (2, 1)),
+            _block(width, width), _block(width, width, kernel=(1, 9)), _block(width, width, kernel=(1, 9)),
         )
         rows = 7
         self.columns = nn.Conv1d(width * rows + 1, 2 * k, 1)
@@ -72,9 +78,8 @@ class LaneNet(nn.Module):
 def preprocess(image: np.ndarray) -> np.ndarray:
     """Frame (160, 320, 3) uint8 -> network input (3, 56, 160) float32, standardised per channel."""
     crop = cv2.resize(image[CROP_TOP:], (INPUT_SHAPE[1], INPUT_SHAPE[0]), interpolation=cv2.INTER_AREA)
-    x = crop.astype(np.float32)
-    x -= x.mean(axis=(0, 1))
-    x /= x.std(axis=(0, 1)) + 4.0
+    mean, std = cv2.meanStdDev(crop)
+    x = (crop.astype(np.float32) - mean.ravel().astype(np.float32)) / (std.ravel().astype(np.float32) + 4.0)
     return np.ascontiguousarray(x.transpose(2, 0, 1))
 
 
@@ -99,28 +104,52 @@ class AnchorGeometry:
 
 
 GEOMETRY = AnchorGeometry()
+_T = torch.tensor(X_ANCHORS, dtype=torch.float64) / FIT_SCALE
+_VANDER = torch.stack([_T**p for p in range(4)], dim=-1)  # (K, 4)
+_OUTER = _VANDER[:, :, None] * _VANDER[:, None, :]  # (K, 4, 4)
+_UNSCALE = torch.tensor([FIT_SCALE**p for p in range(4)], dtype=torch.float64)
+_FIT_W = torch.tensor(ANCHOR_WEIGHTS, dtype=torch.float64)
+_CELL_U = torch.tensor(GEOMETRY.cell_u, dtype=torch.float64)
+_M_PER_PX = torch.tensor(GEOMETRY.scale, dtype=torch.float64)
 
 
 def fit_cubics(y: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
-    """Weighted ridge least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K)."""
-    t = torch.tensor(X_ANCHORS, dtype=y.dtype) / FIT_SCALE
-    vander = torch.stack([t**p for p in range(4)], dim=-1)  # (K, 4)
-    w = torch.tensor(ANCHOR_WEIGHTS, dtype=y.dtype) * present
-    a = torch.einsum("...k,ki,kj->...ij", w, vander, vander) + torch.diag(torch.tensor(RIDGE, dtype=y.dtype))
-    b = torch.einsum("...k,ki,...k->...i", w, vander, y)
-    c = torch.linalg.solve(a, b.unsqueeze(-1)).squeeze(-1)
-    return c / torch.tensor([FIT_SCALE**p for p in range(4)], dtype=y.dtype)
+    """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K); with
+    fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
+    dt = y.dtype
+    w = _FIT_W.to(dt) * present
+    n = present.sum(-1, keepdim=True)
+    small = torch.full_like(n, RIDGE)
+    ridge = torch.cat([small, small, torch.where(n < QUADRATIC_MIN_ANCHORS, PINNED, RIDGE),
+                       torch.where(n < CUBIC_MIN_ANCHORS, PINNED, RIDGE)], dim=-1)
+    a = torch.einsum("...k,kij->...ij", w, _OUTER.to(dt)) + torch.diag_embed(ridge)
+    b = torch.einsum("...k,ki,...k->...i", w, _VANDER.to(dt), y)
+    return torch.linalg.solve(a, b.unsqueeze(-1)).squeeze(-1) / _UNSCALE.to(dt)
 
 
 def decode(cols: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Column logits (…, K, N_COLS + 1) -> anchor offsets y (…, K) in metres and presence probabilities (…, K)."""
     p = torch.softmax(cols, dim=-1)
-    u_cells = torch.tensor(GEOMETRY.cell_u, dtype=cols.dtype)
     col_p = p[..., :N_COLS]
     mass = col_p.sum(-1).clamp(min=1e-6)
-    u = (col_p * u_cells).sum(-1) / mass
-    y = (u - GEOMETRY.cx) * torch.tensor(GEOMETRY.scale, dtype=cols.dtype)
+    u = (col_p * _CELL_U.to(cols.dtype)).sum(-1) / mass
+    y = (u - GEOMETRY.cx) * _M_PER_PX.to(cols.dtype)
     return y, 1.0 - p[..., N_COLS]
+
+
+@functools.lru_cache(maxsize=4096)
+def fit_matrix(present: bytes) -> np.ndarray:
+    """`fit_cubics` as a (4, K) matrix for one presence mask (`K` bools as bytes): cubic = M @ y."""
+    mask = torch.tensor(list(present), dtype=torch.float64)
+    return fit_cubics(torch.eye(len(X_ANCHORS), dtype=torch.float64), mask).numpy().T.copy()
+
+
+def fuse_batchnorm(model: LaneNet) -> LaneNet:
+    """Inference copy of `model` (eval mode) with each BatchNorm folded into its convolution: same outputs."""
+    fused = copy.deepcopy(model).eval()
+    for i, (conv, bn, relu) in enumerate(fused.features):
+        fused.features[i] = nn.Sequential(fuse_conv_bn_eval(conv, bn), relu)
+    return fused
 
 
 def load_model(path: str | Path | None = None) -> LaneNet:
@@ -137,12 +166,13 @@ def load_model(path: str | Path | None = None) -> LaneNet:
 
 
 class NeuralLaneDetector(LaneDetector):
-    """Runs LaneNet on a frame; a line under 0.5 existence probability or with < 3 present anchors is None."""
+    """Runs LaneNet (BatchNorm folded) on a frame; a line under 0.5 existence probability or with < 3 present
+    anchors is None."""
 
     def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
         if threads is not None:
             torch.set_num_threads(threads)
-        self.model = model if model is not None else load_model()
+        self.model = fuse_batchnorm(model if model is not None else load_model())
 
     @staticmethod
     def valid_image(image: np.ndarray | None) -> bool:
@@ -157,12 +187,11 @@ class NeuralLaneDetector(LaneDetector):
         x = torch.from_numpy(preprocess(image))[None]
         with torch.inference_mode():
             cols, exist = self.model(x)
-            y, present = decode(cols[0].double())
-            mask = (present > 0.5).double()
-            coeffs = fit_cubics(y, mask)
-        enough = mask.sum(-1).numpy() >= 3
-        probs = torch.sigmoid(exist[0].double()).numpy() * enough
-        return coeffs.numpy(), probs
+            y, present = decode(cols[0])
+            probs = torch.sigmoid(exist[0]).double().numpy()
+        y64, mask = y.double().numpy(), present.numpy() > 0.5
+        coeffs = np.stack([fit_matrix(mask[i].tobytes()) @ y64[i] for i in range(2)])
+        return coeffs, probs * (mask.sum(-1) >= 3)
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
         if not self.valid_image(frame.image):

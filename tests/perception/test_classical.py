@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.perception.classical import ClassicalLaneDetector
+from testbed.perception.classical import ClassicalLaneDetector, ego_pair
 from testbed.perception.detection import CameraFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
@@ -34,3 +34,11 @@ def test_bad_frames_give_an_empty_detection(detector, image):
 def test_blank_road_has_no_lines(detector):
     ld = detector.detect(CameraFrame(0.0, np.full((160, 320, 3), 90, np.uint8)))
     assert ld.left is None and ld.right is None
+
+
+def test_ego_pair_is_the_narrowest_straddling_pair():
+    # a curb ridge 0.4 m outside the left line, the right line, and the next lane's line further right
+    assert ego_pair(np.array([-7.1, -3.55, 0.06, 0.48])) == (0.06, -3.55)
+    # one side missing: the innermost candidate on the other side
+    assert ego_pair(np.array([1.9, 2.3])) == (1.9, None)
+    assert ego_pair(np.array([])) == (None, None)

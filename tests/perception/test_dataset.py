@@ -28,3 +28,15 @@ def test_erased_stretches_keep_the_runs_tiling_the_road(track):
             assert r0.s1 == pytest.approx(r1.s0)
         erased += sum(r.s1 - r.s0 for r in b.runs if r.kind == "none")
     assert erased > 100.0
+
+
+def test_same_episode_renders_the_same_bytes():
+    from testbed.perception.dataset import Episode, render_episode
+
+    ep = Episode("local", TRAIN_SEEDS[41], "night")
+    first, second = (list(render_episode(ep, 3)) for _ in range(2))
+    assert len(first) == 3
+    for (img_a, lab_a), (img_b, lab_b) in zip(first, second, strict=True):
+        assert img_a.tobytes() == img_b.tobytes()
+        np.testing.assert_array_equal(lab_a["left"], lab_b["left"])
+        assert lab_a["meta"] == lab_b["meta"]
