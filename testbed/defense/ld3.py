@@ -12,51 +12,38 @@ is carried along by the MSF's motion since then.
 
 from __future__ import annotations
 
-import logging
+import dataclasses
 
-from testbed.defense.base import Defense, DefenseStatus, Mode
+from testbed.defense.alarmed import Ld3AlarmedDefense
+from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
-from testbed.defense.faults import FaultLog
 from testbed.defense.fusion import SafetyDrivenFusion, pose_on_lane
-from testbed.defense.monitor import LaneConsistencyMonitor
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.perception.detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
-logger = logging.getLogger(__name__)
 
-
-class Ld3Defense(Defense):
+class Ld3Defense(Ld3AlarmedDefense):
     """Detection by MSF/LD deviation consistency; response by in-lane stop on the fused pose."""
 
     name = "ld3"
 
     def __init__(self, config: DefenseConfig) -> None:
-        self.config = config
-        self.faults = FaultLog(logger)
-        self.monitor = LaneConsistencyMonitor(config.b, config.tau, config.existence_threshold, self.faults)
+        super().__init__(config)
         self.fusion = SafetyDrivenFusion(
             config.window, config.lam, config.p_msf, config.p_ld, config.kf_q, config.kf_p0
         )
-        self.detection_time: float | None = None
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
 
     @property
-    def mode(self) -> Mode:
-        return "normal" if self.detection_time is None else "ar"
-
-    @property
-    def stop_decel(self) -> float | None:
-        return None if self.detection_time is None else self.config.ar_decel
+    def response_decel(self) -> float:
+        return self.config.ar_decel
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.detection_time is None:
-            if self.monitor.step(ld, msf, smap):
-                self.detection_time = ld.timestamp
-                s = self.monitor.detector.statistic
-                logger.info("ld3: attack detected at t=%.3f (S=%.3f)", ld.timestamp, s)
+            if self._detect(ld, msf, smap):
                 self._fuse(self.monitor.d_msf, self.monitor.d_ld)
             return
         pair = self.monitor.deviations(ld, msf.pose, smap, self.monitor.ego_lane)
@@ -90,13 +77,7 @@ class Ld3Defense(Defense):
 
     def status(self) -> DefenseStatus:
         step = self.fusion.last
-        return DefenseStatus(
-            detected=self.detection_time is not None,
-            detection_time=self.detection_time,
-            cusum=self.monitor.detector.statistic,
-            d_msf=self.monitor.d_msf,
-            d_ld=self.monitor.d_ld,
-            fused_dev=None if step is None else step.d,
-            kalman_gain_msf=None if step is None else step.gain_msf,
-            kalman_gain_ld=None if step is None else step.gain_ld,
-        )
+        if step is None:
+            return super().status()
+        return dataclasses.replace(super().status(), fused_dev=step.d, kalman_gain_msf=step.gain_msf,
+                                   kalman_gain_ld=step.gain_ld)

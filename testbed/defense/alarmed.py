@@ -1,0 +1,57 @@
+"""LD3's detection front end as a defense: normal until Alg. 1's CUSUM on the MSF/LD deviations (Alg. 3)
+alarms, attack response for good after that. LD3 and NaiveAR share it and differ only in the response."""
+
+from __future__ import annotations
+
+import logging
+from abc import abstractmethod
+
+from testbed.defense.base import Defense, DefenseStatus, Mode
+from testbed.defense.config import DefenseConfig
+from testbed.defense.faults import FaultLog
+from testbed.defense.monitor import LaneConsistencyMonitor
+from testbed.localization.estimate import LocalizationEstimate
+from testbed.perception.detection import LaneDetection
+from tracks.map_api import SemanticMap
+
+logger = logging.getLogger(__name__)
+
+
+class Ld3AlarmedDefense(Defense):
+    """LD3 detection; once alarmed, mode "ar" and a stop at `response_decel`."""
+
+    def __init__(self, config: DefenseConfig) -> None:
+        self.config = config
+        self.faults = FaultLog(logger)
+        self.monitor = LaneConsistencyMonitor(config.b, config.tau, config.existence_threshold, self.faults)
+        self.detection_time: float | None = None
+
+    @property
+    @abstractmethod
+    def response_decel(self) -> float:
+        """Deceleration of the attack-response stop (m/s², > 0)."""
+
+    @property
+    def mode(self) -> Mode:
+        return "normal" if self.detection_time is None else "ar"
+
+    @property
+    def stop_decel(self) -> float | None:
+        return None if self.detection_time is None else self.response_decel
+
+    def _detect(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
+        """One detection update while normal; True on the update that raises the alarm."""
+        if self.detection_time is not None or not self.monitor.step(ld, msf, smap):
+            return False
+        self.detection_time = ld.timestamp
+        logger.info("%s: attack detected at t=%.3f (S=%.3f)", self.name, ld.timestamp, self.monitor.detector.statistic)
+        return True
+
+    def status(self) -> DefenseStatus:
+        return DefenseStatus(
+            detected=self.detection_time is not None,
+            detection_time=self.detection_time,
+            cusum=self.monitor.detector.statistic,
+            d_msf=self.monitor.d_msf,
+            d_ld=self.monitor.d_ld,
+        )
