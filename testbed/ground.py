@@ -73,6 +73,8 @@ class GroundCanvas:
 
     def set_tiles(self, wanted: set[int]) -> None:
         """Make the canvas hold exactly the `wanted` tiles."""
+        if wanted == self.tiles and self.image.size:
+            return  # the streamer asks every frame; the set changes once a tile length
         for i in sorted(self.tiles - wanted):
             self._erase(i)
         self.tiles &= wanted
