@@ -43,9 +43,13 @@ def _stats(values: list[float]) -> str:
     return f"{arr.mean():.2f} ± {arr.std():.2f} (max {arr.max():.2f})"
 
 
-# ---- foundation: lane keeping with the true pose -----------------------------------------------------
+# ---- foundation: lane keeping with the true pose, and on the MSF ---------------------------------------
 LANE_KEEPING = (("slr", 10.0, 60.0), ("slr", 27.0, 60.0), ("urban-straight", 12.0, 60.0),
                 ("urban-curvy", 10.0, 120.0), ("highway", 27.0, 90.0))
+LANE_KEEPING_LIMIT_M = {"slr": 0.10, "urban-straight": 0.10, "urban-curvy": 0.25, "highway": 0.15}
+"""Benign max |physical deviation| the foundation issue asks for with the true pose, per track."""
+MSF_ALLOWANCE_M = 0.05  # what steering on the MSF may add to the true-pose limit (localization issue)
+MSF_SEEDS = range(5)
 
 
 def lane_keeping_runs(detector: str) -> list[CampaignRun]:
@@ -56,6 +60,13 @@ def lane_keeping_runs(detector: str) -> list[CampaignRun]:
                                                    stop_decel=4.0, name="highway-stop")
     runs.append(CampaignRun("highway-27-stop", stop, {"track": "highway", "speed": 27.0}))
     return runs
+
+
+def lane_keeping_msf_runs(detector: str) -> list[CampaignRun]:
+    return [CampaignRun(f"{track}-{speed:g}-seed{seed}", load_scenario(track).with_overrides(
+        speed=speed, duration=duration, detector="none", localization="msf", seed=seed,
+        name=f"{track}-{speed:g}-msf"), {"track": track, "speed": speed, "seed": seed})
+        for track, speed, duration in LANE_KEEPING for seed in MSF_SEEDS]
 
 
 def cruise_speed_error(run_dir: Path, target: float, until: float | None) -> float | None:
@@ -72,13 +83,43 @@ def cruise_speed_error(run_dir: Path, target: float, until: float | None) -> flo
     return float(np.max(np.abs(window[reached[0]:] - target)))
 
 
+def msf_lateral_error(run_dir: Path) -> np.ndarray:
+    """Lateral MSF error along a run, msf_dev − phys_dev (m, lane frame)."""
+    with (run_dir / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    return np.array([float(r["msf_dev"]) - float(r["phys_dev"]) for r in rows if r["msf_dev"] and r["phys_dev"]])
+
+
 def lane_keeping_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
-    lines = ["| run | max abs dev (m) | final dev (m) | cruise speed error max (m/s) | consequence | stop time (s) |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| run | max abs dev (m) | limit (m) | final dev (m) | cruise speed error max (m/s) | consequence "
+             "| stop time (s) |", "|---|---|---|---|---|---|---|"]
     for run, s in done:
         err = cruise_speed_error(out / run.run_id, run.tags["speed"], run.scenario.stop_at)
-        lines.append(f"| {run.run_id} | {_fmt(s['max_abs_dev_m'])} | {_fmt(s['final_dev_m'])} | {_fmt(err)} "
-                     f"| {s['consequence']} | {_fmt(s.get('stop_time_s'))} |")
+        lines.append(f"| {run.run_id} | {_fmt(s['max_abs_dev_m'])} | {LANE_KEEPING_LIMIT_M[run.tags['track']]:.2f} "
+                     f"| {_fmt(s['final_dev_m'])} | {_fmt(err)} | {s['consequence']} "
+                     f"| {_fmt(s.get('stop_time_s'))} |")
+    return "\n".join(lines)
+
+
+def lane_keeping_msf_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    lines = [f"Steering on the MSF; limit = the true-pose limit + {MSF_ALLOWANCE_M:.2f} m. One row per track and "
+             f"speed over seeds {MSF_SEEDS.start}–{MSF_SEEDS.stop - 1}.", "",
+             "| run | seeds | max abs dev per seed (m) | worst (m) | limit (m) | within | MSF lateral error RMS (m) "
+             "| MSF lateral error max (m) | consequences |", "|---|---|---|---|---|---|---|---|---|"]
+    groups: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    for run, s in done:
+        groups.setdefault(f"{run.tags['track']}-{run.tags['speed']:g}", []).append((run, s))
+    for key, items in groups.items():
+        limit = LANE_KEEPING_LIMIT_M[items[0][0].tags["track"]] + MSF_ALLOWANCE_M
+        devs = [s["max_abs_dev_m"] for _, s in items]
+        errs = [msf_lateral_error(out / run.run_id) for run, _ in items]
+        rms = [float(np.sqrt(np.mean(e**2))) for e in errs]
+        worst = max(devs)
+        within = sum(d <= limit for d in devs)
+        cons = sorted({s["consequence"] for _, s in items})
+        lines.append(f"| {key} | {len(items)} | {' / '.join(f'{d:.3f}' for d in devs)} | {worst:.3f} | {limit:.2f} "
+                     f"| {within}/{len(items)} | {max(rms):.3f} (worst seed) "
+                     f"| {max(float(np.abs(e).max()) for e in errs):.3f} | {', '.join(cons)} |")
     return "\n".join(lines)
 
 
@@ -207,6 +248,8 @@ def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
 CAMPAIGNS: dict[str, CampaignSpec] = {
     "lane-keeping": CampaignSpec("benign lane keeping with the true pose, and a 4 m/s² stop from 27 m/s",
                                  lane_keeping_runs, lane_keeping_table),
+    "lane-keeping-msf": CampaignSpec("benign lane keeping steered on the MSF (GNSS + LiDAR locator + IMU), "
+                                     "5 seeds per track", lane_keeping_msf_runs, lane_keeping_msf_table),
     "table4": CampaignSpec("urban-straight 12 m/s, default trace injection, 5 start times × none/naive/LD3",
                            table4_runs, defense_table),
     "fusionripper-ld3": CampaignSpec("FusionRipper through the MSF on local and highway, 10 start times, LD3",

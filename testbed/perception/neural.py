@@ -6,9 +6,11 @@ convolutional backbone keeps 40 columns (8 px each) and widens its lateral view 
 line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax expectation
 over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m) at that
 anchor's distance. A weighted least-squares polynomial through the present anchors is the `LaneDetection`
-cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1); c0 is its
-extrapolation to the reference point. A pooled branch gives the existence logit of each line. For inference
-BatchNorm is folded into the convolutions (`fuse_batchnorm`).
+cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1), with a
+zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 = 0, stay unbiased) that keeps
+a few bad anchors from bending the line; c0 is its extrapolation to the reference point. A pooled branch
+gives the existence logit of each line. For inference BatchNorm is folded into the convolutions
+(`fuse_batchnorm`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ ANCHOR_WEIGHTS = (3.0, 3.0, 2.5, 2.0, 1.5, 1.2, 1.0, 0.8, 0.6, 0.4, 0.3)  # fit 
 FIT_SCALE = 30.0  # m: the fit runs in t = x / FIT_SCALE, which keeps its normal equations well conditioned
 RIDGE = 1e-9  # t-basis ridge on every coefficient: numerical safety only (no visible bias; fit in float64)
 PINNED = 1e3  # t-basis ridge that holds a coefficient at 0 when too few anchors are present to fit it
+ANCHOR_NOISE_M = 0.05  # anchor offset noise (m) at unit anchor weight: scales the prior against the data
+CUBIC_PRIOR_STD = 1e-4  # prior std of c3 (1/m²): c3 = κ'/6, clothoid transitions reach κ' ≈ 6e-4 1/m²
 CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
@@ -114,14 +118,16 @@ _M_PER_PX = torch.tensor(GEOMETRY.scale, dtype=torch.float64)
 
 
 def fit_cubics(y: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
-    """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K); with
-    fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
+    """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K), c3 drawn
+    toward 0 by the road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`)
+    present anchors c3 (and c2) are held at 0."""
     dt = y.dtype
     w = _FIT_W.to(dt) * present
     n = present.sum(-1, keepdim=True)
     small = torch.full_like(n, RIDGE)
+    prior3 = RIDGE + (ANCHOR_NOISE_M / (CUBIC_PRIOR_STD * FIT_SCALE**3)) ** 2
     ridge = torch.cat([small, small, torch.where(n < QUADRATIC_MIN_ANCHORS, PINNED, RIDGE),
-                       torch.where(n < CUBIC_MIN_ANCHORS, PINNED, RIDGE)], dim=-1)
+                       torch.where(n < CUBIC_MIN_ANCHORS, PINNED, prior3)], dim=-1)
     a = torch.einsum("...k,kij->...ij", w, _OUTER.to(dt)) + torch.diag_embed(ridge)
     b = torch.einsum("...k,ki,...k->...i", w, _VANDER.to(dt), y)
     return torch.linalg.solve(a, b.unsqueeze(-1)).squeeze(-1) / _UNSCALE.to(dt)
