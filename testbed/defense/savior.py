@@ -1,9 +1,10 @@
 """SAVIOR baseline (paper §5.1, Appendix C): physical-invariant GNSS spoofing detection.
 
-An EKF over (x, y, ψ, v) predicts with the fitted kinematic bicycle model from the control commands
-(100 Hz) and corrects with the measured wheel speed; on each GNSS fix the residual |GNSS - predicted
-position| feeds a CUSUM(b, τ), and fixes are fused only while no alarm has been raised. The EKF starts
-from the first finite MSF estimate it is handed.
+An EKF over (x, y, ψ, v) predicts with a kinematic bicycle model from the control commands (100 Hz):
+coefficients fitted on benign drives where given (the ROC campaign fits them), else the vanilla model
+with the vehicle's wheelbase (closed-loop runs). It corrects with the measured wheel speed; on each GNSS
+fix the residual |GNSS - predicted position| feeds a CUSUM(b, τ), and fixes are fused only while no alarm
+has been raised. The EKF starts from the first finite MSF estimate it is handed.
 
 Response (the paper compares detection only; this is the testbed's choice): on alarm SAVIOR stops like
 LD3, on the ego-lane centreline at `ar_decel`, and the controller uses SAVIOR's own EKF pose, which from

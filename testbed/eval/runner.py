@@ -22,6 +22,7 @@ from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
+from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
 from testbed.defense.factory import make_defense
 from testbed.direct_chassis import DirectChassis
@@ -115,7 +116,8 @@ class SimRun:
         else:
             self.localization = GroundTruthLocalization()
         self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
-        self.defense = defense if defense is not None else make_defense(sc.defense, self.defense_config)
+        self.defense = defense if defense is not None else make_defense(
+            sc.defense, self.defense_config, bicycle=BicycleCoefficients(wheelbase=self.params.wheelbase))
         dt = 1.0 / rates.control_hz
         self.loop = ControlLoop(
             chassis=self.chassis, localization=self.localization, smap=self.smap, lane=self.lane,

@@ -79,3 +79,18 @@ def test_malformed_toml_is_a_scenario_error(tmp_path):
     bad.write_text("track = [")
     with pytest.raises(ScenarioError):
         load_scenario(str(bad))
+
+
+def test_savior_in_the_loop_models_the_scenario_vehicle():
+    """SAVIOR's bicycle model predicts with the wheelbase of the car it guards, not a generic one."""
+    from testbed.eval.runner import SimRun
+    from vehicles.params import get_vehicle
+
+    for vehicle in ("sedan", "dev-chassis"):
+        sc = load_scenario("parking-lot").with_overrides(vehicle=vehicle, defense="savior", detector="oracle",
+                                                        localization="msf", speed=3.0)
+        sim = SimRun(sc)
+        try:
+            assert sim.defense.model.c.wheelbase == get_vehicle(vehicle).wheelbase
+        finally:
+            sim.close()
