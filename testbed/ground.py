@@ -123,7 +123,8 @@ class GroundCanvas:
             out.append((tex, np.asarray(world, dtype=float), rows))
         return out
 
-    def _texture(self, i: int) -> np.ndarray:
+    def texture(self, i: int) -> np.ndarray:
+        """Tile i's texture as lit on this canvas (cached while the tile is held)."""
         if i not in self._textures:
             # TinyRenderer truncates the lit colour to an integer: the -0.5 offset turns cv2's rounding into that.
             light = np.column_stack([np.diag(self.gain), [-0.5] * 3])
@@ -131,7 +132,7 @@ class GroundCanvas:
         return self._textures[i]
 
     def _paint(self, i: int) -> None:
-        tex = self._texture(i)
+        tex = self.texture(i)
         for tex_quad, world_quad, rows in self._segments[i]:
             self._fill_quad(world_quad, tex[rows], tex_quad - np.array([0.0, rows.start]))
 
