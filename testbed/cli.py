@@ -146,8 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="worker processes")
     p.set_defaults(func=cmd_campaign)
 
-    p = sub.add_parser("bench", help="benchmarks (not tests): loop, render, map, defense")
-    p.add_argument("what", choices=["loop", "render", "map", "defense"])
+    p = sub.add_parser("bench", help="benchmarks (not tests): loop, render, ld (lane detectors), map, defense")
+    p.add_argument("what", choices=["loop", "render", "ld", "map", "defense"])
     p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
     p.add_argument("--detector", default="neural", help="lane detector for `loop` (its camera is rendered anyway)")
     p.add_argument("--ground", default="canvas", choices=["canvas", "mesh"],

@@ -1,6 +1,6 @@
 """Benchmarks (`ld3 bench ...`), not tests: the closed loop's real-time factor and where its time goes,
-semantic-map queries, and the defense's per-update cost. Numbers depend on the machine; they are printed,
-never asserted.
+semantic-map queries, the lane detectors' per-frame latency, and the defense's per-update cost. Numbers
+depend on the machine; they are printed, never asserted.
 """
 
 from __future__ import annotations
@@ -114,11 +114,50 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
     return out
 
 
+def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dict[str, Any]:
+    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one torch thread, over
+    frames freshly rendered from held-out seeds in every condition, each detected `repeats` times."""
+    import numpy as np
+
+    from testbed.camera import CONDITIONS
+    from testbed.perception.classical import ClassicalLaneDetector
+    from testbed.perception.dataset import HELD_OUT_SEEDS, Episode, render_episode
+    from testbed.perception.detection import CameraFrame
+    from testbed.perception.neural import NeuralLaneDetector
+    from vehicles.camera_rig import CameraRig
+    from vehicles.params import get_vehicle
+
+    one_core()
+    eps = [Episode(preset, HELD_OUT_SEEDS[k], cond)
+           for k, (preset, cond) in enumerate(zip(("urban-straight", "highway", "urban-curvy", "local", "slr",
+                                                    "urban-straight"), CONDITIONS, strict=True))]
+    images = [image for ep in eps for image, _ in render_episode(ep, frames_per_episode)]
+    detectors = {"neural": NeuralLaneDetector(threads=1),
+                 "classical": ClassicalLaneDetector(CameraRig(get_vehicle("sedan").camera))}
+    out: dict[str, Any] = {"frames": len(images), "repeats": repeats, "torch_threads": torch.get_num_threads()}
+    for name, det in detectors.items():
+        for image in images[:10]:
+            det.detect(CameraFrame(0.0, image))  # warm-up
+        wall, cpu = [], []
+        for _ in range(repeats):
+            for image in images:
+                t0, c0 = time.perf_counter(), time.thread_time()
+                det.detect(CameraFrame(0.0, image))
+                wall.append(1e3 * (time.perf_counter() - t0))
+                cpu.append(1e3 * (time.thread_time() - c0))
+        out[name] = {"ms_median": round(float(np.median(wall)), 3), "ms_p99": round(float(np.percentile(wall, 99)), 3),
+                     "cpu_ms_median": round(float(np.median(cpu)), 3),
+                     "cpu_ms_p99": round(float(np.percentile(cpu, 99)), 3)}
+    return out
+
+
 def run(what: str, seconds: float = 20.0, detector: str = "neural", ground: str = "canvas") -> dict[str, Any]:
     if what == "loop":
         return bench_loop(seconds, detector=detector, ground=ground)
     if what == "render":
         return bench_render()
+    if what == "ld":
+        return bench_lane_detectors()
     if what == "map":
         from tracks.bench import map_query_benchmark
         from tracks.presets import load_track
