@@ -4,7 +4,6 @@ runs and a table of what the paper reports for it.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
+from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import load_scenario
 
@@ -72,10 +72,8 @@ def lane_keeping_msf_runs(detector: str) -> list[CampaignRun]:
 def cruise_speed_error(run_dir: Path, target: float, until: float | None) -> float | None:
     """Steady-state speed error: max |speed − target| from when the car first came within 0.05 m/s of the
     target until `until` (a planned stop) or the end."""
-    with (run_dir / "trajectory.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    t = np.array([float(r["t"]) for r in rows])
-    speeds = np.array([float(r["speed"]) for r in rows])
+    cols = read_trajectory(run_dir, ("t", "speed"))
+    t, speeds = cols["t"], cols["speed"]
     window = speeds[t < until] if until is not None else speeds
     reached = np.flatnonzero(np.abs(window - target) <= 0.05)
     if reached.size == 0:
@@ -85,9 +83,9 @@ def cruise_speed_error(run_dir: Path, target: float, until: float | None) -> flo
 
 def msf_lateral_error(run_dir: Path) -> np.ndarray:
     """Lateral MSF error along a run, msf_dev − phys_dev (m, lane frame)."""
-    with (run_dir / "trajectory.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    return np.array([float(r["msf_dev"]) - float(r["phys_dev"]) for r in rows if r["msf_dev"] and r["phys_dev"]])
+    cols = read_trajectory(run_dir, ("msf_dev", "phys_dev"))
+    err = cols["msf_dev"] - cols["phys_dev"]
+    return err[np.isfinite(err)]
 
 
 def lane_keeping_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:

@@ -1,13 +1,16 @@
-"""Writers of a run's outputs (DESIGN.md output contract): trajectory.csv and summary.json."""
+"""Writers of a run's outputs (DESIGN.md output contract): trajectory.csv and summary.json; and the reader of
+trajectory.csv's numeric columns that reports and campaign tables use."""
 
 from __future__ import annotations
 
 import csv
 import json
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from testbed.loop import TickRecord
 
@@ -33,6 +36,17 @@ def write_trajectory(path: Path, rows: Iterable[TickRecord]) -> None:
         writer.writerow(TRAJECTORY_COLUMNS)
         for r in rows:
             writer.writerow([_cell(getattr(r, c)) for c in TRAJECTORY_COLUMNS])
+
+
+def read_trajectory(run_dir: Path, columns: Sequence[str]) -> dict[str, np.ndarray]:
+    """Numeric `columns` of `run_dir`/trajectory.csv as float arrays, one value per tick; an empty cell (a
+    value that was None or non-finite when written) reads as NaN."""
+    unknown = [c for c in columns if c not in TRAJECTORY_COLUMNS]
+    if unknown:
+        raise ValueError(f"trajectory.csv has no column(s) {unknown}")
+    with (run_dir / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    return {c: np.array([float(r[c]) if r[c] else math.nan for r in rows]) for c in columns}
 
 
 def _json_safe(value: Any) -> Any:

@@ -4,7 +4,6 @@ of the physical deviation of each run against time.
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +13,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+
+from testbed.eval.outputs import read_trajectory
 
 
 @dataclass(frozen=True)
@@ -34,13 +35,9 @@ def _fmt(v, digits: int = 2) -> str:
 
 
 def _phys_dev(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
-    t, d = [], []
-    with (run_dir / "trajectory.csv").open() as fh:
-        for row in csv.DictReader(fh):
-            if row["phys_dev"]:
-                t.append(float(row["t"]))
-                d.append(float(row["phys_dev"]))
-    return np.array(t), np.array(d)
+    cols = read_trajectory(run_dir, ("t", "phys_dev"))
+    known = np.isfinite(cols["phys_dev"])
+    return cols["t"][known], cols["phys_dev"][known]
 
 
 def plot_deviations(path: Path, rows: Sequence[ReportRow], title: str) -> None:

@@ -10,7 +10,6 @@ sweeps (b, τ) for both detectors (testbed.defense.roc) and draws `roc.png`.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +25,7 @@ from testbed.defense.recorder import DetectionRecorder, load_detection_log
 from testbed.defense.roc import ResidualSeries, RocPoint, ld3_series, replay_savior, roc_auc, roc_frontier, roc_sweep
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.consequence import attack_succeeded
+from testbed.eval.outputs import read_trajectory
 from testbed.eval.scenario import load_scenario
 
 ROC_TRACKS = {"local": 12.0, "highway": 27.0}
@@ -81,9 +81,8 @@ def record_detection_run(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
 
 def _trajectory_log(run_dir: Path) -> np.ndarray:
     """A fit log (columns `LOG_COLUMNS`) from trajectory.csv: true pose, speed and the commands sent."""
-    with (run_dir / "trajectory.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    return np.array([[float(r[c]) for c in LOG_COLUMNS] for r in rows])
+    cols = read_trajectory(run_dir, LOG_COLUMNS)
+    return np.column_stack([cols[c] for c in LOG_COLUMNS])
 
 
 def fit_savior(out: Path, runs: list[CampaignRun], wheelbase: float) -> BicycleCoefficients:
