@@ -3,12 +3,12 @@
 An episode is one preset track at one seed under one condition: the camera is placed at a run of poses
 along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera pitch and height jitter),
 the frame rendered and labelled from the map and the painted textures (`labels.ego_lines`: worn-away paint
-is a missing line). On top of the preset's own look the
-episode randomises asphalt tone, marking brightness, exposure, blur and noise, and erases the paint of
-random lane-line stretches (unmarked edges, gaps, and the one-sided lines of lane splits and merges) so
-missing lines are common; the run of poses starts anywhere along the track (bends, intersections). Track
-seeds for training come from `TRAIN_SEEDS`; `HELD_OUT_SEEDS` is reserved for evaluation, never trained on.
-Shards are `.npz` files: images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
+is a missing line). On top of the preset's own look the episode randomises asphalt tone, marking
+brightness, exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges,
+gaps, and the one-sided lines of lane splits and merges) so missing lines are common; the run of poses
+starts anywhere along the track (bends, intersections). Track seeds for training come from `TRAIN_SEEDS`;
+`HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files:
+images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
 """
 
 from __future__ import annotations
