@@ -9,8 +9,8 @@ anchor's distance. A weighted least-squares polynomial through the present ancho
 cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1), with a
 zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 = 0, stay unbiased) that keeps
 a few bad anchors from bending the line; c0 is its extrapolation to the reference point. A pooled branch
-gives the existence logit of each line. For inference BatchNorm is folded into the convolutions
-(`fuse_batchnorm`).
+gives the existence logit of each line. Inference runs `FrozenLaneNet`: BatchNorm folded into the
+convolutions, the forward pass as plain functional calls.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional as F
 from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
@@ -150,12 +151,35 @@ def fit_matrix(present: bytes) -> np.ndarray:
     return fit_cubics(torch.eye(len(X_ANCHORS), dtype=torch.float64), mask).numpy().T.copy()
 
 
-def fuse_batchnorm(model: LaneNet) -> LaneNet:
-    """Inference copy of `model` (eval mode) with each BatchNorm folded into its convolution: same outputs."""
-    fused = copy.deepcopy(model).eval()
-    for i, (conv, bn, relu) in enumerate(fused.features):
-        fused.features[i] = nn.Sequential(fuse_conv_bn_eval(conv, bn), relu)
-    return fused
+class FrozenLaneNet:
+    """Inference form of a LaneNet: BatchNorm folded into each convolution, forward run as plain functional
+    calls (no module dispatch: about half the per-frame time of the eager module on one thread); same outputs
+    as the eval-mode model."""
+
+    def __init__(self, model: LaneNet) -> None:
+        model = copy.deepcopy(model).eval()
+        with torch.no_grad():
+            self.convs = []
+            for conv, bn, _ in model.features:
+                fused = fuse_conv_bn_eval(conv, bn)
+                self.convs.append((fused.weight.detach(), fused.bias.detach(), fused.stride, fused.padding))
+        self.columns = (model.columns.weight.detach(), model.columns.bias.detach())
+        lin1, lin2 = model.glob[1], model.glob[3]
+        self.glob = (lin1.weight.detach(), lin1.bias.detach(), lin2.weight.detach(), lin2.bias.detach())
+        self.pool_size = model.pool.output_size
+        self.coord = model.coord
+
+    def __call__(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        f = x
+        for weight, bias, stride, padding in self.convs:
+            f = F.conv2d(f, weight, bias, stride, padding).relu_()
+        n, k = x.shape[0], len(X_ANCHORS)
+        flat = torch.cat([f.flatten(1, 2), self.coord.expand(n, 1, N_COLS)], dim=1)
+        cols = F.conv1d(flat, *self.columns).view(n, 2, k, N_COLS)
+        w1, b1, w2, b2 = self.glob
+        g = F.linear(F.linear(F.adaptive_avg_pool2d(f, self.pool_size).flatten(1), w1, b1).relu_(), w2, b2)
+        absent = g[:, : 2 * k].view(n, 2, k, 1)
+        return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
 
 
 def load_model(path: str | Path | None = None) -> LaneNet:
@@ -172,13 +196,13 @@ def load_model(path: str | Path | None = None) -> LaneNet:
 
 
 class NeuralLaneDetector(LaneDetector):
-    """Runs LaneNet (BatchNorm folded) on a frame; a line under 0.5 existence probability or with < 3 present
+    """Runs LaneNet (as `FrozenLaneNet`) on a frame; a line under 0.5 existence probability or with < 3 present
     anchors is None."""
 
     def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
         if threads is not None:
             torch.set_num_threads(threads)
-        self.model = fuse_batchnorm(model if model is not None else load_model())
+        self.model = FrozenLaneNet(model if model is not None else load_model())
 
     @staticmethod
     def valid_image(image: np.ndarray | None) -> bool:

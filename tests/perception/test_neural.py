@@ -12,12 +12,12 @@ from testbed.perception.neural import (
     DEFAULT_WEIGHTS,
     GEOMETRY,
     X_ANCHORS,
+    FrozenLaneNet,
     LaneNet,
     NeuralLaneDetector,
     decode,
     fit_cubics,
     fit_matrix,
-    fuse_batchnorm,
 )
 
 WEIGHTS_SHIPPED = (resources.files("testbed.perception") / "weights" / DEFAULT_WEIGHTS).is_file()
@@ -141,7 +141,7 @@ def test_cached_fit_matrix_matches_the_fit():
         np.testing.assert_allclose(fit_matrix(present.tobytes()) @ y, direct, atol=1e-9)
 
 
-def test_folded_batchnorm_gives_the_same_outputs():
+def test_frozen_model_gives_the_same_outputs():
     torch.manual_seed(1)
     model = LaneNet()
     model.train()
@@ -149,8 +149,7 @@ def test_folded_batchnorm_gives_the_same_outputs():
         for _ in range(3):
             model(torch.randn(8, 3, 56, 160) * 2.0 + 0.5)
     model.eval()
-    fused = fuse_batchnorm(model)
-    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in fused.modules())
+    fused = FrozenLaneNet(model)
     x = torch.randn(2, 3, 56, 160)
     with torch.inference_mode():
         for a, b in zip(model(x), fused(x), strict=True):
