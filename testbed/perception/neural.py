@@ -144,11 +144,23 @@ def decode(cols: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return y, 1.0 - p[..., N_COLS]
 
 
-@functools.lru_cache(maxsize=4096)
-def fit_matrix(present: bytes) -> np.ndarray:
-    """`fit_cubics` as a (4, K) matrix for one presence mask (`K` bools as bytes): cubic = M @ y."""
-    mask = torch.tensor(list(present), dtype=torch.float64)
-    return fit_cubics(torch.eye(len(X_ANCHORS), dtype=torch.float64), mask).numpy().T.copy()
+@functools.cache
+def _fit_matrices() -> np.ndarray:
+    """`fit_cubics` as (4, K) matrices for all 2^K presence masks, indexed by the mask's bits (anchor k = bit k)."""
+    k = len(X_ANCHORS)
+    masks = (np.arange(2**k)[:, None] >> np.arange(k)) & 1
+    eye = torch.eye(k, dtype=torch.float64).expand(2**k, k, k)
+    present = torch.from_numpy(masks).double()[:, None, :].expand(2**k, k, k)
+    return fit_cubics(eye, present).numpy().transpose(0, 2, 1).copy()
+
+
+_MASK_BITS = 1 << np.arange(len(X_ANCHORS))
+
+
+def fit_matrix(present: np.ndarray) -> np.ndarray:
+    """`fit_cubics` as a (4, K) matrix for one presence mask (K bools): cubic = M @ y. All masks are solved once,
+    on first use, so no frame pays for a solve."""
+    return _fit_matrices()[int(_MASK_BITS @ present.astype(np.int64))]
 
 
 class FrozenLaneNet:
@@ -220,7 +232,7 @@ class NeuralLaneDetector(LaneDetector):
             y, present = decode(cols[0])
             probs = torch.sigmoid(exist[0]).double().numpy()
         y64, mask = y.double().numpy(), present.numpy() > 0.5
-        coeffs = np.stack([fit_matrix(mask[i].tobytes()) @ y64[i] for i in range(2)])
+        coeffs = np.stack([fit_matrix(mask[i]) @ y64[i] for i in range(2)])
         return coeffs, probs * (mask.sum(-1) >= 3)
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
