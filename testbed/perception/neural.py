@@ -165,8 +165,8 @@ def fit_matrix(present: np.ndarray) -> np.ndarray:
 
 class FrozenLaneNet:
     """Inference form of a LaneNet: BatchNorm folded into each convolution, forward run as plain functional
-    calls (no module dispatch: about half the per-frame time of the eager module on one thread); same outputs
-    as the eval-mode model."""
+    calls without module dispatch (one thread: 1.20 ms median against 1.50 ms for the folded eager module, measured
+    together at stop 10); same outputs as the eval-mode model."""
 
     def __init__(self, model: LaneNet) -> None:
         model = copy.deepcopy(model).eval()
