@@ -54,6 +54,8 @@ def test_training_runs_a_few_steps(tmp_path):
     trained = load_model(res.checkpoint).state_dict()
     assert not torch.equal(initial["columns.weight"], trained["columns.weight"])
     assert json.loads((tmp_path / "out" / "history.json").read_text())[0]["epoch"] == 0
+    saved = torch.load(res.checkpoint, weights_only=True)["state_dict"]
+    assert all(v.is_contiguous() for v in saved.values())  # trained channels-last, stored NCHW
     det = NeuralLaneDetector(load_model(res.checkpoint))
     ld = det.detect(CameraFrame(0.0, np.zeros((160, 320, 3), np.uint8)))
     assert ld.timestamp == 0.0 and 0.0 <= ld.left_prob <= 1.0 and 0.0 <= ld.right_prob <= 1.0
