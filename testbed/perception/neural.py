@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import functools
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
@@ -71,13 +72,20 @@ class LaneNet(nn.Module):
         self.register_buffer("coord", torch.linspace(-1.0, 1.0, N_COLS)[None, None, :], persistent=False)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        f = self.features(x)
-        n, k = x.shape[0], len(X_ANCHORS)
-        flat = torch.cat([f.flatten(1, 2), self.coord.expand(n, 1, N_COLS)], dim=1)
-        cols = self.columns(flat).view(n, 2, k, N_COLS)
-        g = self.glob(self.pool(f))
-        absent = g[:, : 2 * k].view(n, 2, k, 1)
-        return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
+        return head_outputs(self.features(x), self.coord, self.columns, lambda f: self.glob(self.pool(f)))
+
+
+def head_outputs(f: torch.Tensor, coord: torch.Tensor, columns: Callable[[torch.Tensor], torch.Tensor],
+                 pooled: Callable[[torch.Tensor], torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+    """Backbone features f (N, C, 7, N_COLS) -> the network's outputs, laid out as `decode` reads them: column
+    logits (from `columns` on the flattened rows plus the `coord` row) with each anchor's "absent" logit
+    appended, and the existence logits; `pooled` maps f to the pooled branch's 2K + 2 values."""
+    n, k = f.shape[0], len(X_ANCHORS)
+    flat = torch.cat([f.flatten(1, 2), coord.expand(n, 1, N_COLS)], dim=1)
+    cols = columns(flat).view(n, 2, k, N_COLS)
+    g = pooled(f)
+    absent = g[:, : 2 * k].view(n, 2, k, 1)
+    return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
 
 
 def preprocess(image: np.ndarray) -> np.ndarray:
@@ -185,13 +193,11 @@ class FrozenLaneNet:
         f = x
         for weight, bias, stride, padding in self.convs:
             f = F.conv2d(f, weight, bias, stride, padding).relu_()
-        n, k = x.shape[0], len(X_ANCHORS)
-        flat = torch.cat([f.flatten(1, 2), self.coord.expand(n, 1, N_COLS)], dim=1)
-        cols = F.conv1d(flat, *self.columns).view(n, 2, k, N_COLS)
+        return head_outputs(f, self.coord, lambda flat: F.conv1d(flat, *self.columns), self._pooled)
+
+    def _pooled(self, f: torch.Tensor) -> torch.Tensor:
         w1, b1, w2, b2 = self.glob
-        g = F.linear(F.linear(F.adaptive_avg_pool2d(f, self.pool_size).flatten(1), w1, b1).relu_(), w2, b2)
-        absent = g[:, : 2 * k].view(n, 2, k, 1)
-        return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
+        return F.linear(F.linear(F.adaptive_avg_pool2d(f, self.pool_size).flatten(1), w1, b1).relu_(), w2, b2)
 
 
 def load_model(path: str | Path | None = None) -> LaneNet:
