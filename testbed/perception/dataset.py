@@ -188,21 +188,29 @@ class FrameSet:
         return len(self.images)
 
 
-def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
+def iter_shards(directory: Path, limit: int | None = None) -> Iterator[FrameSet]:
+    """The dataset in `directory` one shard at a time (at most `limit` frames in all): memory stays that of one
+    shard for callers that convert as they go."""
     shards = sorted(Path(directory).glob("shard_*.npz"))
     if not shards:
         raise FileNotFoundError(f"no dataset shards (shard_*.npz) in {directory}")
-    parts: dict[str, list] = {k: [] for k in ("images", *LABEL_KEYS)}
-    meta: list[dict] = []
+    left = limit
     for shard in shards:
+        if left is not None and left <= 0:
+            return
         with np.load(shard) as z:
-            for k in parts:
-                parts[k].append(z[k])
-            meta += [json.loads(m) for m in z["meta"]]
-        if limit is not None and len(meta) >= limit:
-            break
-    cat = {k: np.concatenate(v)[:limit] for k, v in parts.items()}
-    return FrameSet(meta=meta[:limit], **cat)
+            cat = {k: z[k][:left] for k in ("images", *LABEL_KEYS)}
+            meta = [json.loads(m) for m in z["meta"][:left]]
+        if left is not None:
+            left -= len(meta)
+        yield FrameSet(meta=meta, **cat)
+
+
+def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
+    """All shards of the dataset in `directory` (at most `limit` frames) concatenated."""
+    parts = list(iter_shards(directory, limit))
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in ("images", *LABEL_KEYS)}
+    return FrameSet(meta=[m for p in parts for m in p.meta], **cat)
 
 
 def _render_to_shard(job: tuple[Episode, int, Path]) -> int:

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from testbed.perception.dataset import FrameSet, load_frames
+from testbed.perception.dataset import FrameSet, iter_shards, load_frames
 from testbed.perception.neural import (
     ANCHOR_WEIGHTS,
     GEOMETRY,
@@ -61,6 +61,16 @@ class Tensors:
 
     def take(self, idx: torch.Tensor) -> Tensors:
         return Tensors(self.x[idx].float(), self.y[idx], self.cls[idx], self.c0[idx], self.exists[idx])
+
+    @staticmethod
+    def cat(parts: list[Tensors]) -> Tensors:
+        return Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "cls", "c0", "exists")))
+
+
+def load_tensors(directories: list[Path], limit: int | None = None) -> Tensors:
+    """Training tensors of the datasets in `directories` (at most `limit` frames each), converted shard by shard
+    so the raw frames never sit in memory all at once."""
+    return Tensors.cat([to_tensors(shard) for d in directories for shard in iter_shards(d, limit)])
 
 
 def to_tensors(frames: FrameSet) -> Tensors:
@@ -148,9 +158,7 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    frames = [load_frames(d, limit) for d in train_dirs]
-    parts = [to_tensors(f) for f in frames]
-    data = Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "cls", "c0", "exists")))
+    data = load_tensors(train_dirs, limit)
     val = load_frames(val_dir) if val_dir is not None else None
     val_t = to_tensors(val) if val is not None else None
     model = load_model(init).train() if init is not None else LaneNet()

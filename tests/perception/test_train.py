@@ -3,20 +3,20 @@ import json
 import numpy as np
 import torch
 
-from testbed.perception.dataset import LABEL_KEYS, load_frames, write_shard
+from testbed.perception.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
 from testbed.perception.detection import CameraFrame
 from testbed.perception.neural import LaneNet, NeuralLaneDetector, load_model
-from testbed.perception.train import TrainConfig, mirror, to_tensors, train
+from testbed.perception.train import TrainConfig, load_tensors, mirror, to_tensors, train
 
 
-def _tiny_dataset(path, n=12):
+def _tiny_dataset(path, n=12, shard=0):
     path.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(shard)
     images = [rng.integers(0, 255, (160, 320, 3), dtype=np.uint8) for _ in range(n)]
     labels = [{"left": np.array([1.7, 0.05, 1e-3, 0.0]), "right": np.array([-1.8, 0.05, 1e-3, 0.0]),
                "left_exists": True, "right_exists": bool(i % 2), "lane_width": 3.5, "deviation": 0.05,
                "meta": {"condition": "day", "pose": [0.0, 0.0, 0.0]}} for i in range(n)]
-    write_shard(path / "shard_00000.npz", images, labels)
+    write_shard(path / f"shard_{shard:05d}.npz", images, labels)
 
 
 def test_dataset_shards_round_trip(tmp_path):
@@ -25,6 +25,18 @@ def test_dataset_shards_round_trip(tmp_path):
     assert len(frames) == 12 and frames.images.shape == (12, 160, 320, 3)
     assert frames.right_exists.tolist() == [bool(i % 2) for i in range(12)]
     assert set(LABEL_KEYS) <= set(vars(frames))
+
+
+def test_shards_load_one_at_a_time_up_to_the_limit(tmp_path):
+    _tiny_dataset(tmp_path, 5, shard=0)
+    _tiny_dataset(tmp_path, 5, shard=1)
+    assert [len(f) for f in iter_shards(tmp_path)] == [5, 5]
+    assert [len(f) for f in iter_shards(tmp_path, limit=7)] == [5, 2]
+    frames = load_frames(tmp_path, limit=7)
+    assert len(frames) == 7 and len(frames.meta) == 7
+    whole = to_tensors(load_frames(tmp_path, limit=7))
+    by_shard = load_tensors([tmp_path], limit=7)
+    assert all(torch.equal(getattr(whole, k), getattr(by_shard, k)) for k in ("x", "y", "cls", "c0", "exists"))
 
 
 def test_mirror_matches_labels_of_the_mirrored_scene(tmp_path):
