@@ -163,12 +163,23 @@ def _fit_matrices() -> np.ndarray:
 
 
 _MASK_BITS = 1 << np.arange(len(X_ANCHORS))
+MIN_PRESENT_ANCHORS = 3  # a line decoded at fewer present anchors is not output
 
 
-def fit_matrix(present: np.ndarray) -> np.ndarray:
-    """`fit_cubics` as a (4, K) matrix for one presence mask (K bools): cubic = M @ y. All masks are solved once,
-    on first use, so no frame pays for a solve."""
-    return _fit_matrices()[int(_MASK_BITS @ present.astype(np.int64))]
+def fit_matrices(present: np.ndarray) -> np.ndarray:
+    """`fit_cubics` as (…, 4, K) matrices for presence masks (…, K bools): cubic = M @ y. All masks are solved
+    once, on first use, so no frame pays for a solve."""
+    return _fit_matrices()[present.astype(np.int64) @ _MASK_BITS]
+
+
+def lines_from_outputs(cols: torch.Tensor, exist: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """Network outputs for N frames -> cubics (N, 2, 4) through the anchors decoded as present, and existence
+    probabilities (N, 2), 0 for a line with fewer than `MIN_PRESENT_ANCHORS` present anchors."""
+    y, present = decode(cols)
+    mask = present.numpy() > 0.5
+    coeffs = np.einsum("nlck,nlk->nlc", fit_matrices(mask), y.double().numpy())
+    probs = torch.sigmoid(exist.double()).numpy() * (mask.sum(-1) >= MIN_PRESENT_ANCHORS)
+    return coeffs, probs
 
 
 class FrozenLaneNet:
@@ -214,8 +225,8 @@ def load_model(path: str | Path | None = None) -> LaneNet:
 
 
 class NeuralLaneDetector(LaneDetector):
-    """Runs LaneNet (as `FrozenLaneNet`) on a frame; a line under 0.5 existence probability or with < 3 present
-    anchors is None."""
+    """Runs LaneNet (as `FrozenLaneNet`) on a frame; a line under 0.5 existence probability or with fewer than
+    `MIN_PRESENT_ANCHORS` present anchors is None."""
 
     def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
         if threads is not None:
@@ -234,16 +245,16 @@ class NeuralLaneDetector(LaneDetector):
             image = np.clip(image, 0, 255).astype(np.uint8)
         x = torch.from_numpy(preprocess(image))[None]
         with torch.inference_mode():
-            cols, exist = self.model(x)
-            y, present = decode(cols[0])
-            probs = torch.sigmoid(exist[0]).double().numpy()
-        y64, mask = y.double().numpy(), present.numpy() > 0.5
-        coeffs = np.stack([fit_matrix(mask[i]) @ y64[i] for i in range(2)])
-        return coeffs, probs * (mask.sum(-1) >= 3)
+            coeffs, probs = lines_from_outputs(*self.model(x))
+        return coeffs[0], probs[0]
+
+    @staticmethod
+    def detection(t: float, coeffs: np.ndarray, probs: np.ndarray) -> LaneDetection:
+        """The `LaneDetection` of one frame's cubics (2, 4) and probabilities (2,): a line under 0.5 is None."""
+        left, right = (coeffs[i] if probs[i] >= 0.5 else None for i in range(2))
+        return LaneDetection(t, left, right, float(probs[0]), float(probs[1]), (0.0, X_ANCHORS[-1]))
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
         if not self.valid_image(frame.image):
             return LaneDetection.empty(frame.t)
-        coeffs, probs = self.infer(frame.image)
-        left, right = (coeffs[i] if probs[i] >= 0.5 else None for i in range(2))
-        return LaneDetection(frame.t, left, right, float(probs[0]), float(probs[1]), (0.0, X_ANCHORS[-1]))
+        return self.detection(frame.t, *self.infer(frame.image))

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from testbed.defense.ld_deviation import LdDeviation
 from testbed.perception.dataset import FrameSet, iter_shards, load_frames
 from testbed.perception.neural import (
     ANCHOR_WEIGHTS,
@@ -28,8 +29,10 @@ from testbed.perception.neural import (
     N_COLS,
     X_ANCHORS,
     LaneNet,
+    NeuralLaneDetector,
     decode,
     fit_cubics,
+    lines_from_outputs,
     load_model,
     preprocess,
 )
@@ -111,27 +114,21 @@ def loss_fn(cols: torch.Tensor, exist_logits: torch.Tensor, b: Tensors) -> torch
 
 def dev_error(model: LaneNet, data: Tensors, lane_width: np.ndarray,
               deviation: np.ndarray) -> dict[str, float]:
-    """Alg. 3 on the detector output (nearer valid line, map lane width) against the true deviation."""
+    """Alg. 3 (`LdDeviation`, map lane width) on the detector's output against the true deviation, per frame."""
     model.eval()
-    c0s, probs = [], []
+    outputs = []
     with torch.inference_mode():
         for i in range(0, len(data.x), 256):
-            cols, exist = model(data.x[i : i + 256].float())
-            y, present = decode(cols.double())
-            mask = (present > 0.5).double()
-            c0s.append(fit_cubics(y, mask)[..., 0].numpy())
-            probs.append((torch.sigmoid(exist.double()) * (mask.sum(-1) >= 3)).numpy())
-    c0, prob = np.concatenate(c0s), np.concatenate(probs)
-    ok = prob >= 0.5
-    dist = np.where(ok, np.abs(c0), np.inf)
-    use_left = dist[:, 0] <= dist[:, 1]
-    d_ld = np.where(use_left, lane_width / 2 - dist[:, 0], dist[:, 1] - lane_width / 2)
-    has = np.isfinite(dist).any(axis=1)
-    errs = np.abs(d_ld - deviation)[has]
-    if not len(errs):
-        errs = np.asarray([np.nan])
-    acc = float((ok == (data.exists.numpy() > 0.5)).mean())
-    return {"mean_abs_dev_err": float(errs.mean()), "p99_dev_err": float(np.percentile(errs, 99)),
+            outputs.append(lines_from_outputs(*model(data.x[i : i + 256].float())))
+    coeffs, probs = (np.concatenate(part) for part in zip(*outputs, strict=True))
+    errs = []
+    for c, p, lw, dev in zip(coeffs, probs, lane_width, deviation, strict=True):
+        d_ld = LdDeviation(0.5).update(NeuralLaneDetector.detection(0.0, c, p), float(lw))
+        if d_ld is not None:
+            errs.append(abs(d_ld - dev))
+    errs_arr = np.asarray(errs) if errs else np.asarray([np.nan])
+    acc = float(((probs >= 0.5) == (data.exists.numpy() > 0.5)).mean())
+    return {"mean_abs_dev_err": float(errs_arr.mean()), "p99_dev_err": float(np.percentile(errs_arr, 99)),
             "existence_acc": acc}
 
 

@@ -17,7 +17,7 @@ from testbed.perception.neural import (
     NeuralLaneDetector,
     decode,
     fit_cubics,
-    fit_matrix,
+    fit_matrices,
 )
 
 WEIGHTS_SHIPPED = (resources.files("testbed.perception") / "weights" / DEFAULT_WEIGHTS).is_file()
@@ -132,13 +132,12 @@ def test_cubic_term_needs_enough_anchors():
     assert fit_cubics(y, three).numpy()[2:] == pytest.approx([0.0, 0.0], abs=1e-6)
 
 
-def test_cached_fit_matrix_matches_the_fit():
+def test_cached_fit_matrices_match_the_fit():
     rng = np.random.default_rng(7)
-    for _ in range(5):
-        present = rng.random(len(X_ANCHORS)) > 0.3
-        y = rng.normal(0.0, 2.0, len(X_ANCHORS))
-        direct = fit_cubics(torch.tensor(y), torch.tensor(present, dtype=torch.float64)).numpy()
-        np.testing.assert_allclose(fit_matrix(present) @ y, direct, atol=1e-9)
+    present = rng.random((5, 2, len(X_ANCHORS))) > 0.3
+    y = rng.normal(0.0, 2.0, (5, 2, len(X_ANCHORS)))
+    direct = fit_cubics(torch.tensor(y), torch.tensor(present, dtype=torch.float64)).numpy()
+    np.testing.assert_allclose(np.einsum("nlck,nlk->nlc", fit_matrices(present), y), direct, atol=1e-9)
 
 
 def test_frozen_model_gives_the_same_outputs():
