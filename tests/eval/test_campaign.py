@@ -64,3 +64,25 @@ def test_attack_success_is_the_goal_deviation_or_leaving_the_road():
     assert attack_succeeded("local", 0.8, "hit_curb")  # the curb stops the car before the 1.3 m goal
     assert not attack_succeeded("local", 1.2, "stop_with_lane_straddle")
     assert not attack_succeeded("local", None, "reach_destination")
+
+
+def test_benign_table_reports_msf_lateral_error_per_track(tmp_path):
+    from testbed.eval.campaigns import benign_table
+    from testbed.eval.outputs import TRAJECTORY_COLUMNS
+
+    sc = load_scenario("local")
+    done = []
+    for seed, err in ((0, (0.0, 0.1, -0.2)), (1, (0.05, 0.05, 0.05))):
+        run = CampaignRun(f"local-seed{seed}", sc, {"track": "local", "seed": seed})
+        run_dir = tmp_path / run.run_id
+        run_dir.mkdir()
+        rows = [",".join(TRAJECTORY_COLUMNS)]
+        for e in err:  # phys_dev 0.3, msf_dev 0.3 + e: the MSF lateral error is e
+            values = {c: "0" for c in TRAJECTORY_COLUMNS} | {"phys_dev": "0.3", "msf_dev": str(0.3 + e)}
+            rows.append(",".join(values[c] for c in TRAJECTORY_COLUMNS))
+        (run_dir / "trajectory.csv").write_text("\n".join(rows) + "\n")
+        done.append((run, {"detected": False, "max_abs_dev_m": 0.1, "consequence": "reach_destination"}))
+    row = next(line for line in benign_table(done, tmp_path).splitlines() if line.startswith("| local"))
+    cells = [c.strip() for c in row.split("|")]
+    assert cells[5] == "0.129 (worst run)"  # sqrt((0 + 0.01 + 0.04) / 3)
+    assert cells[6] == "0.200"
