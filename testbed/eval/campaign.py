@@ -63,6 +63,8 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progr
             for run_id, _summary, error in tqdm(it, total=len(todo), desc=out.name, disable=not progress):
                 if error is not None:
                     failures.append(f"{run_id}: {error}")
+            pool.close()  # let the workers exit on their own: terminating them leaks their semaphores
+            pool.join()
     if failures:
         (out / "failures.txt").write_text("\n".join(failures))
     done = []
