@@ -17,6 +17,9 @@ EXIT_USAGE = 2
 PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcommands here; testbed imports none
 
 
+DEMO_PATCH = "drp-patch:at=62,offset=-1,width=2,length=30,darkness=0.7,angle=-0.05"
+
+
 class UserError(Exception):
     """An error the user can fix; printed as one line."""
 
@@ -85,6 +88,17 @@ def cmd_tracks(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_patch_figure(args: argparse.Namespace) -> int:
+    from testbed.attacks.spec import attack_spec_to_dict
+    from testbed.eval.drp_figure import drp_before_after
+
+    clean, patched = drp_before_after(args.out, attack_spec_to_dict(args.attack), args.track, args.detector,
+                                      args.ahead)
+    dev = ["none" if v.ld_dev is None else f"{v.ld_dev:+.3f} m" for v in (clean, patched)]
+    print(f"D_LD clean {dev[0]}, with the patch {dev[1]}; wrote {args.out}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from testbed.eval import bench
 
@@ -145,6 +159,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
     p.add_argument("--workers", type=int, default=2, help="worker processes")
     p.set_defaults(func=cmd_campaign)
+
+    p = sub.add_parser("patch-figure", help="before/after camera frames of a dirty-road patch (drp-patch) with the "
+                                            "detected lines and D_LD")
+    p.add_argument("--attack", default=DEMO_PATCH, help=f"drp-patch spec (default: {DEMO_PATCH}, a patch over the "
+                   "right line whose edge the neural detector follows)")
+    p.add_argument("--track", default="urban-straight")
+    p.add_argument("--detector", default="neural", choices=["neural", "classical"])
+    p.add_argument("--ahead", type=float, default=8.0, help="camera distance before the patch (m)")
+    p.add_argument("--out", type=Path, default=Path("runs/drp-patch/before-after.png"))
+    p.set_defaults(func=cmd_patch_figure)
 
     p = sub.add_parser("bench", help="benchmarks (not tests): loop, render, ld (lane detectors), map, defense")
     p.add_argument("what", choices=["loop", "render", "ld", "map", "defense"])

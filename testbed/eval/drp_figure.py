@@ -51,11 +51,13 @@ def _view(track: str, detector: str, attack: dict[str, Any] | None, s: float) ->
         sim.close()
 
 
-def drp_before_after(out: Path, track: str = "urban-straight", detector: str = "neural", at: float = 60.0,
-                     ahead: float = 8.0, **patch: float) -> tuple[PatchView, PatchView]:
-    """Render the clean and the patched road `ahead` m before the patch at arc length `at`; write `out` (PNG)."""
-    attack = {"kind": "drp-patch", "at": at, **patch}
-    s = at - ahead
+def drp_before_after(out: Path, attack: dict[str, Any], track: str = "urban-straight", detector: str = "neural",
+                     ahead: float = 8.0) -> tuple[PatchView, PatchView]:
+    """Render the clean and the patched road `ahead` m before the patch of the `drp-patch` attack table `attack`
+    (as `attack_spec_to_dict` gives it); write `out` (PNG)."""
+    if attack.get("kind") != "drp-patch" or "at" not in attack:
+        raise ValueError(f"the patch figure needs a drp-patch attack with its place `at`, got {attack!r}")
+    s = float(attack["at"]) - ahead
     clean, patched = _view(track, detector, None, s), _view(track, detector, attack, s)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, view, label in ((axes[0], clean, "clean road"), (axes[1], patched, "with the dirty-road patch")):
@@ -66,6 +68,7 @@ def drp_before_after(out: Path, track: str = "urban-straight", detector: str = "
     spec = ", ".join(f"{k}={v:g}" for k, v in attack.items() if k != "kind")
     fig.suptitle(f"drp-patch:{spec} on {track}, {detector} detector, {ahead:g} m before the patch", fontsize=10)
     fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
     plt.close(fig)
     return clean, patched
