@@ -3,8 +3,9 @@
 Per frame, D_LD comes from Alg. 3 (`LdDeviation`, fresh per frame, with the map lane width) and is
 compared with the true physical deviation: mean |error|, p95, p99 (frames where no line is valid count
 under `no_output`). Existence is scored per line: precision and recall of "present" and of "missing".
-Latency is `detect` wall time on one torch thread (median, p99). Writes ld_eval.json, ld_eval.md and a
-PNG grid of frames with detected (green) and true (red) lines drawn over them.
+The same statistics per track preset. Latency is `detect` wall time on one torch thread (median, p99).
+Writes ld_eval.json, ld_eval.md, a PNG grid of frames with detected (green) and true (red) lines drawn over
+them, and a PNG of the error's cumulative distribution per condition.
 """
 
 from __future__ import annotations
@@ -28,17 +29,22 @@ def _ratio(num: int, den: int) -> float | None:
     return num / den if den else None
 
 
-def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray,
+def deviation_errors(detections: list[LaneDetection], frames: FrameSet, existence_threshold: float) -> np.ndarray:
+    """|D_LD − true deviation| per frame (m), D_LD from Alg. 3 fresh per frame; NaN where no line is valid."""
+    errs = np.full(len(frames), np.nan)
+    for i, ld in enumerate(detections):
+        d = LdDeviation(existence_threshold).update(ld, float(frames.lane_width[i]))
+        if d is not None:
+            errs[i] = abs(d - float(frames.deviation[i]))
+    return errs
+
+
+def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray, errors: np.ndarray,
           existence_threshold: float) -> dict[str, float | int | None]:
-    errs, no_output = [], 0
+    """Deviation error statistics (from `errors`) and existence precision/recall over the frames `idx`."""
     tp = fp = fn = tn = 0  # positive = line present
     for i in idx:
         ld = detections[i]
-        d = LdDeviation(existence_threshold).update(ld, float(frames.lane_width[i]))
-        if d is None:
-            no_output += 1
-        else:
-            errs.append(abs(d - float(frames.deviation[i])))
         for coeffs, prob, truth in ((ld.left, ld.left_prob, bool(frames.left_exists[i])),
                                     (ld.right, ld.right_prob, bool(frames.right_exists[i]))):
             said = bool(coeffs is not None and prob >= existence_threshold)
@@ -46,9 +52,10 @@ def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray,
             fp += said and not truth
             fn += (not said) and truth
             tn += (not said) and not truth
-    e = np.asarray(errs)
+    e = errors[idx]
+    e = e[np.isfinite(e)]
     return {
-        "frames": len(idx), "no_output": no_output,
+        "frames": len(idx), "no_output": int(len(idx) - len(e)),
         "mean_abs_err_m": float(e.mean()) if len(e) else None,
         "p95_err_m": float(np.percentile(e, 95)) if len(e) else None,
         "p99_err_m": float(np.percentile(e, 99)) if len(e) else None,
@@ -60,7 +67,8 @@ def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray,
 
 def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: float = 0.5,
              progress: bool = False) -> tuple[dict, list[LaneDetection]]:
-    """Detect on every frame (one torch thread) and score per condition and overall."""
+    """Detect on every frame (one torch thread) and score per condition, per track preset and overall; the
+    report keeps the per-frame errors (`frame_errors_m`, null where no output) for plots."""
     from tqdm import tqdm
 
     torch.set_num_threads(1)
@@ -71,13 +79,17 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
         t0 = time.perf_counter()
         detections.append(detector.detect(frame))
         latency.append(time.perf_counter() - t0)
-    conditions = sorted({m["condition"] for m in frames.meta})
-    cond = np.asarray([m["condition"] for m in frames.meta])
-    per_condition = {c: score(detections, frames, np.flatnonzero(cond == c), existence_threshold)
-                     for c in conditions}
+    errors = deviation_errors(detections, frames, existence_threshold)
+
+    def by(key: str) -> dict[str, dict]:
+        values = np.asarray([m.get(key, "?") for m in frames.meta])
+        return {v: score(detections, frames, np.flatnonzero(values == v), errors, existence_threshold)
+                for v in sorted(set(values.tolist()))}
+
     report: dict = {"detector": type(detector).__name__, "existence_threshold": existence_threshold,
-                    "per_condition": per_condition,
-                    "overall": score(detections, frames, np.arange(len(frames)), existence_threshold)}
+                    "per_condition": by("condition"), "per_preset": by("preset"),
+                    "overall": score(detections, frames, np.arange(len(frames)), errors, existence_threshold),
+                    "frame_errors_m": [None if not np.isfinite(e) else round(float(e), 5) for e in errors]}
     lat = np.asarray(latency) * 1e3
     report["latency_ms"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)),
                             "threads": 1}
@@ -88,22 +100,55 @@ def markdown_table(reports: list[dict]) -> str:
     def f(v: float | None, fmt: str = ".3f") -> str:
         return "-" if v is None else format(v, fmt)
 
-    lines = ["| detector | condition | frames | mean abs err (m) | p95 (m) | p99 (m) | missing P | missing R "
-             "| present P | present R | no output |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for rep in reports:
-        for name, s in [*rep["per_condition"].items(), ("all", rep["overall"])]:
-            lines.append(f"| {rep['detector']} | {name} | {s['frames']} | {f(s['mean_abs_err_m'])} "
-                         f"| {f(s['p95_err_m'])} | {f(s['p99_err_m'])} | {f(s['missing_precision'])} "
-                         f"| {f(s['missing_recall'])} | {f(s['present_precision'])} "
-                         f"| {f(s['present_recall'])} "
-                         f"| {s['no_output']} |")
-    lines.append("")
+    def rows(group: str, header: str) -> list[str]:
+        lines = [f"| detector | {header} | frames | mean abs err (m) | p95 (m) | p99 (m) | missing P | missing R "
+                 "| present P | present R | no output |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for rep in reports:
+            for name, s in [*rep[group].items(), ("all", rep["overall"])]:
+                lines.append(f"| {rep['detector']} | {name} | {s['frames']} | {f(s['mean_abs_err_m'])} "
+                             f"| {f(s['p95_err_m'])} | {f(s['p99_err_m'])} | {f(s['missing_precision'])} "
+                             f"| {f(s['missing_recall'])} | {f(s['present_precision'])} "
+                             f"| {f(s['present_recall'])} | {s['no_output']} |")
+        return lines
+
+    lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), ""]
     for rep in reports:
         lat = rep["latency_ms"]
         lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, "
                      f"p99 {lat['p99']:.2f} ms")
     return "\n".join(lines) + "\n"
+
+
+def error_cdf(reports: list[dict], frames: FrameSet, path: Path, target_m: float = 0.20) -> Path:
+    """PNG: cumulative distribution of |D_LD error| per condition, one panel per detector, the p99 target
+    dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cond = np.asarray([m["condition"] for m in frames.meta])
+    fig, axes = plt.subplots(1, len(reports), figsize=(5.5 * len(reports), 3.8), squeeze=False)
+    for ax, rep in zip(axes[0], reports, strict=True):
+        errors = np.asarray([np.nan if e is None else e for e in rep["frame_errors_m"]], dtype=float)
+        for c in sorted(set(cond.tolist())):
+            e = np.sort(errors[(cond == c) & np.isfinite(errors)])
+            if len(e):
+                ax.plot(e, np.arange(1, len(e) + 1) / len(e), label=c)
+        ax.axvline(target_m, color="k", ls="--", lw=0.8)
+        ax.axhline(0.99, color="k", ls=":", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_xlim(1e-3, 2.0)
+        ax.set_ylim(0.5, 1.0)
+        ax.set_xlabel("|D_LD error| (m)")
+        ax.set_ylabel("fraction of frames")
+        ax.set_title(rep["detector"], fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 def _draw(img: np.ndarray, rig: CameraRig, coeffs: np.ndarray | None, colour: tuple[int, int, int]) -> None:
@@ -147,4 +192,5 @@ def write_report(reports: list[dict], grid_source: tuple[FrameSet, list[LaneDete
     paths["markdown"].write_text(markdown_table(reports))
     if grid_source is not None:
         paths["grid"] = frame_grid(*grid_source, out / "ld_eval_grid.png")
+        paths["cdf"] = error_cdf(reports, grid_source[0], out / "ld_eval_cdf.png")
     return paths

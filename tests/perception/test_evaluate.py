@@ -1,0 +1,52 @@
+"""Scoring of a lane detector against labelled frames: D_LD error per condition and preset, existence P/R, report."""
+
+import json
+
+import numpy as np
+import pytest
+
+from testbed.perception.dataset import load_frames, write_shard
+from testbed.perception.detection import LaneDetection, LaneDetector
+from testbed.perception.evaluate import evaluate, write_report
+from vehicles.camera_rig import CameraRig
+from vehicles.params import get_vehicle
+
+LEFT, RIGHT = np.array([1.6, 0.0, 0.0, 0.0]), np.array([-1.9, 0.0, 0.0, 0.0])  # lane 3.5 m, car 0.15 m left
+
+
+def _frames(tmp_path):
+    images = [np.full((160, 320, 3), 90, np.uint8) for _ in range(4)]
+    metas = [("day", "slr"), ("day", "highway"), ("rain", "slr"), ("rain", "highway")]
+    labels = [{"left": LEFT, "right": RIGHT, "left_exists": True, "right_exists": i != 3, "lane_width": 3.5,
+               "deviation": 0.15, "meta": {"condition": c, "preset": p, "pose": [0.0, 0.0, 0.0]}}
+              for i, (c, p) in enumerate(metas)]
+    tmp_path.mkdir(parents=True)
+    write_shard(tmp_path / "shard_00000.npz", images, labels)
+    return load_frames(tmp_path)
+
+
+class ShiftedLeftLine(LaneDetector):
+    """Test double: the true left line moved 0.1 m outward; the right line reported on frames 0-1 only."""
+
+    def detect(self, frame) -> LaneDetection:
+        right = RIGHT if frame.t < 2 else None
+        return LaneDetection(frame.t, LEFT + np.array([0.1, 0, 0, 0]), right, 0.9, 0.9 if right is not None else 0.1,
+                             (0.0, 30.0))
+
+
+def test_errors_existence_and_report(tmp_path):
+    frames = _frames(tmp_path / "data")
+    report, dets = evaluate(ShiftedLeftLine(), frames)
+    # the left line (1.7 m) is nearer than the right (1.9 m): D_LD = 1.75 - 1.7 = 0.05, truth 0.15
+    assert report["frame_errors_m"] == pytest.approx([0.1] * 4)
+    assert report["overall"]["mean_abs_err_m"] == pytest.approx(0.1)
+    assert set(report["per_condition"]) == {"day", "rain"} and set(report["per_preset"]) == {"slr", "highway"}
+    # right line: said on 0, 1 (true), missing on 2 (wrongly: it exists) and 3 (rightly)
+    rain = report["per_condition"]["rain"]
+    assert rain["missing_lines"] == 1 and rain["missing_recall"] == 1.0 and rain["missing_precision"] == 0.5
+    assert report["per_condition"]["day"]["missing_precision"] is None  # nothing said missing by day
+    paths = write_report([report], (frames, dets, CameraRig(get_vehicle("sedan").camera)), tmp_path / "out")
+    assert {"json", "markdown", "grid", "cdf"} <= set(paths) and all(p.is_file() for p in paths.values())
+    assert json.loads(paths["json"].read_text())[0]["per_preset"]["slr"]["frames"] == 2
+    md = paths["markdown"].read_text()
+    assert "| ShiftedLeftLine | rain | 2 | 0.100 |" in md and "| ShiftedLeftLine | highway | 2 | 0.100 |" in md
