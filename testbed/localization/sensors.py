@@ -79,9 +79,11 @@ class _Schedule:
 
 @dataclass(frozen=True)
 class GnssModel:
-    """GNSS error model parameters (m, s)."""
+    """GNSS error model parameters (m, s). The bias (5 cm per axis) is that of a corrected (RTK-float or PPP)
+    receiver, the grade high-level AD stacks fuse; at 8 cm the benign MSF followed the bias through LiDAR-poor
+    highway stretches to 0.19 m lateral error, beyond what lane keeping on the MSF allows (issue 4)."""
 
-    bias_std: float = 0.08
+    bias_std: float = 0.05
     bias_tau: float = 60.0
     noise_std: float = 0.08
     reported_std: float = 0.4
