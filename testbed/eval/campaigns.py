@@ -278,8 +278,10 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
     if name not in CAMPAIGNS:
         raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
     spec = CAMPAIGNS[name]
-    done = run_campaign(spec.build(detector), out, workers=workers, progress=progress, execute=spec.execute)
+    runs = spec.build(detector)
+    done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute)
+    used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
-    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector `{detector}`.\n\n"
+    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector {used}.\n\n"
                       f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
     return report
