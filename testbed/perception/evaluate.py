@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -29,13 +30,15 @@ def _ratio(num: int, den: int) -> float | None:
     return num / den if den else None
 
 
-def deviation_errors(detections: list[LaneDetection], frames: FrameSet, existence_threshold: float) -> np.ndarray:
-    """|D_LD − true deviation| per frame (m), D_LD from Alg. 3 fresh per frame; NaN where no line is valid."""
-    errs = np.full(len(frames), np.nan)
+def deviation_errors(detections: Sequence[LaneDetection], lane_width: np.ndarray, deviation: np.ndarray,
+                     existence_threshold: float) -> np.ndarray:
+    """|D_LD − true deviation| per frame (m), D_LD from Alg. 3 fresh per frame with the map lane width; NaN where
+    no line is valid."""
+    errs = np.full(len(detections), np.nan)
     for i, ld in enumerate(detections):
-        d = LdDeviation(existence_threshold).update(ld, float(frames.lane_width[i]))
+        d = LdDeviation(existence_threshold).update(ld, float(lane_width[i]))
         if d is not None:
-            errs[i] = abs(d - float(frames.deviation[i]))
+            errs[i] = abs(d - float(deviation[i]))
     return errs
 
 
@@ -79,7 +82,7 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
         t0 = time.perf_counter()
         detections.append(detector.detect(frame))
         latency.append(time.perf_counter() - t0)
-    errors = deviation_errors(detections, frames, existence_threshold)
+    errors = deviation_errors(detections, frames.lane_width, frames.deviation, existence_threshold)
 
     def by(key: str) -> dict[str, dict]:
         values = np.asarray([m.get(key, "?") for m in frames.meta])

@@ -21,8 +21,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from testbed.defense.ld_deviation import LdDeviation
 from testbed.perception.dataset import FrameSet, iter_shards, load_frames
+from testbed.perception.evaluate import deviation_errors
 from testbed.perception.neural import (
     ANCHOR_WEIGHTS,
     GEOMETRY,
@@ -114,19 +114,16 @@ def loss_fn(cols: torch.Tensor, exist_logits: torch.Tensor, b: Tensors) -> torch
 
 def dev_error(model: LaneNet, data: Tensors, lane_width: np.ndarray,
               deviation: np.ndarray) -> dict[str, float]:
-    """Alg. 3 (`LdDeviation`, map lane width) on the detector's output against the true deviation, per frame."""
+    """Alg. 3 on the detector's output against the true deviation (`evaluate.deviation_errors`), per frame."""
     model.eval()
     outputs = []
     with torch.inference_mode():
         for i in range(0, len(data.x), 256):
             outputs.append(lines_from_outputs(*model(data.x[i : i + 256].float())))
     coeffs, probs = (np.concatenate(part) for part in zip(*outputs, strict=True))
-    errs = []
-    for c, p, lw, dev in zip(coeffs, probs, lane_width, deviation, strict=True):
-        d_ld = LdDeviation(0.5).update(NeuralLaneDetector.detection(0.0, c, p), float(lw))
-        if d_ld is not None:
-            errs.append(abs(d_ld - dev))
-    errs_arr = np.asarray(errs) if errs else np.asarray([np.nan])
+    detections = [NeuralLaneDetector.detection(0.0, c, p) for c, p in zip(coeffs, probs, strict=True)]
+    errs = deviation_errors(detections, lane_width, deviation, 0.5)
+    errs_arr = errs[np.isfinite(errs)] if np.isfinite(errs).any() else np.asarray([np.nan])
     acc = float(((probs >= 0.5) == (data.exists.numpy() > 0.5)).mean())
     return {"mean_abs_dev_err": float(errs_arr.mean()), "p99_dev_err": float(np.percentile(errs_arr, 99)),
             "existence_acc": acc}
