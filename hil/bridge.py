@@ -116,7 +116,7 @@ class CanChassisBridge(ChassisPort):
 
     # ------------------------------------------------------------------ public extras
     def time(self) -> float:
-        """Chassis time: plant time in lockstep, wall time since construction in realtime."""
+        """Chassis time: plant time in lockstep; in realtime, wall time from the epoch the last `engage` set."""
         if self.clock is ClockMode.LOCKSTEP:
             return self._t_us / 1e6
         return self._wall_clock() - self._t0
@@ -132,6 +132,9 @@ class CanChassisBridge(ChassisPort):
             False, timeout, lambda: self.follower.mode is DrivingMode.STANDBY and not self._comm_faults()
         )
         self._handshake(True, timeout, lambda: self.follower.mode is DrivingMode.SELF_DRIVING)
+        if self.clock is ClockMode.REALTIME:
+            # the run's clock starts here: pacing from construction would replay set-up time as a burst of steps
+            self._t0 = self._wall_clock() - self._t_us / 1e6
 
     def release(self, timeout: float = 2.0) -> None:
         """Hand control back: release cycles until the VCU reports standby."""

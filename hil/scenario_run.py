@@ -118,8 +118,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     try:
         if recorder is not None:
             link.bridge.add_listener(recorder)
-        link.engage()
         sim = SimRun(sc, chassis=link.bridge, world=link.world)
+        link.engage()  # last before the run: a realtime bridge starts its clock here
         result = sim.run(progress=progress)
     finally:
         link.close()

@@ -95,14 +95,16 @@ def test_lost_commands_surface_timeout_fault_and_standstill_in_state(channel):
     assert state.speed == 0.0 and plant.read().speed == 0.0
 
 
-def test_realtime_clock_drives_and_times_out_on_the_wall_clock(channel):
+def test_realtime_clock_starts_at_engage_drives_and_times_out_on_the_wall_clock(channel):
     ecu_bus, bridge_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
     ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(), clock=ClockMode.REALTIME)
     ecu.start()
     bridge = CanChassisBridge(bridge_bus, clock=ClockMode.REALTIME)
     try:
+        time.sleep(0.4)  # set-up between construction and engage must not be replayed as a burst of steps
         bridge.engage()
         start = time.monotonic()
+        assert bridge.time() < 0.1
         for _ in range(30):
             bridge.send(ChassisCommand(0.0, 2.0))
             bridge.advance(0.01)
