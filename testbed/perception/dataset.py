@@ -150,8 +150,8 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, visibility: Pain
                  condition, rng: np.random.Generator, ep: Episode) -> tuple[np.ndarray, dict]:
     x, y = lane.position(s, float(rng.uniform(-MAX_LATERAL_OFFSET, MAX_LATERAL_OFFSET)))
     pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
-    rig = base_rig.with_jitter(float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)),
-                               float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER)))
+    pitch, height = float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)), float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER))
+    rig = base_rig.with_jitter(pitch, height)
     streamer.update(pose)
     image = sensor_randomise(FrontCamera(streamer, rig, condition, rng).render(pose), rng)
     truth = ego_lines(track, pose, visibility)
@@ -160,7 +160,9 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, visibility: Pain
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,
         "lane_width": truth.width, "deviation": truth.deviation,
         "meta": {"preset": ep.preset, "seed": ep.seed, "condition": ep.condition, "s": round(s, 2),
-                 "lane": truth.lane, "pose": [round(v, 4) for v in pose]},
+                 "lane": truth.lane, "pose": [round(v, 4) for v in pose],
+                 "left_kind": truth.left.kind, "right_kind": truth.right.kind,
+                 "pitch_jitter_deg": round(math.degrees(pitch), 4), "height_jitter_m": round(height, 4)},
     }
     return image, label
 

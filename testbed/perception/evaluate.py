@@ -68,6 +68,13 @@ def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray, er
     }
 
 
+def near_line_kinds(frames: FrameSet) -> list[str]:
+    """Per frame, the marking kind of the true line nearer the car (the one Alg. 3 should use: left when the
+    deviation is >= 0); '?' for datasets rendered before the kinds were recorded."""
+    return [m.get("left_kind" if d >= 0.0 else "right_kind", "?") for m, d in zip(frames.meta, frames.deviation,
+                                                                                   strict=True)]
+
+
 def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: float = 0.5,
              progress: bool = False) -> tuple[dict, list[LaneDetection]]:
     """Detect on every frame (one torch thread) and score per condition, per track preset and overall; the
@@ -84,13 +91,15 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
         latency.append(time.perf_counter() - t0)
     errors = deviation_errors(detections, frames.lane_width, frames.deviation, existence_threshold)
 
-    def by(key: str) -> dict[str, dict]:
-        values = np.asarray([m.get(key, "?") for m in frames.meta])
-        return {v: score(detections, frames, np.flatnonzero(values == v), errors, existence_threshold)
-                for v in sorted(set(values.tolist()))}
+    def by(values: list[str]) -> dict[str, dict]:
+        arr = np.asarray(values)
+        return {v: score(detections, frames, np.flatnonzero(arr == v), errors, existence_threshold)
+                for v in sorted(set(values))}
 
     report: dict = {"detector": type(detector).__name__, "existence_threshold": existence_threshold,
-                    "per_condition": by("condition"), "per_preset": by("preset"),
+                    "per_condition": by([m.get("condition", "?") for m in frames.meta]),
+                    "per_preset": by([m.get("preset", "?") for m in frames.meta]),
+                    "per_near_line": by(near_line_kinds(frames)),
                     "overall": score(detections, frames, np.arange(len(frames)), errors, existence_threshold),
                     "frame_errors_m": [None if not np.isfinite(e) else round(float(e), 5) for e in errors]}
     lat = np.asarray(latency) * 1e3
@@ -114,7 +123,9 @@ def markdown_table(reports: list[dict]) -> str:
                              f"| {f(s['present_recall'])} | {s['no_output']} |")
         return lines
 
-    lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), ""]
+    lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), "",
+             "Per marking of the nearer true line (the one Alg. 3 uses):", "", *rows("per_near_line", "nearer line"),
+             ""]
     for rep in reports:
         lat = rep["latency_ms"]
         lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, "

@@ -3,6 +3,7 @@ import pytest
 
 from testbed.camera import CONDITIONS
 from testbed.perception.dataset import HELD_OUT_SEEDS, TRAIN_SEEDS, episodes, erase_stretches
+from tracks.layout import MARKING_KINDS
 from tracks.presets import PRESETS
 
 
@@ -40,3 +41,6 @@ def test_same_episode_renders_the_same_bytes():
         assert img_a.tobytes() == img_b.tobytes()
         np.testing.assert_array_equal(lab_a["left"], lab_b["left"])
         assert lab_a["meta"] == lab_b["meta"]
+        meta = lab_a["meta"]  # the rig jitter and the line markings are recorded for per-frame analysis
+        assert abs(meta["pitch_jitter_deg"]) <= 0.5 and abs(meta["height_jitter_m"]) <= 0.05
+        assert {meta["left_kind"], meta["right_kind"]} <= set(MARKING_KINDS)

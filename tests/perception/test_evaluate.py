@@ -17,8 +17,10 @@ LEFT, RIGHT = np.array([1.6, 0.0, 0.0, 0.0]), np.array([-1.9, 0.0, 0.0, 0.0])  #
 def _frames(tmp_path):
     images = [np.full((160, 320, 3), 90, np.uint8) for _ in range(4)]
     metas = [("day", "slr"), ("day", "highway"), ("rain", "slr"), ("rain", "highway")]
+    kinds = [{"left_kind": "dashed_white", "right_kind": "solid_white"}] * 2
+    kinds += [{"left_kind": "solid_white", "right_kind": "none"}, {}]
     labels = [{"left": LEFT, "right": RIGHT, "left_exists": True, "right_exists": i != 3, "lane_width": 3.5,
-               "deviation": 0.15, "meta": {"condition": c, "preset": p, "pose": [0.0, 0.0, 0.0]}}
+               "deviation": 0.15, "meta": {"condition": c, "preset": p, "pose": [0.0, 0.0, 0.0], **kinds[i]}}
               for i, (c, p) in enumerate(metas)]
     tmp_path.mkdir(parents=True)
     write_shard(tmp_path / "shard_00000.npz", images, labels)
@@ -41,6 +43,9 @@ def test_errors_existence_and_report(tmp_path):
     assert report["frame_errors_m"] == pytest.approx([0.1] * 4)
     assert report["overall"]["mean_abs_err_m"] == pytest.approx(0.1)
     assert set(report["per_condition"]) == {"day", "rain"} and set(report["per_preset"]) == {"slr", "highway"}
+    # the car is left of centre, so the left line is the nearer one; frame 3 predates recorded kinds
+    near = {k: v["frames"] for k, v in report["per_near_line"].items()}
+    assert near == {"dashed_white": 2, "solid_white": 1, "?": 1}
     # right line: said on 0, 1 (true), missing on 2 (wrongly: it exists) and 3 (rightly)
     rain = report["per_condition"]["rain"]
     assert rain["missing_lines"] == 1 and rain["missing_recall"] == 1.0 and rain["missing_precision"] == 0.5
@@ -50,3 +55,4 @@ def test_errors_existence_and_report(tmp_path):
     assert json.loads(paths["json"].read_text())[0]["per_preset"]["slr"]["frames"] == 2
     md = paths["markdown"].read_text()
     assert "| ShiftedLeftLine | rain | 2 | 0.100 |" in md and "| ShiftedLeftLine | highway | 2 | 0.100 |" in md
+    assert "| ShiftedLeftLine | dashed_white | 2 | 0.100 |" in md
