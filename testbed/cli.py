@@ -37,18 +37,22 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument("--localization", help="truth or msf")
     p.add_argument("--defense", help="ld3, ld3-naive-ar, savior, none")
     p.add_argument("--attack", help="attack spec, e.g. trace:default or fusionripper:d=0.5,f=1.3")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
+                        "speed=10 (repeatable)")
     p.add_argument("--out", type=Path, help="output directory (default runs/<scenario>-<seed>)")
 
 
 def scenario_from_args(args: argparse.Namespace):
     from testbed.attacks.spec import attack_spec_to_dict
-    from testbed.eval.scenario import load_scenario
+    from testbed.eval.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
     attack = attack_spec_to_dict(args.attack) if getattr(args, "attack", None) else None
-    return sc.with_overrides(track=args.track, vehicle=args.vehicle, speed=args.speed, duration=args.duration,
-                             condition=args.condition, seed=args.seed, lane=args.lane, detector=args.detector,
-                             localization=args.localization, defense=args.defense, attack=attack)
+    sc = sc.with_overrides(track=args.track, vehicle=args.vehicle, speed=args.speed, duration=args.duration,
+                           condition=args.condition, seed=args.seed, lane=args.lane, detector=args.detector,
+                           localization=args.localization, defense=args.defense, attack=attack)
+    return apply_settings(sc, getattr(args, "set", []))
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from testbed.attacks.base import Attack, AttackerView
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 from testbed.control.planner import LanePlanner
-from testbed.defense.base import Defense
+from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
@@ -37,7 +37,8 @@ class LoopRates:
 
 @dataclass(frozen=True)
 class TickRecord:
-    """One row of trajectory.csv (DESIGN.md output contract), plus the attack's state."""
+    """One row of trajectory.csv (DESIGN.md output contract), the attack's state, and in attack response
+    the fusion's internals (None outside it, or for a defense without them)."""
 
     t: float
     x: float
@@ -51,8 +52,15 @@ class TickRecord:
     mode: str
     steer: float
     accel: float
+    ld_fresh: int = 0
     attack_stage: str | None = None
     attack_offset: float | None = None
+    fused_dev: float | None = None
+    r_msf: float | None = None
+    r_ld: float | None = None
+    k_msf: float | None = None
+    k_ld: float | None = None
+    heading_used: float | None = None
 
 
 def safe_dev(smap: SemanticMap, pose: Pose, lane: int | None) -> float | None:
@@ -119,7 +127,8 @@ class ControlLoop:
         gnss = getattr(self.localization, "last_gnss", None)
         if gnss is not None:
             self.defense.on_gnss(gnss.t, gnss.xy, gnss.cov)
-        if self.detector is not None and self.ticks % self.rates.camera_every == 0:
+        fresh = self.detector is not None and self.ticks % self.rates.camera_every == 0
+        if fresh:
             self._on_camera_tick(t, state, est, view)
         pose = self.defense.pose_for_control(est, self.smap)
         decel = self.defense.stop_decel
@@ -135,7 +144,7 @@ class ControlLoop:
         self.defense.on_command(t, steer, accel, state.speed)
         self.chassis.advance(self.dt)
         self.ticks += 1
-        return self._record(state, est.pose, steer, accel)
+        return self._record(state, est.pose, steer, accel, fresh)
 
     def _on_camera_tick(self, t: float, state: ChassisState, est, view: AttackerView | None) -> None:
         frame = self.camera(t, state.true_pose) if self.camera is not None else CameraFrame(t, None, state.true_pose)
@@ -155,14 +164,18 @@ class ControlLoop:
         except OffMapError:
             return None
 
-    def _record(self, state: ChassisState, msf_pose: Pose, steer: float, accel: float) -> TickRecord:
+    def _record(self, state: ChassisState, msf_pose: Pose, steer: float, accel: float, fresh: bool) -> TickRecord:
         truth = state.true_pose or msf_pose
         status = self.defense.status()
+        mode = self.defense.mode
         attack_state = self.attack.state() if self.attack is not None else {}
+        ar = status if mode == "ar" else DefenseStatus(detected=False)
         return TickRecord(
             t=state.t, x=truth.x, y=truth.y, yaw=truth.yaw, speed=state.speed,
             phys_dev=safe_dev(self.smap, state.true_pose, self.lane) if state.true_pose is not None else None,
             msf_dev=safe_dev(self.smap, msf_pose, self.lane),
-            ld_dev=self.last_ld_dev, cusum=status.cusum, mode=self.defense.mode, steer=steer, accel=accel,
+            ld_dev=self.last_ld_dev, cusum=status.cusum, mode=mode, steer=steer, accel=accel, ld_fresh=int(fresh),
             attack_stage=attack_state.get("stage"), attack_offset=attack_state.get("offset"),
+            fused_dev=ar.fused_dev, r_msf=ar.r_msf, r_ld=ar.r_ld, k_msf=ar.kalman_gain_msf, k_ld=ar.kalman_gain_ld,
+            heading_used=ar.heading_rel,
         )

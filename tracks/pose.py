@@ -6,6 +6,11 @@ import math
 from typing import NamedTuple
 
 
+def wrap_angle(a: float) -> float:
+    """The angle `a` (rad) wrapped into [-π, π)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
 class Pose(NamedTuple):
     """Vehicle reference point (centre of the footprint on the ground) and heading."""
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from testbed.control.plan import Plan
 from tracks.map_api import OffMapError, SemanticMap
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 AR_DECEL = 4.0  # paper §4.3: Apollo's maximum allowed safe deceleration (m/s²)
 PREVIEW_STEP = 5.0  # m per step when walking the centreline to the preview point
@@ -72,7 +72,7 @@ class LanePlanner:
                 local_curvature=held.local_curvature if held else 0.0,
                 off_map=True,
             )
-        heading_error = (pose.yaw - heading + math.pi) % (2.0 * math.pi) - math.pi
+        heading_error = wrap_angle(pose.yaw - heading)
         self._last = Plan(coord.l, heading_error, preview, target_speed, target_accel, local_curvature)
         return self._last
 

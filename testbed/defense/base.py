@@ -31,8 +31,12 @@ class DefenseStatus:
     d_msf: float | None = None
     d_ld: float | None = None
     fused_dev: float | None = None
+    r_msf: float | None = None
+    r_ld: float | None = None
     kalman_gain_msf: float | None = None
     kalman_gain_ld: float | None = None
+    heading_rel: float | None = None
+    """Heading of the pose handed to control relative to the lane (rad, + left), in attack response."""
 
 
 class Defense(ABC):

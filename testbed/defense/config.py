@@ -4,6 +4,11 @@ Defaults follow the paper where it gives a number: CUSUM b = 0.6, τ = 0.1 (§5.
 4 m/s² (§4.3). The paper gives no window size w or weight λ for Alg. 4; the defaults here (w = 20
 detections, i.e. 1 s of LD at 20 Hz, and λ = 0.8) are this testbed's choice.
 
+LD3's open choices in the attack response: `heading` of the fused pose (Alg. 2 does not say which) and
+`p_source`, where Alg. 4's P^MSF and P^LD come from. `PAPER_MODE` is the paper's system as written
+(MSF heading, constant P); the default heading is the one the ablation campaign shows holds best
+(docs/decisions.md).
+
 NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
 stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,
 `FLAGS_longitudinal_acceleration_lower_bound = -4.5` m/s² (modules/planning/common/planning_gflags.cc).
@@ -17,8 +22,19 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any
 
+HEADINGS = ("msf", "lane", "ld")
+"""Heading of the fused pose: the MSF yaw, the lane heading, or the lane heading corrected by the
+detected lines' slope at x = 0 (clamped to ±heading_clamp)."""
+P_SOURCES = ("constant", "reported")
+"""Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
+_CHOICES: dict[str, tuple[str, ...]] = {"heading": HEADINGS, "p_source": P_SOURCES}
+
 # (check, message) per field; every check takes the already type-checked value.
 _RULES: dict[str, tuple[Any, str]] = {
+    "heading": (lambda v: v in HEADINGS, f"must be one of {HEADINGS}"),
+    "heading_clamp": (lambda v: 0.0 < v <= 0.5, "must lie in (0, 0.5] rad"),
+    "p_source": (lambda v: v in P_SOURCES, f"must be one of {P_SOURCES}"),
+    "r_power": (lambda v: 0.5 <= v <= 4.0, "must lie in [0.5, 4]"),
     "b": (lambda v: v >= 0.0, "must be >= 0"),
     "tau": (lambda v: v >= 0.0, "must be >= 0"),
     "window": (lambda v: v >= 1, "must be an integer >= 1"),
@@ -55,6 +71,14 @@ class DefenseConfig:
     """P^MSF: MSF's own lateral uncertainty fed to Alg. 4 (m²)."""
     p_ld: float = 0.1
     """P^LD: LD's own lateral uncertainty fed to Alg. 4 (m²)."""
+    r_power: float = 1.0
+    """Exponent k on Alg. 4's history term: R = λ f^k + (1 − λ) P (the paper: k = 1)."""
+    p_source: str = "constant"
+    """Where P^MSF and P^LD come from (`P_SOURCES`)."""
+    heading: str = "ld"
+    """Heading of the fused pose in attack response (`HEADINGS`); the paper mode is "msf"."""
+    heading_clamp: float = 0.05
+    """Largest |heading relative to the lane| the "ld" heading takes from the detected lines (rad)."""
     kf_q: float = 0.05
     """Process noise of the 1-D fusion Kalman filter, added on each predict (m²)."""
     kf_p0: float = 1.0
@@ -93,7 +117,15 @@ class DefenseConfig:
         return cls(**values)
 
 
-def _coerce(key: str, raw: Any) -> float | int:
+PAPER_MODE: dict[str, Any] = {"heading": "msf", "p_source": "constant"}
+"""The `[defense]` overrides that give LD3 as the paper specifies it (Alg. 2 with the MSF yaw)."""
+
+
+def _coerce(key: str, raw: Any) -> float | int | str:
+    if key in _CHOICES:
+        if not isinstance(raw, str):
+            raise ValueError(f"[defense] {key} must be one of {_CHOICES[key]}, got {raw!r}")
+        return raw
     if isinstance(raw, bool):
         raise ValueError(f"[defense] {key} must be a number, got a boolean")
     if key == "window":

@@ -28,15 +28,17 @@ class FusionStep(NamedTuple):
 
 
 class SafetyDrivenFusion:
-    """Alg. 2's 1-D Kalman fusion, its state starting on the centreline (d = 0) with variance p0."""
+    """Alg. 2's 1-D Kalman fusion, its state starting on the centreline (d = 0) with variance p0;
+    `power` is the exponent on Alg. 4's history term (1 in the paper)."""
 
-    def __init__(self, window: int, lam: float, p_msf: float, p_ld: float, q: float, p0: float) -> None:
-        self.uncertainty = DeviationUncertainty(window, lam, p_msf, p_ld)
+    def __init__(self, window: int, lam: float, q: float, p0: float, power: float = 1.0) -> None:
+        self.uncertainty = DeviationUncertainty(window, lam, power)
         self.kf = ScalarKalman(0.0, p0, q)
         self.last: FusionStep | None = None
 
-    def update(self, d_msf: float, d_ld: float) -> FusionStep:
-        r_msf, r_ld = self.uncertainty.update(d_msf, d_ld)
+    def update(self, d_msf: float, d_ld: float, p_msf: float, p_ld: float) -> FusionStep:
+        """One Alg. 2 step with the sources' own uncertainties P^MSF, P^LD (m²)."""
+        r_msf, r_ld = self.uncertainty.update(d_msf, d_ld, p_msf, p_ld)
         k_msf = self.kf.update(d_msf, r_msf)
         self.kf.predict()
         k_ld = self.kf.update(d_ld, r_ld)

@@ -2,12 +2,12 @@
 
 Response, once alarmed: the planner stops on the ego-lane centreline at `ar_decel` (mode "ar",
 `stop_decel`), and the controller steers on the safety-driven fusion pose (Alg. 2, Alg. 4): the fused
-deviation placed on the ego lane's centreline point nearest the MSF pose, with the MSF yaw (Alg. 2 does
-not say which heading the fused pose carries; the lane's heading instead was measured worse overall:
-FusionRipper on `local` hit the curb 9/10 instead of straddling 7/10, see the closing notes). The ego lane
-is the one the MSF pose projected onto at the alarm; it stays locked so that a drifting MSF cannot move
-the response into a neighbouring lane. When the map cannot answer for the MSF pose, the last fused pose
-is carried along by the MSF's motion since then.
+deviation placed on the ego lane's centreline point nearest the MSF pose, with the heading the `heading`
+option names (`FusedHeading`; "msf" is the paper mode). Alg. 4's P^MSF / P^LD are the configured
+constants or, with `p_source = "reported"`, the MSF's lateral variance across the lane and the
+detector's c0 variance of the line Alg. 3 used. The ego lane is the one the MSF pose projected onto at
+the alarm; it stays locked so that a drifting MSF cannot move the response into a neighbouring lane.
+When the map cannot answer for the MSF pose, the last fused pose is carried along by the MSF's motion.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import dataclasses
 from testbed.defense.alarmed import Ld3AlarmedDefense
 from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
+from testbed.defense.fused_heading import FusedHeading
 from testbed.defense.fusion import SafetyDrivenFusion, pose_on_lane
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.perception.detection import LaneDetection
@@ -31,9 +32,9 @@ class Ld3Defense(Ld3AlarmedDefense):
 
     def __init__(self, config: DefenseConfig) -> None:
         super().__init__(config)
-        self.fusion = SafetyDrivenFusion(
-            config.window, config.lam, config.p_msf, config.p_ld, config.kf_q, config.kf_p0
-        )
+        self.fusion = SafetyDrivenFusion(config.window, config.lam, config.kf_q, config.kf_p0, config.r_power)
+        self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold)
+        self._p_ld = config.p_ld
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
 
@@ -44,15 +45,34 @@ class Ld3Defense(Ld3AlarmedDefense):
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.detection_time is None:
             if self._detect(ld, msf, smap):
-                self._fuse(self.monitor.d_msf, self.monitor.d_ld)
+                self._respond(ld, msf, smap, (self.monitor.d_msf, self.monitor.d_ld))
             return
-        pair = self.monitor.deviations(ld, msf.pose, smap, self.monitor.ego_lane)
-        if pair is not None:
-            self._fuse(*pair)
+        self._respond(ld, msf, smap, self.monitor.deviations(ld, msf.pose, smap, self.monitor.ego_lane))
 
-    def _fuse(self, d_msf: float | None, d_ld: float | None) -> None:
-        if d_msf is not None and d_ld is not None:
-            self.fusion.update(d_msf, d_ld)
+    def _respond(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap,
+                 pair: tuple[float | None, float | None] | None) -> None:
+        """One AR frame: the heading reading, then Alg. 2 when both deviations could be formed."""
+        try:
+            _, lane_heading = smap.lane_point(msf.pose, self.monitor.ego_lane)
+        except OffMapError:
+            return
+        self.heading.on_detection(ld, msf.pose.yaw, lane_heading)
+        if pair is None or pair[0] is None or pair[1] is None:
+            return
+        p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
+        self.fusion.update(pair[0], pair[1], p_msf, p_ld)
+
+    def _source_uncertainties(self, ld: LaneDetection, msf: LocalizationEstimate,
+                              lane_heading: float) -> tuple[float, float]:
+        """(P^MSF, P^LD): the constants, or what the MSF and the detector report (the last P^LD is kept
+        while Alg. 3 reuses an old D)."""
+        if self.config.p_source == "constant":
+            return self.config.p_msf, self.config.p_ld
+        side = self.monitor.ld_dev.side
+        var = ld.left_var if side == "left" else ld.right_var if side == "right" else None
+        if var is not None and not self.monitor.ld_dev.reused:
+            self._p_ld = var
+        return msf.lateral_variance(lane_heading), self._p_ld
 
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
         step = self.fusion.last
@@ -70,7 +90,7 @@ class Ld3Defense(Ld3AlarmedDefense):
                 return pose
             self._fused_pose = Pose(pose.x + self._fused_offset[0], pose.y + self._fused_offset[1], pose.yaw)
             return self._fused_pose
-        fused = pose_on_lane(point, heading, step.d, pose.yaw)
+        fused = pose_on_lane(point, heading, step.d, self.heading.yaw(pose.yaw, heading))
         self._fused_pose = fused
         self._fused_offset = (fused.x - pose.x, fused.y - pose.y)
         return fused
@@ -79,5 +99,6 @@ class Ld3Defense(Ld3AlarmedDefense):
         step = self.fusion.last
         if step is None:
             return super().status()
-        return dataclasses.replace(super().status(), fused_dev=step.d, kalman_gain_msf=step.gain_msf,
-                                   kalman_gain_ld=step.gain_ld)
+        return dataclasses.replace(super().status(), fused_dev=step.d, r_msf=step.r_msf, r_ld=step.r_ld,
+                                   kalman_gain_msf=step.gain_msf, kalman_gain_ld=step.gain_ld,
+                                   heading_rel=self.heading.relative)

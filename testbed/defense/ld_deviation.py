@@ -33,6 +33,8 @@ class LdDeviation:
         self.last: float | None = None
         self.reused = False
         """True when the last update found no valid line and returned the previous D."""
+        self.side: str | None = None
+        """The line the last computed D came from: "left" or "right" (kept while D is reused)."""
 
     def update(self, ld: LaneDetection, lane_width: float) -> float | None:
         """D_LD for this detection (m, + left); the last D when no line is valid; None if there is none."""
@@ -40,9 +42,9 @@ class LdDeviation:
         d_right = line_distance(ld.right, ld.right_prob, self.existence_threshold)
         self.reused = False
         if math.isfinite(d_left) and d_left <= d_right:
-            self.last = lane_width / 2.0 - d_left
+            self.last, self.side = lane_width / 2.0 - d_left, "left"
         elif math.isfinite(d_right):
-            self.last = d_right - lane_width / 2.0
+            self.last, self.side = d_right - lane_width / 2.0, "right"
         else:
             self.reused = True
         return self.last
@@ -50,3 +52,4 @@ class LdDeviation:
     def reset(self) -> None:
         """Forget the last D (it is stale after a zone without lane markings)."""
         self.last = None
+        self.side = None

@@ -14,8 +14,9 @@ import numpy as np
 
 from testbed.loop import TickRecord
 
-TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "cusum", "mode", "steer",
-                      "accel", "attack_stage", "attack_offset")
+TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "ld_fresh", "cusum", "mode",
+                      "steer", "accel", "attack_stage", "attack_offset", "fused_dev", "r_msf", "r_ld", "k_msf",
+                      "k_ld", "heading_used")
 SUMMARY_KEYS = ("scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
                 "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
                 "final_dev_m", "consequence", "detected", "detection_time_s", "detection_dev_m", "ar_max_dev_m",

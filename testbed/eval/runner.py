@@ -6,6 +6,7 @@ localization, attack, detector), so the same scenario and seed give byte-identic
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -116,6 +117,10 @@ class SimRun:
         else:
             self.localization = GroundTruthLocalization()
         self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
+        if (sc.defense == "ld3" and self.defense_config.p_source == "reported" and self.detector is not None
+                and not self.detector.reports_variance):
+            raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
+                                f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
         self.defense = defense if defense is not None else make_defense(
             sc.defense, self.defense_config, bicycle=BicycleCoefficients(wheelbase=self.params.wheelbase))
         dt = 1.0 / rates.control_hz
@@ -206,7 +211,8 @@ class SimRun:
         return {
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
-            "defense": sc.defense, "condition": sc.condition, "detector": sc.detector,
+            "defense": sc.defense, "defense_params": dataclasses.asdict(self.defense_config),
+            "condition": sc.condition, "detector": sc.detector,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,

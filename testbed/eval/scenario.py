@@ -86,6 +86,47 @@ def scenario_from_dict(data: dict[str, Any], name: str) -> Scenario:
     return validate(sc)
 
 
+def _toml_value(raw: str) -> Any:
+    """A `--set` value as TOML reads it (numbers, booleans, quoted strings); anything else as a bare string."""
+    try:
+        return tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        return raw
+
+
+def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
+    """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
+    name), `attack.start=12` (the [attack] table), or a top-level key such as `speed=10`."""
+    top: dict[str, Any] = {}
+    defense, params = sc.defense, dict(sc.defense_params)
+    attack = dict(sc.attack) if sc.attack else None
+    for item in settings:
+        key, eq, raw = item.partition("=")
+        key = key.strip()
+        _check(bool(eq) and bool(key), f"--set {item!r}: expected KEY=VALUE, e.g. defense.b=0.45")
+        value = _toml_value(raw.strip())
+        section, dot, name = key.partition(".")
+        if not dot:
+            _check(key in _TOP_KEYS and key not in ("defense", "attack"),
+                   f"--set {item!r}: unknown scenario key {key!r}; known: {sorted(_TOP_KEYS - {'defense', 'attack'})}")
+            top[key] = value
+        elif section == "defense":
+            if name == "kind":
+                defense = value
+            else:
+                params[name] = value
+        elif section == "attack":
+            _check(attack is not None, f"--set {item!r}: the scenario has no attack; add one with --attack KIND")
+            attack[name] = value
+        else:
+            raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, attack.KEY or KEY")
+    try:
+        changed = dataclasses.replace(sc, defense=defense, defense_params=params, attack=attack, **top)
+    except TypeError as exc:
+        raise ScenarioError(f"--set: {exc}") from None
+    return validate(changed)
+
+
 def shipped_scenarios() -> list[str]:
     root = resources.files("testbed.eval") / "scenarios"
     return sorted(p.name.removesuffix(".toml") for p in root.iterdir() if p.name.endswith(".toml"))

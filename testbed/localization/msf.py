@@ -24,15 +24,11 @@ from scipy.stats import chi2
 
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix, ImuSample, LidarFix
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 _N = 7
 _H_GNSS = np.hstack([np.eye(2), np.zeros((2, _N - 2))])
 _H_LIDAR = np.hstack([np.eye(3), np.zeros((3, _N - 3))])
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)
@@ -96,7 +92,7 @@ class MultiSensorFusion:
         self.nominal[:4] = (
             x + (v * c - vl * s) * dt,
             y + (v * s + vl * c) * dt,
-            _wrap(yaw + omega * dt),
+            wrap_angle(yaw + omega * dt),
             v + (imu.accel_long - ba) * dt,
         )
         f = np.eye(_N)
@@ -142,7 +138,7 @@ class MultiSensorFusion:
     def _inject(self) -> None:
         dx = self.kf.x
         self.nominal += dx
-        self.nominal[2] = _wrap(self.nominal[2])
+        self.nominal[2] = wrap_angle(self.nominal[2])
         self.kf.x = np.zeros(_N)
 
     def update_gnss(self, fix: GnssFix) -> bool:
@@ -152,7 +148,7 @@ class MultiSensorFusion:
 
     def update_lidar(self, fix: LidarFix) -> bool:
         """Fuse a LiDAR-locator pose; returns False when the innovation gate rejects it."""
-        z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], _wrap(fix.yaw - self.nominal[2])])
+        z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], wrap_angle(fix.yaw - self.nominal[2])])
         return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float), _H_LIDAR)
 
     @property

@@ -23,11 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracks.pose import Pose
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+from tracks.pose import Pose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -209,9 +205,9 @@ class LidarLocator:
         rep = m.reported_std_rich + (m.reported_std_poor - m.reported_std_rich) * poor
         rep += m.lost_reported_std * (1.0 - captured)
         xy = np.array([true_pose.x, true_pose.y]) + (1.0 - pull) * offset + std * self.rng.normal(size=2)
-        yaw = true_pose.yaw + (1.0 - pull) * _wrap(prior.yaw - true_pose.yaw) + yaw_std * self.rng.normal()
+        yaw = true_pose.yaw + (1.0 - pull) * wrap_angle(prior.yaw - true_pose.yaw) + yaw_std * self.rng.normal()
         cov = np.diag([rep * rep, rep * rep, (2.0 * yaw_std) ** 2])
-        return LidarFix(t, xy, _wrap(yaw), cov)
+        return LidarFix(t, xy, wrap_angle(yaw), cov)
 
 
 @dataclass(frozen=True)

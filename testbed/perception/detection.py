@@ -2,6 +2,7 @@
 
 Coefficients are in ascending powers, y = c0 + c1 x + c2 x² + c3 x³, so `|c0|` is the distance from
 the vehicle reference point to that line (paper Fig. 13, Alg. 3). The left line has y > 0.
+`left_var` / `right_var` are the variances of c0 (m²) where the detector reports its own uncertainty.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ class LaneDetection:
     left_prob: float
     right_prob: float
     x_range: tuple[float, float]
+    left_var: float | None = None
+    right_var: float | None = None
 
     @staticmethod
     def empty(timestamp: float) -> LaneDetection:
@@ -39,6 +42,9 @@ class CameraFrame:
 
 class LaneDetector(ABC):
     """Reads a camera frame, returns the ego lane lines. Bad frames give an empty detection, never a crash."""
+
+    reports_variance: bool = False
+    """True when every detection carries `left_var` / `right_var` for its present lines."""
 
     @abstractmethod
     def detect(self, frame: CameraFrame) -> LaneDetection: ...

@@ -12,9 +12,15 @@ from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetecto
 from testbed.perception.labels import X_MAX, LineTruth, ego_lines
 from tracks.map_api import OffMapError
 
+MIN_VAR = 1e-4
+"""Smallest c0 variance the oracle reports (m²): (1 cm)², its map sampling."""
+
 
 class OracleLaneDetector(LaneDetector):
-    """Ground-truth detector for trace-style runs and as the reference of the other detectors."""
+    """Ground-truth detector for trace-style runs and as the reference of the other detectors; it reports
+    its c0 variance as noise_std² (at least `MIN_VAR`)."""
+
+    reports_variance = True
 
     def __init__(self, track, rng: np.random.Generator, noise_std: float = 0.0, dropout: float = 0.0) -> None:
         if noise_std < 0.0 or not 0.0 <= dropout <= 1.0:
@@ -43,4 +49,6 @@ class OracleLaneDetector(LaneDetector):
             return LaneDetection.empty(frame.t)
         left, left_prob = self._observe(truth.left)
         right, right_prob = self._observe(truth.right)
-        return LaneDetection(frame.t, left, right, left_prob, right_prob, (0.0, X_MAX))
+        var = max(self.noise_std**2, MIN_VAR)
+        return LaneDetection(frame.t, left, right, left_prob, right_prob, (0.0, X_MAX),
+                             var if left is not None else None, var if right is not None else None)

@@ -1,0 +1,61 @@
+"""Heading of LD3's fused pose in attack response (`[defense] heading`; Alg. 2 leaves it open).
+
+- "msf": the MSF yaw (the paper mode; FusionRipper biases it, and the controller aligns that bias).
+- "lane": the lane heading at the MSF pose's centreline point (the car is assumed parallel to the lane).
+- "ld": the lane heading plus the vehicle's heading relative to the lane read off the detected lines,
+  ψ = −atan(c1) averaged over the valid lines, clamped to ±clamp (a bound on what a road patch that bends
+  the lines can steer). Between detections ψ follows the change of the MSF yaw relative to the lane,
+  which over 50 ms is the gyro's doing, not the attacker's.
+"""
+
+from __future__ import annotations
+
+import math
+
+from testbed.defense.ld_deviation import line_distance
+from testbed.perception.detection import LaneDetection
+from tracks.pose import wrap_angle
+
+
+def line_relative_heading(ld: LaneDetection, existence_threshold: float) -> float | None:
+    """Vehicle heading relative to the lane from the valid lines' slopes at x = 0 (rad, + left), or None."""
+    slopes = [float(c[1]) for c, p in ((ld.left, ld.left_prob), (ld.right, ld.right_prob))
+              if math.isfinite(line_distance(c, p, existence_threshold)) and len(c) > 1 and math.isfinite(c[1])]
+    if not slopes:
+        return None
+    return -math.atan(sum(slopes) / len(slopes))
+
+
+class FusedHeading:
+    """The fused pose's yaw for one heading source; `relative` is its last heading relative to the lane."""
+
+    def __init__(self, source: str, clamp: float, existence_threshold: float) -> None:
+        self.source = source
+        self.clamp = clamp
+        self.existence_threshold = existence_threshold
+        self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then
+        self.relative: float | None = None
+
+    def on_detection(self, ld: LaneDetection, msf_yaw: float, lane_heading: float) -> None:
+        """Read ψ off a new detection ("ld" only); a detection without a valid line keeps the last ψ."""
+        if self.source != "ld":
+            return
+        psi = line_relative_heading(ld, self.existence_threshold)
+        if psi is not None:
+            self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
+
+    def yaw(self, msf_yaw: float, lane_heading: float) -> float:
+        """The fused pose's yaw at the current MSF yaw and lane heading."""
+        if self.source == "msf":
+            yaw = msf_yaw
+        elif self.source == "lane" or self._ld_ref is None:
+            yaw = lane_heading
+        else:
+            psi_ld, msf_rel_then = self._ld_ref
+            psi = self._clamped(psi_ld + wrap_angle(wrap_angle(msf_yaw - lane_heading) - msf_rel_then))
+            yaw = lane_heading + psi
+        self.relative = wrap_angle(yaw - lane_heading)
+        return yaw
+
+    def _clamped(self, psi: float) -> float:
+        return min(max(psi, -self.clamp), self.clamp)
