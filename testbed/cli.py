@@ -127,7 +127,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             print(f"{name:18s} {spec.description}")
         return 0
     out = args.out or Path("runs") / f"campaign-{args.name}"
-    report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty())
+    report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty(),
+                       select=args.runs)
     print(report.read_text())
     print(f"report: {report}")
     return 0
@@ -162,6 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output directory (default runs/campaign-NAME); reruns resume")
     p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
     p.add_argument("--workers", type=int, default=2, help="worker processes")
+    p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB, e.g. 'local@101-*'")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("patch-figure", help="before/after camera frames of a dirty-road patch (drp-patch) with the "

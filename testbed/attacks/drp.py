@@ -3,8 +3,10 @@
 `DrpTrace` injects a lateral deviation into the lane detector's output: from `start` the detected lines
 shift so that the LD deviation moves by `shift` (m, + left), ramping in over `ramp` seconds and lasting
 `duration` seconds (the car drives over the patch). Shifting the ego-lane centre right by s makes the car
-appear s further left, so both lines' c0 move by −s. `DrpPatch` paints a physical dirty-road patch into the
-road texture, which the camera sees and the detector reacts to on its own.
+appear s further left, so both lines' c0 move by −s. `DrpBend` does the same and also rotates the detected
+lines by `bend` (rad, + left) with the same ramp, so that a response steering by the lines' slope is steered
+by it. `DrpPatch` paints a physical dirty-road patch into the road texture, which the camera sees and the
+detector reacts to on its own.
 """
 
 from __future__ import annotations
@@ -42,16 +44,21 @@ class DrpTrace(Attack):
 
     def injected(self, t: float) -> float:
         """LD deviation added at time t (m, + left)."""
+        return self.shift * self.ramp_fraction(t)
+
+    def ramp_fraction(self, t: float) -> float:
+        """Trapezoid profile in [0, 1]: 0 outside the attack, ramping to 1 over `ramp` seconds."""
         tau = t - self.start_time
         if tau < 0 or tau > self.duration:
             return 0.0
-        return self.shift * (1.0 if self.ramp == 0 else min(1.0, tau / self.ramp))
+        return 1.0 if self.ramp == 0 else min(1.0, tau / self.ramp)
 
     def tamper_ld(self, ld: LaneDetection, view: AttackerView) -> LaneDetection:
         tau = view.t - self.start_time
         self.stage = IDLE if tau < 0 else (ACTIVE if tau <= self.duration else OVER)
         self.offset = self.injected(view.t)
-        if self.offset == 0.0:
+        slope = self._slope(view.t)
+        if self.offset == 0.0 and slope == 0.0:
             return ld
 
         def moved(c):
@@ -59,9 +66,15 @@ class DrpTrace(Attack):
                 return None
             c = c.copy()
             c[0] -= self.offset
+            if len(c) > 1:
+                c[1] += slope
             return c
 
         return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+
+    def _slope(self, t: float) -> float:
+        """Added to the lines' c1 at time t (none for a pure deviation trace)."""
+        return 0.0
 
     def state(self) -> dict[str, Any]:
         return {"stage": self.stage, "switch_time": None, "offset": self.offset}
@@ -74,6 +87,26 @@ class DrpTrace(Attack):
             "ramp": self.ramp,
             "duration": self.duration,
         }
+
+
+class DrpBend(DrpTrace):
+    """`DrpTrace` plus a rotation of the detected lines by `bend` (rad, + left), ramped alike: the shift
+    raises the alarm, the bend then acts on a response that takes its heading from the lines."""
+
+    name = "drp-bend"
+
+    def __init__(self, start: float = 10.0, shift: float = 0.7, bend: float = -0.1, ramp: float = 1.0,
+                 duration: float = 10.0) -> None:
+        super().__init__(start, shift, ramp, duration)
+        _check(math.isfinite(bend) and 0.0 < abs(bend) < math.pi / 4,
+               f"drp-bend bend must be a non-zero angle below pi/4 rad, got {bend}")
+        self.bend = bend
+
+    def _slope(self, t: float) -> float:
+        return math.tan(self.bend * self.ramp_fraction(t))
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "bend": self.bend}
 
 
 class DrpPatch(Attack):

@@ -6,6 +6,7 @@ name or CSV path (`trace:default`, `trace:runs/t.csv,start=5`). Kinds and parame
   trace         trace (name|path) start scale
   stealthy      start margin direction b tau ld_std   (b, tau, ld_std default to the defense's knowledge)
   drp-trace     start shift ramp duration
+  drp-bend      start shift bend ramp duration   (bend: rotation of the detected lines, rad, + left)
   drp-patch     at length width offset angle darkness
 Every problem raises ValueError with a one-line message.
 """
@@ -19,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack
-from testbed.attacks.drp import DrpPatch, DrpTrace
+from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
 from testbed.attacks.fusionripper import FusionRipper
 from testbed.attacks.stealthy import CusumKnowledge, StealthyAttack
 from testbed.attacks.trace import Trace, TraceInjection
@@ -30,6 +31,7 @@ _PARAMS: dict[str, tuple[str, ...]] = {
     "trace": ("trace", "start", "scale"),
     "stealthy": ("start", "margin", "direction", "b", "tau", "ld_std"),
     "drp-trace": ("start", "shift", "ramp", "duration"),
+    "drp-bend": ("start", "shift", "bend", "ramp", "duration"),
     "drp-patch": ("at", "length", "width", "offset", "angle", "darkness"),
 }
 _REQUIRED = {"drp-patch": ("at",)}
@@ -57,6 +59,7 @@ _BUILD: dict[str, Callable[[dict[str, Any], np.random.Generator | None, Any], At
     "trace": lambda p, _, __: TraceInjection(_resolve_trace(p.pop("trace", "default")), **p),
     "stealthy": lambda p, _, defense: _stealthy(p, defense),
     "drp-trace": lambda p, _, __: DrpTrace(**p),
+    "drp-bend": lambda p, _, __: DrpBend(**p),
     "drp-patch": lambda p, _, __: DrpPatch(**p),
 }
 

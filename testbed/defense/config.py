@@ -22,9 +22,10 @@ import math
 from dataclasses import dataclass, fields
 from typing import Any
 
-HEADINGS = ("msf", "lane", "ld")
+HEADINGS = ("msf", "lane", "ld", "fused")
 """Heading of the fused pose: the MSF yaw, the lane heading, or the lane heading corrected by the
-detected lines' slope at x = 0 (clamped to ±heading_clamp)."""
+detected lines' slope at x = 0 (clamped to ±heading_clamp), or the mean of the MSF's and the lines' weighed
+by the fusion's uncertainties (testbed.defense.fused_heading)."""
 P_SOURCES = ("constant", "reported")
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
 _CHOICES: dict[str, tuple[str, ...]] = {"heading": HEADINGS, "p_source": P_SOURCES}

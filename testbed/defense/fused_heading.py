@@ -6,6 +6,9 @@
   ψ = −atan(c1) averaged over the valid lines, clamped to ±clamp (a bound on what a road patch that bends
   the lines can steer). Between detections ψ follows the change of the MSF yaw relative to the lane,
   which over 50 ms is the gyro's doing, not the attacker's.
+- "fused": the safety-driven mean of the two relative headings, ψ = (ψ_MSF / R_MSF + ψ_LD / R_LD) /
+  (1 / R_MSF + 1 / R_LD) with Alg. 4's uncertainties of the last fusion step, so the heading follows the
+  source the deviation fusion trusts.
 """
 
 from __future__ import annotations
@@ -34,15 +37,21 @@ class FusedHeading:
         self.clamp = clamp
         self.existence_threshold = existence_threshold
         self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then
+        self._ld_weight = 1.0
         self.relative: float | None = None
 
-    def on_detection(self, ld: LaneDetection, msf_yaw: float, lane_heading: float) -> None:
-        """Read ψ off a new detection ("ld" only); a detection without a valid line keeps the last ψ."""
-        if self.source != "ld":
+    def on_detection(self, ld: LaneDetection, msf_yaw: float, lane_heading: float,
+                     uncertainties: tuple[float, float] | None = None) -> None:
+        """Read ψ off a new detection ("ld", "fused"); a detection without a valid line keeps the last ψ.
+        `uncertainties` = (R_MSF, R_LD) of the fusion step, which "fused" weighs the headings by."""
+        if self.source not in ("ld", "fused"):
             return
         psi = line_relative_heading(ld, self.existence_threshold)
         if psi is not None:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
+        if self.source == "fused" and uncertainties is not None:
+            r_msf, r_ld = uncertainties
+            self._ld_weight = r_msf / (r_msf + r_ld)
 
     def yaw(self, msf_yaw: float, lane_heading: float) -> float:
         """The fused pose's yaw at the current MSF yaw and lane heading."""
@@ -52,8 +61,9 @@ class FusedHeading:
             yaw = lane_heading
         else:
             psi_ld, msf_rel_then = self._ld_ref
-            psi = self._clamped(psi_ld + wrap_angle(wrap_angle(msf_yaw - lane_heading) - msf_rel_then))
-            yaw = lane_heading + psi
+            msf_rel = wrap_angle(msf_yaw - lane_heading)
+            psi = self._clamped(psi_ld + wrap_angle(msf_rel - msf_rel_then))
+            yaw = lane_heading + self._ld_weight * psi + (1.0 - self._ld_weight) * msf_rel
         self.relative = wrap_angle(yaw - lane_heading)
         return yaw
 

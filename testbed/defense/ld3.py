@@ -56,11 +56,11 @@ class Ld3Defense(Ld3AlarmedDefense):
             _, lane_heading = smap.lane_point(msf.pose, self.monitor.ego_lane)
         except OffMapError:
             return
-        self.heading.on_detection(ld, msf.pose.yaw, lane_heading)
-        if pair is None or pair[0] is None or pair[1] is None:
-            return
-        p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
-        self.fusion.update(pair[0], pair[1], p_msf, p_ld)
+        if pair is not None and pair[0] is not None and pair[1] is not None:
+            p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
+            self.fusion.update(pair[0], pair[1], p_msf, p_ld)
+        step = self.fusion.last
+        self.heading.on_detection(ld, msf.pose.yaw, lane_heading, (step.r_msf, step.r_ld) if step else None)
 
     def _source_uncertainties(self, ld: LaneDetection, msf: LocalizationEstimate,
                               lane_heading: float) -> tuple[float, float]:

@@ -4,6 +4,7 @@ runs and a table of what the paper reports for it.
 
 from __future__ import annotations
 
+import fnmatch
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from testbed.eval.ablation import ablation_runs, ablation_table
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
@@ -167,18 +169,24 @@ def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
 # ---- FusionRipper through the MSF, with LD3 --------------------------------------------------------------
 FR_TRACKS = {"local": 12.0, "highway": 27.0}
 FR_BEST = {"d": 1.0, "f": 1.5}
+FR_LD3_TRACK_SEEDS = (101, 202, 303)
+"""Held-out road layouts (LD3's response defaults were chosen on the canonical seed-0 layouts)."""
+FR_LD3_NOISE_SEEDS = (1, 2, 3)
+FR_LD3_STARTS = (8.0, 12.5, 17.0, 21.5, 26.0)
 
 
 def fusionripper_ld3_runs(detector: str) -> list[CampaignRun]:
+    """Held-out track seeds × noise seeds × start times per track, LD3 with its default response."""
     runs = []
     for track, speed in FR_TRACKS.items():
-        base = load_scenario(track).with_overrides(speed=speed, duration=60.0, detector=detector,
-                                                   localization="msf", defense="ld3")
-        for k in range(10):
-            start = 8.0 + 2.7 * k
-            runs.append(CampaignRun(f"{track}-start{start:g}", base.with_overrides(
-                attack={"kind": "fusionripper", **FR_BEST, "start": start}, name=f"fr-{track}"),
-                {"track": track, "start": start}))
+        for track_seed in FR_LD3_TRACK_SEEDS:
+            base = load_scenario(track).with_overrides(track=f"{track}@{track_seed}", speed=speed, duration=60.0,
+                                                       detector=detector, localization="msf", defense="ld3")
+            for seed in FR_LD3_NOISE_SEEDS:
+                for start in FR_LD3_STARTS:
+                    runs.append(CampaignRun(f"{track}@{track_seed}-seed{seed}-start{start:g}", base.with_overrides(
+                        seed=seed, attack={"kind": "fusionripper", **FR_BEST, "start": start}, name=f"fr-{track}"),
+                        {"track": track, "track_seed": track_seed, "seed": seed, "start": start}))
     return runs
 
 
@@ -213,20 +221,26 @@ GRID_D = (0.3, 0.5, 0.7, 1.0)
 GRID_F = (1.1, 1.2, 1.3, 1.5)
 
 
+GRID_TRACK_SEEDS = (0, 101, 202, 303)
+GRID_DRIVES = 20
+"""Drives per cell: drive k starts at 8 + 1.3 k s, with noise seed k and track seed GRID_TRACK_SEEDS[k % 4]."""
+
+
 def fr_grid_runs(detector: str) -> list[CampaignRun]:
-    """Start time outermost, so that a campaign stopped part-way has the same start times in every cell."""
+    """Drive index outermost, so that a campaign stopped part-way has the same drives in every cell; each
+    drive varies start time, sensor-noise seed and road layout together."""
     runs = []
-    bases = {track: load_scenario(track).with_overrides(speed=speed, duration=50.0, detector="none",
-                                                        localization="msf", defense="none")
-             for track, speed in FR_TRACKS.items()}
-    for k in range(20):
+    for k in range(GRID_DRIVES):
         start = round(8.0 + 1.3 * k, 1)
-        for track, base in bases.items():
+        track_seed = GRID_TRACK_SEEDS[k % len(GRID_TRACK_SEEDS)]
+        for track, speed in FR_TRACKS.items():
+            base = load_scenario(track).with_overrides(track=f"{track}@{track_seed}", speed=speed, duration=50.0,
+                                                       seed=k, detector="none", localization="msf", defense="none")
             for d in GRID_D:
                 for f in GRID_F:
-                    runs.append(CampaignRun(f"{track}-d{d:g}-f{f:g}-start{start:g}", base.with_overrides(
+                    runs.append(CampaignRun(f"{track}-d{d:g}-f{f:g}-drive{k}", base.with_overrides(
                         attack={"kind": "fusionripper", "d": d, "f": f, "start": start}, name=f"grid-{track}"),
-                        {"track": track, "d": d, "f": f, "start": start}))
+                        {"track": track, "d": d, "f": f, "start": start, "seed": k, "track_seed": track_seed}))
     return runs
 
 
@@ -263,22 +277,32 @@ CAMPAIGNS: dict[str, CampaignSpec] = {
                                      "5 seeds per track", lane_keeping_msf_runs, lane_keeping_msf_table),
     "table4": CampaignSpec("urban-straight 12 m/s, default trace injection, 5 start times × none/naive/LD3",
                            table4_runs, defense_table),
-    "fusionripper-ld3": CampaignSpec("FusionRipper through the MSF on local and highway, 10 start times, LD3",
+    "fusionripper-ld3": CampaignSpec("FusionRipper (d=1.0, f=1.5) through the MSF on local and highway, LD3: "
+                                     "3 held-out track seeds × 3 noise seeds × 5 start times per track",
                                      fusionripper_ld3_runs, defense_table),
     "benign": CampaignSpec("benign LD3 runs on every preset, 5 seeds each: false alarms",
                            benign_runs, benign_table),
     "fusionripper-grid": CampaignSpec("FusionRipper d×f grid without defense, 20 start times (paper Table 2)",
                                       fr_grid_runs, fr_grid_table),
+    "ablation": CampaignSpec("LD3 response variants (paper mode first) × FusionRipper, trace, drp-trace, "
+                             "drp-bend, stealthy × held-out local, highway, urban-straight; oracle detector",
+                             ablation_runs, ablation_table),
     "roc": CampaignSpec("LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
                         "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
 }
 
 
-def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True) -> Path:
+def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True,
+              select: str | None = None) -> Path:
+    """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None)."""
     if name not in CAMPAIGNS:
         raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
     spec = CAMPAIGNS[name]
     runs = spec.build(detector)
+    if select is not None:
+        runs = [r for r in runs if fnmatch.fnmatchcase(r.run_id, select)]
+        if not runs:
+            raise ValueError(f"--runs {select!r} matches no run of campaign {name!r}")
     done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
