@@ -32,6 +32,10 @@ class Ld3AlarmedDefense(Defense):
         """Deceleration of the attack-response stop (m/s², > 0)."""
 
     @property
+    def alarm_threshold(self) -> float | None:
+        return self.config.tau
+
+    @property
     def mode(self) -> Mode:
         return "normal" if self.detection_time is None else "ar"
 

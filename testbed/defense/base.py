@@ -69,3 +69,8 @@ class Defense(ABC):
 
     @abstractmethod
     def status(self) -> DefenseStatus: ...
+
+    @property
+    def alarm_threshold(self) -> float | None:
+        """The threshold its `status().cusum` statistic alarms above (None: no such statistic)."""
+        return None

@@ -58,6 +58,10 @@ class SaviorDefense(Defense):
         self._speed = 0.0
 
     @property
+    def alarm_threshold(self) -> float | None:
+        return self.config.savior_tau
+
+    @property
     def mode(self) -> Mode:
         return "normal" if self.detection_time is None else "ar"
 

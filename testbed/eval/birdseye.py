@@ -1,6 +1,5 @@
-"""birdseye.png of a run: the road seen from above with the true and believed paths, and the same run
-in road coordinates (arc length vs lateral deviation, lateral scale exaggerated) where deviations of
-a few decimetres are visible.
+"""birdseye.png of a run: the road seen from above with the true and believed paths and the attack start,
+detection and stop points; the deviations against time; and the detector's statistic against its threshold.
 """
 
 from __future__ import annotations
@@ -36,16 +35,20 @@ def _frame_equal(ax, x: np.ndarray, y: np.ndarray, pad: float) -> None:
 
 
 def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
-                  believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str) -> None:
+                  believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str,
+                  attack_t: float | None = None, threshold: float | None = None) -> None:
+    """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above."""
     t = _col(rows, "t")
     x, y = _col(rows, "x"), _col(rows, "y")
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
-    fig, (ax_map, ax_dev) = plt.subplots(2, 1, figsize=(10, 9), gridspec_kw={"height_ratios": [3, 2]})
+    cusum = _col(rows, "cusum")
+    fig, (ax_map, ax_dev, ax_cusum) = plt.subplots(3, 1, figsize=(10, 11), gridspec_kw={"height_ratios": [3, 2, 1]})
     draw_track(ax_map, track)
     _frame_equal(ax_map, x, y, pad=25.0)
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
-    for when, marker, label in ((detection_t, "*", "detection"), (stop_t, "s", "stop")):
+    for when, marker, label in ((attack_t, "v", "attack start"), (detection_t, "*", "detection"),
+                                (stop_t, "s", "stop")):
         if when is not None:
             i = int(np.searchsorted(t, when).clip(0, len(t) - 1))
             ax_map.plot(x[i], y[i], marker=marker, color="k", ms=12, ls="", label=label)
@@ -60,7 +63,8 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     ax_dev.plot(t, msf, color="tab:red", ls="--", label="MSF D")
     if np.isfinite(ld).any():
         ax_dev.plot(t, ld, color="tab:green", lw=0.8, label="LD D")
-    for when, style, label in ((detection_t, "k:", "detection"), (stop_t, "k-.", "stop")):
+    events = ((attack_t, "r--", "attack start"), (detection_t, "k:", "detection"), (stop_t, "k-.", "stop"))
+    for when, style, label in events:
         if when is not None:
             ax_dev.axvline(when, color=style[0], ls=style[1:], label=label)
     ax_dev.set_xlabel("time (s)")
@@ -69,6 +73,23 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     ax_dev.set_ylim(-lim, lim)
     ax_dev.legend(loc="best", fontsize=8, ncols=3)
     ax_dev.grid(alpha=0.3)
+
+    if np.isfinite(cusum).any():
+        ax_cusum.plot(t, cusum, color="tab:purple", label="CUSUM S")
+    else:
+        ax_cusum.text(0.5, 0.5, "no detector statistic (defense none)", ha="center", va="center",
+                      transform=ax_cusum.transAxes, color="0.4")
+    if threshold is not None:
+        ax_cusum.axhline(threshold, color="tab:purple", ls="--", lw=1.0, label=f"threshold τ = {threshold:g}")
+    for when, style, _ in events:
+        if when is not None:
+            ax_cusum.axvline(when, color=style[0], ls=style[1:])
+    ax_cusum.set_xlim(ax_dev.get_xlim())
+    ax_cusum.set_xlabel("time (s)")
+    ax_cusum.set_ylabel("CUSUM S (m)")
+    if ax_cusum.get_legend_handles_labels()[0]:
+        ax_cusum.legend(loc="upper left", fontsize=8)
+    ax_cusum.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -29,6 +29,7 @@ from testbed.defense.factory import make_defense
 from testbed.direct_chassis import DirectChassis
 from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
+from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import write_summary, write_trajectory
 from testbed.eval.scenario import Scenario, ScenarioError
 from testbed.eval.video import VideoWriter
@@ -235,7 +236,12 @@ class SimRun:
                       straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
                       detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
                       title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}"
-                            + title_suffix)
+                            + title_suffix,
+                      attack_t=self.attack.start_time if self.attack is not None else None,
+                      threshold=self.defense.alarm_threshold)
+        if self.attack is not None and has_fusion(result.rows):
+            save_fusion_plot(out_dir / "ar_fusion.png", result.rows, straddle_dev=self.monitor.straddle_dev,
+                             title=f"{sc.name} · {sc.track} · {self.attack.name} · attack response")
         if self.video is not None:
             self.video.write(out_dir / "camera.mp4")
 

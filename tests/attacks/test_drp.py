@@ -1,8 +1,10 @@
+import math
+
 import numpy as np
 import pytest
 
 from testbed.attacks.base import AttackerView
-from testbed.attacks.drp import DrpPatch, DrpTrace
+from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
 from testbed.perception.detection import LaneDetection
 from tracks.pose import Pose
 
@@ -51,3 +53,23 @@ def test_drp_patch_describes_itself_and_validates():
     for bad in ({"at": -1.0}, {"at": 1.0, "length": 0.0}, {"at": 1.0, "darkness": 1.5}):
         with pytest.raises(ValueError, match="drp-patch"):
             DrpPatch(**bad)
+
+
+def test_drp_bend_shifts_and_rotates_the_lines_with_the_ramp():
+    a = DrpBend(start=10.0, shift=0.7, bend=-0.1, ramp=1.0, duration=10.0)
+    assert a.tamper_ld(ld(9.0), view(9.0)).left[1] == pytest.approx(0.0)
+    half = a.tamper_ld(ld(10.5), view(10.5))
+    assert ld_dev(half) == pytest.approx(0.35)
+    assert half.left[1] == pytest.approx(math.tan(-0.05)) and half.right[1] == pytest.approx(math.tan(-0.05))
+    full = a.tamper_ld(ld(13.0), view(13.0))
+    assert ld_dev(full) == pytest.approx(0.7) and full.left[1] == pytest.approx(math.tan(-0.1))
+    assert full.left[2] == pytest.approx(0.001)  # curvature untouched
+    assert a.tamper_ld(ld(20.5), view(20.5)).left[1] == pytest.approx(0.0)
+    assert a.describe() == {"kind": "drp-bend", "start": 10.0, "shift": 0.7, "ramp": 1.0, "duration": 10.0,
+                            "bend": -0.1}
+
+
+@pytest.mark.parametrize("bend", [0.0, 1.0, math.inf])
+def test_drp_bend_refuses_a_bend_that_does_nothing_or_is_not_an_angle(bend):
+    with pytest.raises(ValueError, match="bend"):
+        DrpBend(bend=bend)

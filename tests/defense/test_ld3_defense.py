@@ -1,3 +1,4 @@
+import dataclasses
 import logging
 import math
 
@@ -128,3 +129,49 @@ def test_no_defense_never_reacts():
     d.on_lane_detection(lane_det(0.0, 0.0), msf, smap)
     assert d.mode == "normal" and d.stop_decel is None and not d.status().detected
     assert d.pose_for_control(msf, smap) == msf.pose
+
+
+def test_reported_p_sources_feed_alg4():
+    """p_source = reported: P^MSF = the MSF's lateral variance across the lane, P^LD = the c0 variance of the line
+    Alg. 3 used; Alg. 4 then gives R = λ f + (1 − λ) P (hand-computed below, λ = 0.5, w = 3)."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(p_source="reported", lam=0.5, window=3))
+    cov = np.diag([0.04, 0.09, 0.01])  # lane heads +x: the lateral variance is cov[1, 1]
+
+    def det(t, phys):
+        return dataclasses.replace(lane_det(t, phys), left_var=0.0025, right_var=0.01)
+
+    d.on_lane_detection(det(0.0, 0.0), LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), cov), smap)  # alarm
+    s = d.status()
+    # s_msf = 1.0, s_ld = 1e-3 (floor; Alg. 3 ties on the left line), g = sqrt(1e-3)
+    g = math.sqrt(1e-3)
+    assert (s.r_msf, s.r_ld) == pytest.approx((0.5 * 1.0 / g + 0.5 * 0.09, 0.5 * 1e-3 / g + 0.5 * 0.0025))
+    # the car 0.3 m right: the right line is nearer and its variance 0.01 is used
+    d.on_lane_detection(det(0.05, -0.3), LocalizationEstimate(0.05, Pose(1.0, 1.2, 0.0), cov), smap)
+    s = d.status()
+    s_msf, s_ld = 1.0 + 1.2, 0.0 + 0.3  # |D_LD| = 0 then 0.3: the floor applies to the sum, not each value
+    g = math.sqrt(s_msf * s_ld)
+    assert (s.r_msf, s.r_ld) == pytest.approx((0.5 * s_msf / g + 0.5 * 0.09, 0.5 * s_ld / g + 0.5 * 0.01))
+
+
+def test_constant_p_sources_ignore_what_the_sources_report():
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(lam=0.5, p_msf=0.2, p_ld=0.4))
+    ld = dataclasses.replace(lane_det(0.0, 0.0), left_var=9.0, right_var=9.0)
+    d.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), np.eye(3) * 5.0), smap)
+    g = math.sqrt(1e-3)
+    assert (d.status().r_msf, d.status().r_ld) == pytest.approx((0.5 / g + 0.1, 0.5 * 1e-3 / g + 0.2))
+
+
+@pytest.mark.parametrize(("heading", "expected_yaw"), [("msf", 0.03), ("lane", 0.0), ("ld", -0.01)])
+def test_ar_pose_heading_sources(heading, expected_yaw):
+    """The car is 0.01 rad right of the lane (the lines say so); the MSF yaw says 0.03 left."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(heading=heading))
+    slope = math.tan(0.01)
+    ld = LaneDetection(0.0, np.array([HALF, slope, 0, 0.0]), np.array([-HALF, slope, 0, 0.0]), 0.9, 0.9, (0.0, 40.0))
+    d.on_lane_detection(ld, msf_at(0.0, 0.0, 1.0, yaw=0.03), smap)
+    assert d.mode == "ar"
+    pose = d.pose_for_control(msf_at(0.0, 0.0, 1.0, yaw=0.03), smap)
+    assert pose.yaw == pytest.approx(expected_yaw)
+    assert d.status().heading_rel == pytest.approx(expected_yaw)

@@ -4,8 +4,10 @@ import json
 from collections import Counter
 from pathlib import Path
 
+from testbed.defense.config import PAPER_MODE, DefenseConfig
+from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs
 from testbed.eval.campaign import CampaignRun, run_campaign
-from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, fr_grid_runs
+from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, GRID_TRACK_SEEDS, fr_grid_runs, fusionripper_ld3_runs
 from testbed.eval.roc import record_detection_run, roc_runs
 from testbed.eval.scenario import load_scenario
 
@@ -34,7 +36,7 @@ def test_custom_executor_resume_and_failures(tmp_path):
     assert (tmp_path / "calls.txt").read_text().split() == ["a", "c"]  # the rerun resumed: nothing ran twice
 
 
-def test_grid_runs_cover_every_cell_with_20_start_times_start_time_outermost():
+def test_grid_runs_cover_every_cell_with_20_drives_drive_outermost():
     runs = fr_grid_runs("oracle")
     assert len({r.run_id for r in runs}) == len(runs) == 2 * len(GRID_D) * len(GRID_F) * 20
     cells = Counter((r.tags["track"], r.tags["d"], r.tags["f"]) for r in runs)
@@ -43,6 +45,31 @@ def test_grid_runs_cover_every_cell_with_20_start_times_start_time_outermost():
     assert {(r.tags["track"], r.tags["d"], r.tags["f"]) for r in first} == set(cells)
     assert {r.tags["start"] for r in first} == {8.0}
     assert all(r.scenario.defense == "none" and r.scenario.localization == "msf" for r in runs)
+    # each cell's drives vary the start time, the sensor-noise seed and the road layout
+    cell = [r for r in runs if (r.tags["track"], r.tags["d"], r.tags["f"]) == ("local", 1.0, 1.5)]
+    assert len({r.scenario.seed for r in cell}) == 20 and len({r.tags["start"] for r in cell}) == 20
+    assert {r.scenario.track for r in cell} == {f"local@{s}" for s in GRID_TRACK_SEEDS}
+
+
+def test_fusionripper_ld3_runs_use_held_out_layouts_noise_seeds_and_start_times():
+    runs = fusionripper_ld3_runs("oracle")
+    assert len(runs) == len({r.run_id for r in runs}) == 2 * 3 * 3 * 5
+    assert not any(r.scenario.track in ("local", "highway", "local@0", "highway@0") for r in runs)
+    assert {r.scenario.seed for r in runs} == {1, 2, 3}
+    assert all(r.scenario.defense == "ld3" and r.scenario.defense_params == {} for r in runs)
+
+
+def test_ablation_runs_put_every_variant_on_every_attack_and_held_out_road():
+    runs = ablation_runs("neural")
+    per_variant = Counter(r.tags["variant"] for r in runs)
+    assert list(per_variant) == list(VARIANTS) and next(iter(VARIANTS)) == "paper"
+    assert len(set(per_variant.values())) == 1
+    assert {r.tags["attack"] for r in runs} == set(ATTACKS)
+    assert all(r.scenario.detector == "oracle" and "@" in r.scenario.track for r in runs)
+    paper = [r for r in runs if r.tags["variant"] == "paper"]
+    assert all(r.scenario.defense_params == PAPER_MODE for r in paper)
+    for run in runs[:: max(1, len(runs) // 40)]:  # every variant's overrides are valid [defense] tables
+        DefenseConfig.from_dict(run.scenario.defense_params)
 
 
 def test_roc_campaign_records_benign_fit_and_attacked_drives():

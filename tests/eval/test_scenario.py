@@ -2,7 +2,7 @@
 
 import pytest
 
-from testbed.eval.scenario import ScenarioError, load_scenario, shipped_scenarios
+from testbed.eval.scenario import ScenarioError, apply_settings, load_scenario, shipped_scenarios
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -51,3 +51,23 @@ def test_defense_table_carries_parameters(tmp_path):
     sc = load_scenario(str(path))
     assert sc.defense == "ld3"
     assert sc.defense_params == {"b": 0.5, "tau": 0.2}
+
+
+def test_set_overrides_defense_attack_and_top_level_keys():
+    sc = load_scenario("local").with_overrides(attack={"kind": "fusionripper", "d": 0.5})
+    out = apply_settings(sc, ["defense.b=0.45", "defense.heading=msf", 'defense.kind="ld3"', "attack.start=12",
+                              "speed=10"])
+    assert out.defense == "ld3" and out.defense_params == {"b": 0.45, "heading": "msf"}
+    assert out.attack == {"kind": "fusionripper", "d": 0.5, "start": 12} and out.speed == 10
+
+
+@pytest.mark.parametrize(("item", "message"), [
+    ("defense.b", "expected KEY=VALUE"),
+    ("colour=red", "unknown scenario key"),
+    ("camera.fov=40", "unknown section"),
+    ("attack.start=3", "no attack"),
+    ("speed=-1", "speed must be > 0"),
+])
+def test_set_refuses_what_it_cannot_apply(item, message):
+    with pytest.raises(ScenarioError, match=message):
+        apply_settings(load_scenario("slr"), [item])

@@ -1,0 +1,66 @@
+import math
+
+import numpy as np
+import pytest
+
+from testbed.defense.fused_heading import FusedHeading, line_relative_heading
+from testbed.perception.detection import LaneDetection
+
+
+def lines(slope_left, slope_right, prob=0.9, c0=1.75):
+    """Ego lines with the given slopes at x = 0 (None for a missing line)."""
+    def cubic(c, s):
+        return None if s is None else np.array([c, s, 0.0, 0.0])
+    return LaneDetection(0.0, cubic(c0, slope_left), cubic(-c0, slope_right), prob, prob, (0.0, 40.0))
+
+
+def test_relative_heading_from_the_lines_slope():
+    # the car turned left of the lane by 0.02 rad: the lines run to its right, slope -tan(0.02)
+    s = -math.tan(0.02)
+    assert line_relative_heading(lines(s, s), 0.5) == pytest.approx(0.02)
+    # the mean slope of the valid lines; a line below the existence threshold does not count
+    assert line_relative_heading(lines(-0.01, -0.03), 0.5) == pytest.approx(math.atan(0.02))
+    assert line_relative_heading(lines(-0.01, None), 0.5) == pytest.approx(math.atan(0.01))
+    assert line_relative_heading(lines(-0.01, -0.03, prob=0.3), 0.5) is None
+    assert line_relative_heading(LaneDetection.empty(0.0), 0.5) is None
+
+
+def test_msf_and_lane_sources():
+    msf = FusedHeading("msf", 0.05, 0.5)
+    msf.on_detection(lines(-0.04, -0.04), msf_yaw=1.03, lane_heading=1.0)
+    assert msf.yaw(1.03, 1.0) == pytest.approx(1.03) and msf.relative == pytest.approx(0.03)
+    lane = FusedHeading("lane", 0.05, 0.5)
+    lane.on_detection(lines(-0.04, -0.04), msf_yaw=1.03, lane_heading=1.0)
+    assert lane.yaw(1.03, 1.0) == pytest.approx(1.0) and lane.relative == pytest.approx(0.0)
+
+
+def test_ld_source_uses_the_lines_then_follows_the_msf_yaw_change():
+    h = FusedHeading("ld", 0.05, 0.5)
+    # before any detection the lane heading stands in
+    assert h.yaw(0.7, 0.5) == pytest.approx(0.5)
+    # lines say the car is 0.01 rad right of the lane; the (biased) MSF yaw says 0.03 left
+    h.on_detection(lines(math.tan(0.01), math.tan(0.01)), msf_yaw=0.53, lane_heading=0.5)
+    assert h.yaw(0.53, 0.5) == pytest.approx(0.49) and h.relative == pytest.approx(-0.01)
+    # between detections the MSF yaw turns 0.005 left relative to a lane that turned 0.002: ψ = -0.007
+    assert h.yaw(0.54, 0.507) == pytest.approx(0.507 - 0.007)
+    # a detection without valid lines keeps the last reading
+    h.on_detection(LaneDetection.empty(0.1), msf_yaw=0.6, lane_heading=0.5)
+    assert h.yaw(0.53, 0.5) == pytest.approx(0.49)
+
+
+def test_ld_source_is_clamped():
+    h = FusedHeading("ld", 0.05, 0.5)
+    h.on_detection(lines(math.tan(-0.2), math.tan(-0.2)), msf_yaw=0.0, lane_heading=0.0)  # a bent patch: ψ = 0.2
+    assert h.yaw(0.0, 0.0) == pytest.approx(0.05)
+    h.on_detection(lines(math.tan(0.01), math.tan(0.01)), msf_yaw=0.0, lane_heading=0.0)
+    assert h.yaw(-0.3, 0.0) == pytest.approx(-0.05)  # the propagated value is clamped too
+    wrapped = FusedHeading("ld", 0.05, 0.5)
+    wrapped.on_detection(lines(0.0, 0.0), msf_yaw=math.pi - 0.01, lane_heading=-math.pi + 0.01)
+    assert wrapped.relative is None and wrapped.yaw(math.pi - 0.01, -math.pi + 0.01) == pytest.approx(-math.pi + 0.01)
+
+
+def test_fused_source_weighs_the_headings_by_the_fusion_uncertainties():
+    h = FusedHeading("fused", 0.05, 0.5)
+    # ψ_LD = 0.02, ψ_MSF = -0.01; R_MSF = 3, R_LD = 1: LD weight 3/4 -> 0.75·0.02 + 0.25·(-0.01) = 0.0125
+    h.on_detection(lines(math.tan(-0.02), math.tan(-0.02)), msf_yaw=-0.01, lane_heading=0.0, uncertainties=(3.0, 1.0))
+    assert h.yaw(-0.01, 0.0) == pytest.approx(0.0125)

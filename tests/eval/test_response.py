@@ -1,0 +1,54 @@
+"""LD3's attack response in a short closed loop: FusionRipper through the MSF on `local`, the default response
+against the paper mode, and the attack-response internals in the outputs."""
+
+import csv
+import json
+
+import pytest
+
+from testbed.defense.config import PAPER_MODE
+from testbed.eval.runner import run_scenario
+from testbed.eval.scenario import load_scenario
+
+FR = {"kind": "fusionripper", "d": 1.0, "f": 1.5, "start": 15.0}
+
+
+@pytest.fixture(scope="module")
+def fr_runs(tmp_path_factory):
+    base = load_scenario("local").with_overrides(duration=32.0, detector="oracle", localization="msf",
+                                                 defense="ld3", attack=FR)
+    out = tmp_path_factory.mktemp("fr")
+    return {name: (run_scenario(base.with_overrides(defense_params=params), out / name).summary, out / name)
+            for name, params in (("default", {}), ("paper", dict(PAPER_MODE)))}
+
+
+def test_default_response_stops_in_lane_where_the_paper_mode_straddles(fr_runs):
+    default, paper = fr_runs["default"][0], fr_runs["paper"][0]
+    assert default["detected"] and paper["detected"]
+    assert default["detection_time_s"] == paper["detection_time_s"]  # the response differs, not the detection
+    assert default["consequence"] == "stop_in_lane"
+    assert abs(default["ar_stop_dev_m"]) < default["lane_straddle_dev_m"]
+    assert paper["consequence"] == "stop_with_lane_straddle"
+    assert default["defense_params"]["heading"] == "ld" and paper["defense_params"]["heading"] == "msf"
+
+
+def test_attack_response_internals_are_written(fr_runs):
+    summary, run_dir = fr_runs["default"]
+    with (run_dir / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    internals = ("fused_dev", "r_msf", "r_ld", "k_msf", "k_ld", "heading_used")
+    for row in rows:
+        assert all((row[c] != "") == (row["mode"] == "ar") for c in internals), row
+    assert [r["ld_fresh"] for r in rows[:6]] == ["1", "0", "0", "0", "0", "1"]  # camera at 20 Hz, control 100 Hz
+    ar = [r for r in rows if r["mode"] == "ar"]
+    assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])
+    assert all(0.0 < float(r["k_msf"]) < 1.0 and 0.0 < float(r["k_ld"]) < 1.0 for r in ar)
+    assert max(abs(float(r["heading_used"])) for r in ar) <= 0.05 + 1e-9  # the default clamp
+    assert (run_dir / "ar_fusion.png").stat().st_size > 10_000
+    assert json.loads((run_dir / "summary.json").read_text())["defense_params"]["heading_clamp"] == 0.05
+
+
+def test_no_fusion_plot_without_attack_response(tmp_path):
+    sc = load_scenario("urban-straight").with_overrides(duration=3.0, defense="ld3", localization="msf")
+    run_scenario(sc, tmp_path)
+    assert not (tmp_path / "ar_fusion.png").exists() and (tmp_path / "birdseye.png").exists()
