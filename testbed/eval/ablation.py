@@ -12,23 +12,33 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
 import numpy as np
 
-from testbed.defense.config import PAPER_MODE
+from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.scenario import load_scenario
 
+_W20 = {"window": 20, "p_source": "constant", "r_power": 1.0}
 VARIANTS: dict[str, dict[str, Any]] = {
     "paper": dict(PAPER_MODE),
-    "heading-lane": {"heading": "lane"},
-    "heading-ld": {"heading": "ld", "heading_clamp": 0.05},
-    "heading-ld-clamp0.02": {"heading": "ld", "heading_clamp": 0.02},
-    "heading-fused": {"heading": "fused"},
-    "window5": {"window": 5},
-    "p-reported": {"p_source": "reported"},
-    "r-power2": {"r_power": 2.0},
+    "heading-lane": {**_W20, "heading": "lane"},
+    "heading-ld": {**_W20, "heading": "ld", "heading_clamp": 0.05},
+    "heading-ld-clamp0.03": {**_W20, "heading": "ld", "heading_clamp": 0.03},
+    "heading-ld-clamp0.02": {**_W20, "heading": "ld", "heading_clamp": 0.02},
+    "heading-fused": {**_W20, "heading": "fused", "heading_clamp": 0.05},
+    "heading-ld-window5": {**_W20, "heading": "ld", "heading_clamp": 0.05, "window": 5},
+    "heading-ld-p-reported": {**_W20, "heading": "ld", "heading_clamp": 0.05, "p_source": "reported"},
+    "heading-ld-r-power2": {**_W20, "heading": "ld", "heading_clamp": 0.05, "r_power": 2.0},
+    "heading-ld-clamp0.02-window5": {**_W20, "heading": "ld", "heading_clamp": 0.02, "window": 5},
+    "heading-fused-window5": {**_W20, "heading": "fused", "heading_clamp": 0.05, "window": 5},
+    "heading-fused-clamp0.02-window5": {**_W20, "heading": "fused", "heading_clamp": 0.02, "window": 5},
 }
-"""LD3 response variants: overrides of the default `[defense]` table ("paper" = the paper mode)."""
+"""LD3 response variants, each a complete set of the response options ("paper" = the paper mode), so that a
+variant means the same whatever the defaults are; the table marks the one that equals the defaults."""
 
 ATTACKS: dict[str, dict[str, Any]] = {
     "fusionripper": {"kind": "fusionripper", "d": 1.0, "f": 1.5},
@@ -65,15 +75,49 @@ def ablation_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
+def is_default(overrides: dict[str, Any]) -> bool:
+    """True when the variant's options resolve to the default `[defense]` table."""
+    return DefenseConfig.from_dict(overrides) == DefenseConfig()
+
+
 def _mean_sd(values: list[float | None]) -> str:
     arr = np.array([v for v in values if v is not None], dtype=float)
     return "–" if arr.size == 0 else f"{arr.mean():.2f} ± {arr.std():.2f}"
 
 
+IN_LANE = ("stop_in_lane", "reach_destination")
+
+
+def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, dict[str, Any]]]) -> None:
+    """One panel per attack: each variant's AR max |D| over its runs (dots, mean bar), out-of-lane runs in red."""
+    fig, axes = plt.subplots(1, len(ATTACKS), figsize=(3.2 * len(ATTACKS), 0.35 * len(VARIANTS) + 1.5), sharey=True)
+    for ax, attack in zip(axes, ATTACKS, strict=True):
+        for i, variant in enumerate(VARIANTS):
+            sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
+            devs = [(s["ar_max_dev_m"] if s["ar_max_dev_m"] is not None else s["max_abs_dev_m"] or 0.0,
+                     s["consequence"] in IN_LANE) for s in sums]
+            if not devs:
+                continue
+            ax.barh(i, np.mean([d for d, _ in devs]), color="0.85")
+            ax.scatter([d for d, ok in devs], [i] * len(devs), s=10,
+                       c=["tab:blue" if ok else "tab:red" for _, ok in devs], zorder=3)
+        ax.set_title(attack, fontsize=9)
+        ax.set_xlabel("AR max |D| (m)")
+        ax.grid(axis="x", alpha=0.3)
+    axes[0].set_yticks(range(len(VARIANTS)), list(VARIANTS), fontsize=8)
+    axes[0].invert_yaxis()
+    fig.suptitle("LD3 response ablation: red = the run left its lane (max |D| where no response ran)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
-    """Per attack, one row per variant (paper mode first): in-lane rate, detection, deviations."""
+    """Per attack, one row per variant (paper mode first): in-lane rate, detection, deviations; and
+    `ablation.png`."""
+    _save_ablation_plot(out / "ablation.png", done)
     lines = ["In lane = the run ended without leaving the lane: reached the end or stopped with |D| below the lane "
-             "straddle deviation. Deviations are |physical D| in m (mean ± sd over runs).", ""]
+             "straddle deviation. Deviations are |physical D| in m (mean ± sd over runs). Figure: ablation.png.", ""]
     for attack in ATTACKS:
         lines += [f"**{attack}**", "", "| variant | runs | in lane | detected | detection dev | AR max dev "
                   "| stop dev | consequences |", "|---|---|---|---|---|---|---|---|"]
@@ -81,12 +125,13 @@ def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
             sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
             if not sums:
                 continue
-            in_lane = sum(s["consequence"] in ("stop_in_lane", "reach_destination") for s in sums)
+            in_lane = sum(s["consequence"] in IN_LANE for s in sums)
+            label = f"{variant} (default)" if is_default(VARIANTS[variant]) else variant
             cons: dict[str, int] = {}
             for s in sums:
                 cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
             stop = [abs(s["ar_stop_dev_m"]) if s["ar_stop_dev_m"] is not None else None for s in sums]
-            lines.append(f"| {variant} | {len(sums)} | {in_lane}/{len(sums)} ({100 * in_lane / len(sums):.0f}%) "
+            lines.append(f"| {label} | {len(sums)} | {in_lane}/{len(sums)} ({100 * in_lane / len(sums):.0f}%) "
                          f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
                          f"| {_mean_sd([s['detection_dev_m'] for s in sums])} "
                          f"| {_mean_sd([s['ar_max_dev_m'] for s in sums])} | {_mean_sd(stop)} "

@@ -5,7 +5,7 @@ from collections import Counter
 from pathlib import Path
 
 from testbed.defense.config import PAPER_MODE, DefenseConfig
-from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs
+from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
 from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, GRID_TRACK_SEEDS, fr_grid_runs, fusionripper_ld3_runs
 from testbed.eval.roc import record_detection_run, roc_runs
@@ -68,6 +68,8 @@ def test_ablation_runs_put_every_variant_on_every_attack_and_held_out_road():
     assert all(r.scenario.detector == "oracle" and "@" in r.scenario.track for r in runs)
     paper = [r for r in runs if r.tags["variant"] == "paper"]
     assert all(r.scenario.defense_params == PAPER_MODE for r in paper)
+    assert sum(is_default(v) for v in VARIANTS.values()) == 1  # the shipped default is one measured variant
+    assert not is_default(PAPER_MODE)
     for run in runs[:: max(1, len(runs) // 40)]:  # every variant's overrides are valid [defense] tables
         DefenseConfig.from_dict(run.scenario.defense_params)
 
