@@ -119,8 +119,8 @@ def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
     lines = ["In lane = the run ended without leaving the lane: reached the end or stopped with |D| below the lane "
              "straddle deviation. Deviations are |physical D| in m (mean ± sd over runs). Figure: ablation.png.", ""]
     for attack in ATTACKS:
-        lines += [f"**{attack}**", "", "| variant | runs | in lane | detected | detection dev | AR max dev "
-                  "| stop dev | consequences |", "|---|---|---|---|---|---|---|---|"]
+        lines += [f"**{attack}**", "", "| variant | runs | in lane | detected | max dev | detection dev "
+                  "| AR max dev | stop dev | consequences |", "|---|---|---|---|---|---|---|---|---|"]
         for variant in VARIANTS:
             sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
             if not sums:
@@ -133,6 +133,7 @@ def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
             stop = [abs(s["ar_stop_dev_m"]) if s["ar_stop_dev_m"] is not None else None for s in sums]
             lines.append(f"| {label} | {len(sums)} | {in_lane}/{len(sums)} ({100 * in_lane / len(sums):.0f}%) "
                          f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
+                         f"| {_mean_sd([s['max_abs_dev_m'] for s in sums])} "
                          f"| {_mean_sd([s['detection_dev_m'] for s in sums])} "
                          f"| {_mean_sd([s['ar_max_dev_m'] for s in sums])} | {_mean_sd(stop)} "
                          f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} |")
