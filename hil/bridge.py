@@ -6,7 +6,7 @@ chassis's own command time-out trips. Commands are checked first: a non-finite v
 brakes; finite values are clamped to the profile's limits. Reports are followed through a can.Notifier and
 verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and steering
 angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only compared
-against it: `odometry_error_max_m`).
+against it: `odometry_error_max_m`, `odometry_error_last_m`).
 
 Faults (`hil.faults`) are latched with their chassis time; from then on every command brakes at the profile's
 fault_decel, keeping the loop's steering so the car stops in its lane, and `latched_faults()` tells the run to
@@ -101,6 +101,7 @@ class CanChassisBridge(ChassisPort):
         self.frames_accepted = 0
         self.foreign_node = False
         self.odometry_error_max_m: float | None = None
+        self.odometry_error_last_m: float | None = None
         self._notifier = can.Notifier(bus, [self.handle], timeout=0.05)
 
     # ------------------------------------------------------------------ ChassisPort
@@ -327,6 +328,7 @@ class CanChassisBridge(ChassisPort):
         pose = self.odometry.pose
         error = math.hypot(pose.x - truth.x, pose.y - truth.y)
         self.odometry_error_max_m = max(self.odometry_error_max_m or 0.0, error)
+        self.odometry_error_last_m = error
 
     def _send_cycle(self, command: ChassisCommand) -> None:
         request = ActuatorRequest.from_command(command, enable=self._enable, steer_rate=self.steer_rate)

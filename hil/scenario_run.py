@@ -137,7 +137,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0) -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
     (`log_path`, default OUT/can.asc). The summary gains interface, channel, clock, profile, frame counts and
-    the odometry's largest distance from the emulator's truth (where truth frames are on). `prepare` is called
+    the odometry's largest and final distance from the emulator's truth (where truth frames are on). `prepare` is called
     with the link before engaging (fault drills install their injections there)."""
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
@@ -167,7 +167,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     result.summary.update({
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
         "profile": link.profile.name, "pose_source": "odometry",
-        "odometry_error_max_m": bridge.odometry_error_max_m,
+        "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
         "can_log": str(log_path) if log_path is not None else None,
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
         "can_frames_rejected": sum(bridge.rejected.values()),
