@@ -137,10 +137,12 @@ class CanChassisBridge(ChassisPort):
         self._fresh = ChassisCommand(steer, accel)
 
     def advance(self, dt: float) -> None:
+        self._check_bus_state()
         if self.clock is ClockMode.REALTIME:
             if self._fresh is not None and self._schedule.due(self._t_us):
                 self._send_cycle(self._fresh)
-            self._check_bus_state()
+            with self._state_lock:
+                self._check_realtime()
             if self._feedback_lost:
                 self._coast(round(dt * 1e6))
             self._wait_until(self._t_us + round(dt * 1e6))
@@ -265,8 +267,8 @@ class CanChassisBridge(ChassisPort):
             self._done_echo = None
         request = self.codec.encode(self.profile.simulation.step_request,
                                     {"StepCount": self._step, "StepDt": step_us / 1e6})
-        if not self._transmit(request):
-            self._ecu_lost = True
+        if not self._transmit(request):  # no clock for the plant: its own command time-out will stop it
+            self._ecu_lost = self._feedback_lost = True
             self._coast(step_us)
             return
         with self._done:

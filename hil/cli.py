@@ -195,8 +195,15 @@ def cmd_hil(args: argparse.Namespace) -> int:
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
     config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None,
                         args.profile, args.truth)
+    drill: dict[str, object] = {}
+    if args.drill:
+        from hil.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
+
+        if args.interface != "virtual":
+            raise ValueError("--drill needs the in-process ECU emulator (--interface virtual)")
+        drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
-        result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty())
+        result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(), **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -241,6 +248,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ids", default=None, help="with `replay`: frame IDs to send (default the profile's commands; "
                                                 "'all' for every frame)")
     p.add_argument("--yes", action="store_true", help="with `replay`: allow a hardware bus")
+    p.add_argument("--drill", default=None, metavar="KIND[@T]",
+                   help="inject a fault into the emulated chassis at T s (see hil.fault_drill), e.g. chassis_estop@2")
     p.set_defaults(func=cmd_hil)
 
     p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)
