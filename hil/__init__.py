@@ -1,18 +1,22 @@
-"""CAN bridge: DBC, codec, chassis port over python-can, ECU emulator, and scenario runs over CAN.
+"""CAN bridge: chassis profiles, codec, chassis port over python-can, ECU emulator, and scenario runs over CAN.
 
-The loop drives a `CanChassisBridge` (a ChassisPort) instead of the PyBullet car; commands go out as the
-ACU_*Ctrl frames of dbc/chassis.dbc at 50 Hz, the VCU answers with VCU_*Status reports (and, in simulation,
-SIM_Truth* frames with the true pose). In lockstep the bridge clocks the ECU with SIM_StepRequest/StepDone.
+The loop drives a `CanChassisBridge` (a ChassisPort) instead of the PyBullet car. A chassis profile
+(hil/profiles/<name>/: chassis.dbc + profile.toml; shipped: ld3-dev, pix-hooke) says which messages carry the
+commands and reports, their units, enums, counters, checksums, cycle and time-outs. The bridge sends a command
+cycle only for a fresh loop command, places the simulated world at its odometry pose (from reported speed and
+steering), and ends the run as chassis_fault after an in-lane stop when a fault latches. In lockstep the bridge
+clocks the emulator with SIM_StepRequest/StepDone. See docs/hil.md.
 
 Usage:
-  ld3 hil parking-lot                          # in-process ECU (PyBullet plant) on a fresh virtual bus
+  ld3 hil parking-lot --profile pix-hooke      # in-process ECU (PyBullet plant) on a fresh virtual bus
   ld3 hil parking-lot --interface slcan        # ECU emulator as its own process, SLCAN over a pty
-  ld3 hil SCENARIO --interface socketcan --channel can0   # a real chassis, realtime clock
+  ld3 hil SCENARIO --profile pix-hooke --interface socketcan --channel can0   # a real chassis, realtime clock
   ld3 hil SCENARIO --attack trace:default,start=1 --defense ld3 --out runs/x --log runs/x/can.blf
-  ld3 hil replay runs/x/can.asc --interface socketcan --channel vcan0
-  ld3 ecu --interface slcan-pty --scenario parking-lot   # prints SLCAN_PTY <path>; then
-  ld3 hil parking-lot --interface slcan --channel <path>
+  ld3 hil parking-lot --drill chassis_estop@2  # a fault drill against the emulator
+  ld3 hil replay runs/x/can.asc --channel test # command IDs only; a hardware bus needs --yes
+  ld3 ecu --interface slcan-pty --scenario parking-lot --profile pix-hooke   # prints SLCAN_PTY <path>; then
+  ld3 hil parking-lot --profile pix-hooke --interface slcan --channel <path>
 `ld3 hil` accepts the overrides of `ld3 run` and writes the same outputs (summary.json gains interface,
-channel, clock and CAN frame counts) plus the CAN log (default OUT/can.asc). In Python:
-`hil.scenario_run.run_hil_scenario(scenario, out_dir, LinkConfig(interface, channel))`.
+channel, clock, profile, faults and CAN frame counts) plus the CAN log (default OUT/can.asc). In Python:
+`hil.scenario_run.run_hil_scenario(scenario, out_dir, LinkConfig(interface, channel, profile="pix-hooke"))`.
 """

@@ -1,9 +1,9 @@
-"""The command cycle in SI units and its mapping onto the frames 0x130 drive, 0x131 brake, 0x132 steer.
+"""The command cycle in SI units and its mapping onto a profile's drive, brake and steer messages.
 
-Longitudinal: a = DriveThrottlePct/100 * MAX_DRIVE_ACCEL (gear D only) - BrakePedalPct/100 *
-MAX_BRAKE_DECEL, and BrakeEmergency gives -MAX_BRAKE_DECEL. A ChassisCommand's accel >= 0 becomes
-throttle, < 0 becomes brake pedal, so the wire resolution is 0.0005 m/s² (drive) and 0.0008 m/s² (brake).
-Steering: road-wheel angle in degrees on the wire (0.002° resolution), radians here.
+Longitudinal: a = throttle/100 * full_throttle_accel (gear D only) - pedal/100 * full_brake_decel, and an
+emergency-brake signal (where the profile has one) gives -full_brake_decel. A request's accel >= 0 becomes
+throttle, < 0 brake pedal. Steering: road-wheel angle in radians here, `Steering.to_wire` degrees on the wire
+(ratio and sign of the profile); the rate likewise. Values beyond the wire's range are clipped to it.
 """
 
 from __future__ import annotations
@@ -12,19 +12,12 @@ import math
 from dataclasses import dataclass
 from enum import IntEnum
 
+from hil.profile import ChassisProfile, default_profile
 from testbed.chassis import ChassisCommand
-
-MAX_DRIVE_ACCEL = 5.0  # m/s² at 100 % throttle
-MAX_BRAKE_DECEL = 8.0  # m/s² at 100 % brake pedal, and under BrakeEmergency
-MAX_STEER_WIRE_DEG = 65.534
-MAX_STEER_RATE_WIRE_DEG = 600.0
-
-DRIVE, BRAKE, STEER = "ACU_DriveCtrl", "ACU_BrakeCtrl", "ACU_SteerCtrl"
-COMMAND_FRAMES = (DRIVE, BRAKE, STEER)
 
 
 class Gear(IntEnum):
-    """DriveGearTarget / GearActual values."""
+    """Gear requests and reports by meaning; a profile's [gears] table gives their wire values."""
 
     NO_REQUEST = 0
     PARK = 1
@@ -32,9 +25,23 @@ class Gear(IntEnum):
     NEUTRAL = 3
     DRIVE = 4
 
+    def wire(self, profile: ChassisProfile) -> int:
+        gears = profile.gears
+        return gears.get(self.name.lower(), gears.get("no_request", gears["neutral"]))
+
+    @classmethod
+    def from_wire(cls, value: int, profile: ChassisProfile) -> Gear | None:
+        names = {v: k for k, v in profile.gears.items()}
+        return cls[names[value].upper()] if value in names else None
+
 
 def _clip(value: float, lo: float, hi: float) -> float:
     return min(max(value, lo), hi)
+
+
+def _signal_range(profile: ChassisProfile, message: str, signal: str) -> tuple[float, float]:
+    s = profile.message(message).get_signal_by_name(signal)
+    return (s.minimum if s.minimum is not None else -math.inf), (s.maximum if s.maximum is not None else math.inf)
 
 
 @dataclass(frozen=True)
@@ -54,34 +61,41 @@ class ActuatorRequest:
     ) -> ActuatorRequest:
         return cls(enable, Gear.DRIVE, cmd.accel, emergency, cmd.steer, steer_rate)
 
-    def to_signals(self) -> dict[str, dict[str, float]]:
-        """Signal values (DBC units) of the three command frames; life counters and checksums come later."""
-        throttle = _clip(self.accel / MAX_DRIVE_ACCEL * 100.0, 0.0, 100.0)
-        pedal = _clip(-self.accel / MAX_BRAKE_DECEL * 100.0, 0.0, 100.0)
-        steer_deg = _clip(math.degrees(self.steer), -MAX_STEER_WIRE_DEG, MAX_STEER_WIRE_DEG)
-        rate_deg = _clip(math.degrees(self.steer_rate), 0.0, MAX_STEER_RATE_WIRE_DEG)
+    def to_signals(self, profile: ChassisProfile | None = None) -> dict[str, dict[str, float]]:
+        """Signal values (DBC units) of the three command messages; life counters and checksums come later."""
+        p = profile or default_profile()
+        c, lon, st = p.commands, p.longitudinal, p.steering
+        throttle = _clip(self.accel / lon.full_throttle_accel * 100.0, *_signal_range(p, c.drive, c.throttle))
+        pedal_pct = 100.0 if self.emergency and c.emergency is None else -self.accel / lon.full_brake_decel * 100.0
+        pedal = _clip(pedal_pct, *_signal_range(p, c.brake, c.pedal))
+        angle = _clip(st.to_wire(self.steer), *_signal_range(p, c.steer, c.angle))
         enable = int(self.enable)
-        return {
-            DRIVE: {"DriveEnable": enable, "DriveGearTarget": int(self.gear), "DriveThrottlePct": throttle},
-            BRAKE: {"BrakeEnable": enable, "BrakeEmergency": int(self.emergency), "BrakePedalPct": pedal},
-            STEER: {"SteerEnable": enable, "SteerAngleTarget": steer_deg, "SteerAngleSpeed": rate_deg},
-        }
+        drive = {**c.constants.get(c.drive, {}), c.drive_enable: enable, c.gear: self.gear.wire(p),
+                 c.throttle: throttle}
+        brake = {**c.constants.get(c.brake, {}), c.brake_enable: enable, c.pedal: pedal}
+        if c.emergency is not None:
+            brake[c.emergency] = int(self.emergency)
+        steer = {**c.constants.get(c.steer, {}), c.steer_enable: enable, c.angle: angle}
+        if c.rate is not None:
+            steer[c.rate] = _clip(st.ratio * math.degrees(self.steer_rate), *_signal_range(p, c.steer, c.rate))
+        return {c.drive: drive, c.brake: brake, c.steer: steer}
 
     @classmethod
     def from_signals(
-        cls, drive: dict[str, float], brake: dict[str, float], steer: dict[str, float]
+        cls,
+        drive: dict[str, float],
+        brake: dict[str, float],
+        steer: dict[str, float],
+        profile: ChassisProfile | None = None,
     ) -> ActuatorRequest:
-        """The request carried by one verified frame of each command ID; enabled only if all three are."""
-        gear = Gear(int(drive["DriveGearTarget"]))
-        emergency = bool(brake["BrakeEmergency"])
-        throttle = drive["DriveThrottlePct"] / 100.0 * MAX_DRIVE_ACCEL if gear is Gear.DRIVE else 0.0
-        accel = -MAX_BRAKE_DECEL if emergency else throttle - brake["BrakePedalPct"] / 100.0 * MAX_BRAKE_DECEL
-        enable = bool(drive["DriveEnable"]) and bool(brake["BrakeEnable"]) and bool(steer["SteerEnable"])
-        return cls(
-            enable,
-            gear,
-            accel,
-            emergency,
-            math.radians(steer["SteerAngleTarget"]),
-            math.radians(steer["SteerAngleSpeed"]),
-        )
+        """The request carried by one verified frame of each command message; enabled only if all three are."""
+        p = profile or default_profile()
+        c, lon, st = p.commands, p.longitudinal, p.steering
+        gear = Gear.from_wire(int(drive[c.gear]), p) or Gear.NO_REQUEST
+        emergency = bool(brake[c.emergency]) if c.emergency is not None else False
+        throttle = drive[c.throttle] / 100.0 * lon.full_throttle_accel if gear is Gear.DRIVE else 0.0
+        brake_decel = brake[c.pedal] / 100.0 * lon.full_brake_decel
+        accel = -lon.full_brake_decel if emergency else throttle - brake_decel
+        enable = bool(drive[c.drive_enable]) and bool(brake[c.brake_enable]) and bool(steer[c.steer_enable])
+        rate = math.radians(steer[c.rate] / st.ratio) if c.rate is not None else st.max_rate
+        return cls(enable, gear, accel, emergency, st.from_wire(steer[c.angle]), rate)

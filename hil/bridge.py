@@ -1,41 +1,46 @@
 """CAN chassis bridge: a ChassisPort whose vehicle (ECU emulator or real chassis) sits behind a CAN bus.
 
-Commands go out as the three command frames under the 50 Hz rule of `hil.timing`; reports are followed
-through a can.Notifier and verified by the codec (rejections are counted, never applied). `engage`
-performs the enable handshake: release cycles until the VCU reports standby without a latched fault, then
-enable cycles until it reports self-driving. Any frame received on a command ID came from another
-transmitter (a bus does not echo our own frames), so it raises the bridge's own foreign_node fault.
-ChassisState.mode and .faults carry the VCU's driving mode and faults.
+The profile says what goes on the wire. A command cycle goes out only when the loop has given a fresh command
+since the last one and the profile's cycle is due (`hil.timing`): if the loop stalls, sending stops and the
+chassis's own command time-out trips. Commands are checked first: a non-finite value latches bad_command and
+brakes; finite values are clamped to the profile's limits. Reports are followed through a can.Notifier and
+verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and steering
+angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only compared
+against it: `odometry_error_max_m`, `odometry_error_last_m`).
+
+Faults (`hil.faults`) are latched with their chassis time; from then on every command brakes at the profile's
+fault_decel, keeping the loop's steering so the car stops in its lane, and `latched_faults()` tells the run to
+end as chassis_fault. Lost feedback or a lost ECU leaves the odometry braking at fault_decel from the last
+reported speed (what the chassis's own time-out does). `release` hands control back only at standstill.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
+from collections import Counter, deque
 from collections.abc import Callable
 
 import can
 
-from hil.actuator_map import COMMAND_FRAMES, ActuatorRequest
+from hil.actuator_map import ActuatorRequest
 from hil.codec import ChassisCodec, FrameRejected
-from hil.report_map import DRIVE_STATUS, DrivingMode, ReportFollower
-from hil.timing import (
-    COMMAND_TIMEOUT_S,
-    CYCLE_S,
-    CYCLE_US,
-    STEP_DONE,
-    STEP_REQUEST,
-    ClockMode,
-    CommandSchedule,
-)
-from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
+from hil.faults import FaultLatch
+from hil.odometry import KinematicOdometry
+from hil.profile import ChassisProfile, default_profile
+from hil.report_map import ReportFollower
+from hil.timing import ClockMode, CommandSchedule
+from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
 
-MAX_STEP_US = CYCLE_US
+STANDSTILL_MPS = 0.05
+BAD_REPORT_RUN = 3
+RATE_WINDOW_CYCLES = 5
 COMM_FAULTS = ("command_timeout", "bad_frames", "foreign_node")
 
 
 class BridgeError(RuntimeError):
-    """The VCU did not answer as required (lockstep step reply or enable handshake)."""
+    """The VCU did not answer as required (enable handshake) or control cannot be handed back yet."""
 
 
 class CanChassisBridge(ChassisPort):
@@ -48,71 +53,109 @@ class CanChassisBridge(ChassisPort):
         steer_rate: float = 1.0,
         reply_timeout: float = 2.0,
         wall_clock: Callable[[], float] = time.monotonic,
+        *,
+        profile: ChassisProfile | None = None,
+        odometry: KinematicOdometry | None = None,
     ) -> None:
         self.bus = bus
         self.clock = clock
-        self.steer_rate = steer_rate
+        self.profile = profile or default_profile()
+        self.steer_rate = min(steer_rate, self.profile.steering.max_rate)
         self.reply_timeout = reply_timeout
         self._wall_clock = wall_clock
-        self.codec = ChassisCodec()
-        self.follower = ReportFollower()
-        self._foreign_ids = frozenset(self.codec.frame_id(n) for n in (*COMMAND_FRAMES, STEP_REQUEST))
+        self.codec = ChassisCodec(self.profile)
+        self.follower = ReportFollower(self.profile)
+        self.odometry = odometry or KinematicOdometry()
+        self.fault_latch = FaultLatch()
+        sim = self.profile.simulation
+        self._step_request_id = self.codec.frame_id(sim.step_request)
+        self._step_done_id = self.codec.frame_id(sim.step_done)
+        self._foreign_ids = self.profile.command_ids | {self._step_request_id}
+        self._report_ids = self.profile.report_ids
+        self._speed_message = self.profile.reports.quantities["speed"].message
+        self._cycle_us = round(self.profile.timing.cycle_s * 1e6)
+        self._schedule = CommandSchedule(self._cycle_us)
         self._listeners: list[can.Listener] = []
         self._tx_lock = threading.Lock()
-        self._cmd = ChassisCommand(0.0, 0.0)
+        self._state_lock = threading.RLock()
+        self._fresh: ChassisCommand | None = None
+        self._last_steer = 0.0
         self._enable = False
+        self._engaged = False
         self._t_us = 0
+        self._rx_t_us = 0
         self._t0 = wall_clock()
-        self._schedule = CommandSchedule()
         self._step = 0
         self._done = threading.Condition()
         self._done_echo: int | None = None
-        self._last_report_wall: float | None = None
+        self._ecu_lost = False
+        self._feedback_lost = False
+        self._speed_seen_us: int | None = None
+        self._speed_seen_wall: float | None = None
+        self._window: Counter[int] = Counter()
+        self._arrivals: dict[int, deque[float]] = {i: deque() for i in self._report_ids}
+        self._reject_run: Counter[int] = Counter()
         self.rejected = {"format": 0, "checksum": 0, "range": 0, "counter": 0}
         self.frames_tx = 0
         self.frames_rx = 0
         self.frames_accepted = 0
         self.foreign_node = False
-        self._stop = threading.Event()
+        self.odometry_error_max_m: float | None = None
+        self.odometry_error_last_m: float | None = None
         self._notifier = can.Notifier(bus, [self.handle], timeout=0.05)
-        self._sender: threading.Thread | None = None
-        if clock is ClockMode.REALTIME:
-            self._sender = threading.Thread(target=self._send_loop, name="bridge-50hz", daemon=True)
-            self._sender.start()
 
     # ------------------------------------------------------------------ ChassisPort
     def read(self) -> ChassisState:
-        extra = []
-        if self.foreign_node:
-            extra.append("foreign_node")
-        if self.clock is ClockMode.REALTIME and self._report_stale():
-            extra.append("report_timeout")
-        state = self.follower.state(self.time(), ())
-        faults = tuple(dict.fromkeys((*state.faults, *extra)))
-        return ChassisState(
-            t=state.t,
-            speed=state.speed,
-            steer=state.steer,
-            accel=state.accel,
-            true_pose=state.true_pose,
-            yaw_rate=state.yaw_rate,
-            mode=state.mode,
-            faults=faults,
-        )
+        with self._state_lock:
+            if self.clock is ClockMode.REALTIME:
+                self._check_realtime()
+            extra = ("foreign_node",) if self.foreign_node else ()
+            extra += tuple(f.kind for f in self.fault_latch.faults if f.kind in ("report_timeout", "ecu_lost"))
+            state = self.follower.state(self.time())
+            speed = self.odometry.speed if self._feedback_lost else state.speed
+            return ChassisState(
+                t=state.t,
+                speed=speed,
+                steer=state.steer,
+                accel=state.accel,
+                true_pose=self.odometry.pose,
+                yaw_rate=state.yaw_rate,
+                mode=state.mode,
+                faults=tuple(dict.fromkeys((*state.faults, *extra))),
+            )
 
     def send(self, cmd: ChassisCommand) -> None:
-        self._cmd = cmd
+        limits, steering = self.profile.longitudinal, self.profile.steering
+        if not (math.isfinite(cmd.steer) and math.isfinite(cmd.accel)):
+            self._raise("bad_command", f"non-finite command: steer {cmd.steer}, accel {cmd.accel}")
+            cmd = ChassisCommand(self._last_steer, -limits.fault_decel)
+        steer = min(max(cmd.steer, -steering.max_angle), steering.max_angle)
+        accel = min(max(cmd.accel, -limits.max_decel), limits.max_accel)
+        if self.fault_latch:
+            accel = -limits.fault_decel
+        self._last_steer = steer
+        self._fresh = ChassisCommand(steer, accel)
 
     def advance(self, dt: float) -> None:
+        self._check_bus_state()
         if self.clock is ClockMode.REALTIME:
+            if self._fresh is not None and self._schedule.due(self._t_us):
+                self._send_cycle(self._fresh)
+            with self._state_lock:
+                self._check_realtime()
+            if self._feedback_lost:
+                self._coast(round(dt * 1e6))
             self._wait_until(self._t_us + round(dt * 1e6))
             return
         end_us = self._t_us + round(dt * 1e6)
         while self._t_us < end_us:
-            to_boundary = CYCLE_US - self._t_us % CYCLE_US
-            step_us = min(end_us - self._t_us, to_boundary, MAX_STEP_US)
-            self._exchange(step_us, send_commands=self._schedule.due(self._t_us))
+            step_us = min(end_us - self._t_us, self._cycle_us - self._t_us % self._cycle_us)
+            send = self._fresh is not None and self._schedule.due(self._t_us)
+            self._exchange(step_us, self._fresh if send else None)
             self._t_us += step_us
+
+    def latched_faults(self) -> tuple[ChassisFault, ...]:
+        return self.fault_latch.faults
 
     # ------------------------------------------------------------------ public extras
     def time(self) -> float:
@@ -122,110 +165,258 @@ class CanChassisBridge(ChassisPort):
         return self._wall_clock() - self._t0
 
     def add_listener(self, listener: can.Listener) -> None:
-        """Give `listener` every frame this bridge sends (is_rx False) and receives."""
+        """Give `listener` every frame this bridge sends (is_rx False) and receives, stamped with chassis time
+        in lockstep (so a log of 10 s of plant time spans 10 s) and with wall time in realtime."""
         self._listeners.append(listener)
-        self._notifier.add_listener(listener)
 
     def engage(self, timeout: float = 2.0) -> None:
         """Enable handshake: release until standby without a latched fault, then enable until self-driving."""
-        self._handshake(
-            False, timeout, lambda: self.follower.mode is DrivingMode.STANDBY and not self._comm_faults()
-        )
-        self._handshake(True, timeout, lambda: self.follower.mode is DrivingMode.SELF_DRIVING)
+        self._handshake(False, timeout, lambda: self.follower.mode == "standby" and not self._comm_faults())
+        self._handshake(True, timeout, lambda: self.follower.mode == "self_driving")
+        self._engaged = True
         if self.clock is ClockMode.REALTIME:
             # the run's clock starts here: pacing from construction would replay set-up time as a burst of steps
             self._t0 = self._wall_clock() - self._t_us / 1e6
+            self._speed_seen_wall = self._wall_clock()
 
     def release(self, timeout: float = 2.0) -> None:
-        """Hand control back: release cycles until the VCU reports standby."""
-        self._handshake(False, timeout, lambda: self.follower.mode is DrivingMode.STANDBY)
+        """Hand control back: release cycles until the VCU reports standby; only at standstill."""
+        speed = self.read().speed
+        if abs(speed) > STANDSTILL_MPS:
+            raise BridgeError(f"refusing to hand back control at {speed:.2f} m/s: not at standstill")
+        self._engaged = False
+        self._handshake(False, timeout, lambda: self.follower.mode == "standby")
+
+    def stop_and_release(self, timeout: float = 10.0) -> None:
+        """Brake at fault_decel (steering held) to standstill, then hand control back."""
+        deadline = self._wall_clock() + timeout
+        while abs(self.read().speed) > STANDSTILL_MPS and not self._ecu_lost:
+            if self._wall_clock() > deadline:
+                raise BridgeError(f"vehicle not at standstill after {timeout} s of braking")
+            self.send(ChassisCommand(self._last_steer, -self.profile.longitudinal.fault_decel))
+            self.advance(self.profile.timing.cycle_s)
+        if not self._ecu_lost and not self._feedback_lost:
+            self.release()
 
     def close(self) -> None:
-        self._stop.set()
-        if self._sender is not None:
-            self._sender.join(timeout=1.0)
         self._notifier.stop()
 
-    # ------------------------------------------------------------------ internals
-    def _comm_faults(self) -> bool:
-        return any(f in COMM_FAULTS for f in self.follower.faults())
+    # ------------------------------------------------------------------ faults
+    def _raise(self, kind: str, detail: str) -> None:
+        self.fault_latch.raise_fault(kind, round(self.time(), 6), detail)
 
+    def _comm_faults(self) -> bool:
+        return any(f.split(":")[0] in COMM_FAULTS for f in self.follower.faults())
+
+    def _check_chassis(self) -> None:
+        """While engaged: the chassis's e-stop, fault signals and driving mode."""
+        if not self._engaged:
+            return
+        estop = self.follower.estop()
+        if estop is not None:
+            self._raise("chassis_estop", f"chassis reports e-stop: {estop}")
+        faults = self.follower.faults()
+        if faults:
+            self._raise("chassis_fault", f"chassis reports {', '.join(faults)}")
+        mode = self.follower.mode
+        if mode != "self_driving":
+            self._raise("control_lost", f"chassis left self-driving: mode {mode}")
+
+    def _check_realtime(self) -> None:
+        last = self._speed_seen_wall
+        timeout = self.profile.timing.report_timeout_s
+        if self._engaged and last is not None and self._wall_clock() - last > timeout:
+            self._raise("report_timeout", f"no {self._speed_message} for {timeout * 1e3:.0f} ms")
+            self._feedback_lost = True
+        self._check_chassis()
+
+    def _check_bus_state(self) -> None:
+        try:
+            state = self.bus.state
+        except NotImplementedError:
+            return
+        if state is can.BusState.ERROR:
+            self._raise("bus_error", "bus-off: the controller left the bus")
+
+    # ------------------------------------------------------------------ internals
     def _handshake(self, enable: bool, timeout: float, reached: Callable[[], bool]) -> None:
         self._enable = enable
         deadline = self._wall_clock() + timeout
+        idle = ChassisCommand(self._last_steer, 0.0)
         while not reached():
-            if self._wall_clock() > deadline:
+            if self._wall_clock() > deadline or self._ecu_lost:
                 state = self.read()
                 phase = "enable" if enable else "release"
                 raise BridgeError(f"{phase} handshake timed out: mode {state.mode}, faults {state.faults}")
             if self.clock is ClockMode.LOCKSTEP:
-                self._exchange(0, send_commands=True)
+                self._exchange(0, idle)
             else:
-                time.sleep(CYCLE_S)
+                self._send_cycle(idle)
+                time.sleep(self.profile.timing.cycle_s)
 
-    def _exchange(self, step_us: int, send_commands: bool) -> None:
-        """Lockstep: (commands,) SIM_StepRequest, then wait for the SIM_StepDone closing its reports."""
-        if send_commands:
-            self._send_cycle()
+    def _exchange(self, step_us: int, command: ChassisCommand | None) -> None:
+        """Lockstep: (command cycle,) SIM_StepRequest, then wait for the SIM_StepDone closing its reports."""
+        self._rx_t_us = self._t_us + step_us
+        if command is not None:
+            self._send_cycle(command)
+        if self._ecu_lost:
+            self._coast(step_us)
+            return
         self._step = (self._step + 1) % 65536
         with self._done:
             self._done_echo = None
-        self._transmit(self.codec.encode(STEP_REQUEST, {"StepCount": self._step, "StepDt": step_us / 1e6}))
+        request = self.codec.encode(self.profile.simulation.step_request,
+                                    {"StepCount": self._step, "StepDt": step_us / 1e6})
+        if not self._transmit(request):  # no clock for the plant: its own command time-out will stop it
+            self._ecu_lost = self._feedback_lost = True
+            self._coast(step_us)
+            return
         with self._done:
             if not self._done.wait_for(lambda: self._done_echo == self._step, timeout=self.reply_timeout):
-                raise BridgeError(f"no SIM_StepDone for step {self._step} within {self.reply_timeout} s")
+                self._raise("ecu_lost", f"no step reply from the ECU within {self.reply_timeout} s")
+                self._ecu_lost = self._feedback_lost = True
+                self._coast(step_us)
+                return
+        self._close_step(step_us)
 
-    def _send_cycle(self) -> None:
-        request = ActuatorRequest.from_command(self._cmd, enable=self._enable, steer_rate=self.steer_rate)
-        for name, signals in request.to_signals().items():
+    def _close_step(self, step_us: int) -> None:
+        """A lockstep report set is complete: count it, follow the odometry, check feedback and the chassis."""
+        with self._state_lock:
+            end_us = self._t_us + step_us
+            if self._window[self.codec.frame_id(self._speed_message)] > 0:
+                self._speed_seen_us = end_us
+            doubled = sorted(hex(i) for i, n in self._window.items() if n > 1)
+            self._window.clear()
+            if doubled:
+                self._raise_at("foreign_sender", end_us, f"more than one frame per step on report IDs {doubled}")
+            timeout_us = round(self.profile.timing.report_timeout_s * 1e6)
+            seen = self._speed_seen_us
+            if self._engaged and seen is not None and end_us - seen >= timeout_us:
+                self._raise_at("report_timeout", end_us, f"no {self._speed_message} for {(end_us - seen) / 1e3:.0f} ms")
+                self._feedback_lost = True
+            if self._feedback_lost:
+                self._coast(step_us)
+                return
+            self._follow_odometry(step_us / 1e6)
+            self._measure_truth()
+            if self._engaged:
+                self._check_chassis_at(end_us)
+
+    def _raise_at(self, kind: str, t_us: int, detail: str) -> None:
+        self.fault_latch.raise_fault(kind, t_us / 1e6, detail)
+
+    def _check_chassis_at(self, t_us: int) -> None:
+        saved, self._t_us = self._t_us, t_us
+        try:
+            self._check_chassis()
+        finally:
+            self._t_us = saved
+
+    def _follow_odometry(self, dt: float) -> None:
+        state = self.follower.state(0.0)
+        yaw_rate = state.yaw_rate if "yaw_rate" in self.profile.reports.quantities else None
+        self.odometry.update(dt, state.speed, state.steer, yaw_rate)
+
+    def _coast(self, step_us: int) -> None:
+        """Feedback lost: the chassis brakes on its own; the odometry assumes fault_decel from the last speed."""
+        dt = step_us / 1e6
+        speed = max(self.odometry.speed - self.profile.longitudinal.fault_decel * dt, 0.0)
+        self.odometry.update(dt, speed, self._last_steer)
+
+    def _measure_truth(self) -> None:
+        truth = self.follower.truth_pose()
+        if truth is None:
+            return
+        pose = self.odometry.pose
+        error = math.hypot(pose.x - truth.x, pose.y - truth.y)
+        self.odometry_error_max_m = max(self.odometry_error_max_m or 0.0, error)
+        self.odometry_error_last_m = error
+
+    def _send_cycle(self, command: ChassisCommand) -> None:
+        request = ActuatorRequest.from_command(command, enable=self._enable, steer_rate=self.steer_rate)
+        for name, signals in request.to_signals(self.profile).items():
             self._transmit(self.codec.encode(name, signals))
+        self._fresh = None
 
-    def _transmit(self, frame: can.Message) -> None:
+    def _stamp(self, frame: can.Message) -> None:
+        frame.timestamp = self._rx_t_us / 1e6 if self.clock is ClockMode.LOCKSTEP else time.time()
+
+    def _transmit(self, frame: can.Message) -> bool:
+        """Send one frame; a refusal by the bus latches send_error (the loop learns of it) and returns False."""
         with self._tx_lock:
-            frame.timestamp = time.time()
-            self.bus.send(frame)
+            self._stamp(frame)
+            try:
+                self.bus.send(frame)
+            except (can.CanError, OSError) as exc:
+                self._raise("send_error", f"bus refused 0x{frame.arbitration_id:03X}: {exc}")
+                return False
             self.frames_tx += 1
             frame.is_rx = False
             for listener in self._listeners:
                 listener.on_message_received(frame)
+            return True
 
     def handle(self, frame: can.Message) -> None:
         """Process one received frame (the can.Notifier callback)."""
         self.frames_rx += 1
-        if frame.arbitration_id in self._foreign_ids and not frame.is_extended_id:
-            self.foreign_node = True
+        if self._listeners:
+            if self.clock is ClockMode.LOCKSTEP:
+                frame.timestamp = self._rx_t_us / 1e6
+            for listener in self._listeners:
+                listener.on_message_received(frame)
+        if frame.is_error_frame:
+            self._raise("bus_error", f"error frame on the bus: {frame}")
             return
-        if not self.codec.knows(frame.arbitration_id):
+        frame_id = frame.arbitration_id
+        if frame.is_extended_id:
+            return
+        if frame_id in self._foreign_ids:
+            self.foreign_node = True
+            self._raise("foreign_sender", f"frame on command ID 0x{frame_id:03X} from another node")
+            return
+        if frame_id in self._report_ids:
+            self._note_report_arrival(frame_id)
+        if not self.codec.knows(frame_id):
             return
         try:
             decoded = self.codec.decode(frame)
         except FrameRejected as rejection:
             self.rejected[rejection.reason] += 1
+            self._reject_run[frame_id] += 1
+            if self._reject_run[frame_id] >= BAD_REPORT_RUN:
+                self._raise("bad_frames", f"{BAD_REPORT_RUN} rejected frames in a row on 0x{frame_id:03X}: {rejection}")
             return
+        self._reject_run[frame_id] = 0
         self.frames_accepted += 1
-        if decoded.name == STEP_DONE:
+        if frame_id == self._step_done_id:
             with self._done:
                 self._done_echo = int(decoded.signals["StepCountEcho"])
                 self._done.notify_all()
             return
-        self.follower.update(decoded)
-        if decoded.name == DRIVE_STATUS:
-            self._last_report_wall = self._wall_clock()
+        with self._state_lock:
+            self.follower.update(decoded)
+            if decoded.name == self._speed_message and self.clock is ClockMode.REALTIME:
+                now = self._wall_clock()
+                last = self._speed_seen_wall
+                if self._engaged and last is not None and not self._feedback_lost:
+                    self._follow_odometry(now - last)
+                self._speed_seen_wall = now
 
-    def _report_stale(self) -> bool:
-        last = self._last_report_wall
-        return last is None or self._wall_clock() - last > COMMAND_TIMEOUT_S
+    def _note_report_arrival(self, frame_id: int) -> None:
+        if self.clock is ClockMode.LOCKSTEP:
+            self._window[frame_id] += 1
+            return
+        now = self._wall_clock()
+        arrivals = self._arrivals[frame_id]
+        arrivals.append(now)
+        window = RATE_WINDOW_CYCLES * self.profile.timing.cycle_s
+        while arrivals and arrivals[0] <= now - window:
+            arrivals.popleft()
+        if len(arrivals) > RATE_WINDOW_CYCLES + 2:
+            self._raise("foreign_sender", f"{len(arrivals)} frames on report ID 0x{frame_id:03X} in {window:.2f} s")
 
     def _wait_until(self, t_us: int) -> None:
         self._t_us = t_us
         delay = self._t0 + t_us / 1e6 - self._wall_clock()
         if delay > 0:
             time.sleep(delay)
-
-    def _send_loop(self) -> None:
-        deadline = self._wall_clock()
-        while not self._stop.is_set():
-            self._send_cycle()
-            now = self._wall_clock()
-            deadline = deadline + CYCLE_S if deadline + CYCLE_S > now else now + CYCLE_S
-            self._stop.wait(max(deadline - self._wall_clock(), 0.0))

@@ -4,6 +4,11 @@ bus) and `ld3 ecu` (the ECU emulator); `python -m hil ecu|replay ...` runs the l
 An ECU plant is named by `--plant`: "kinematic" (hil.kinematic_plant), "pybullet" (hil.plants.pybullet_plant,
 the scenario's PyBullet car) or "package.module:factory", called with the `--plant-arg KEY=VALUE` pairs as
 keyword strings and returning a ChassisPort; `--scenario NAME` selects the PyBullet car of that scenario.
+`--profile NAME|PATH` picks the chassis protocol of both commands (hil.profile).
+
+Exit codes: 0 done; 2 a usage error; 3 the run ended on a chassis fault (the car braked to standstill in lane;
+outputs written); 4 the CAN link failed (no such interface or device, the ECU process or handshake failed).
+Each failure is one line on stderr.
 """
 
 from __future__ import annotations
@@ -11,6 +16,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import signal
 import sys
 import threading
@@ -19,10 +25,12 @@ from pathlib import Path
 
 import can
 
+from hil.bridge import BridgeError
 from hil.bus_config import INTERFACES, BusConfig
 from hil.ecu import EcuEmulator, EcuLimits
-from hil.ecu_process import READY_PREFIX
+from hil.ecu_process import READY_PREFIX, EcuProcessError
 from hil.kinematic_plant import KinematicBicyclePlant
+from hil.profile import DEFAULT_PROFILE, load_profile
 from hil.replay import replay_log
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
@@ -30,6 +38,14 @@ from testbed.chassis import ChassisPort
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
+EXIT_USAGE, EXIT_CHASSIS_FAULT, EXIT_LINK = 2, 3, 4
+LINK_ERRORS = (can.CanError, OSError, BridgeError, EcuProcessError)
+
+
+def link_error_line(exc: BaseException) -> str:
+    """One line for a failure of the CAN link (python-can, the serial device, the ECU)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return f"ld3: CAN link error: {text}"
 
 
 def resolve_plant(spec: str) -> PlantFactory:
@@ -53,6 +69,9 @@ def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
                         help="slcan-pty: open a pty and act as an SLCAN adapter (prints SLCAN_PTY <path>)")
     parser.add_argument("--channel", default=None, help="virtual channel name, serial path or netdev")
     parser.add_argument("--clock", choices=[m.value for m in ClockMode], default=ClockMode.LOCKSTEP.value)
+    parser.add_argument("--profile", default=DEFAULT_PROFILE, help="chassis profile: shipped name or folder")
+    parser.add_argument("--truth", action=argparse.BooleanOptionalAction, default=None,
+                        help="publish the plant's true pose for measuring (default: the profile's setting)")
     parser.add_argument("--plant", default="kinematic", help="'kinematic', 'pybullet' or 'package.module:factory'")
     parser.add_argument("--plant-arg", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--scenario", help="use the PyBullet car of this scenario (name or .toml) as the plant")
@@ -85,20 +104,23 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
 
 def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None) -> int:
     """Run the ECU emulator until SIGTERM/SIGINT or --duration; slcan-pty prints `SLCAN_PTY <path>` first."""
+    profile = load_profile(args.profile)
     plant = _plant(args, plant_factory)
     limits = EcuLimits(
         max_steer=math.radians(args.max_steer_deg),
         max_steer_rate=math.radians(args.max_steer_rate_deg),
         estop_decel=args.estop_decel,
     )
-    if args.interface == "slcan-pty":
-        bus: can.BusABC = SlcanPtyBus()
-    else:
-        bus = BusConfig(args.interface, args.channel).open()
+    try:
+        bus: can.BusABC = SlcanPtyBus() if args.interface == "slcan-pty" else BusConfig(args.interface,
+                                                                                         args.channel).open()
+    except LINK_ERRORS as exc:
+        print(link_error_line(exc), file=sys.stderr)
+        return EXIT_LINK
     done = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGINT):
         signal.signal(signum, lambda *_: done.set())
-    ecu = EcuEmulator(bus, plant, limits, ClockMode(args.clock))
+    ecu = EcuEmulator(bus, plant, limits, ClockMode(args.clock), profile=profile, truth=args.truth)
     ecu.start()
     if isinstance(bus, SlcanPtyBus):
         print(f"{READY_PREFIX}{bus.tty_path}", flush=True)
@@ -113,16 +135,46 @@ def ecu_main(argv: Sequence[str] | None = None, plant_factory: PlantFactory | No
 
 
 # ---------------------------------------------------------------------- replay
-def replay_main(log_path: Path, interface: str = "virtual", channel: str | None = None) -> int:
-    """Play the frames of a .asc/.blf log onto the configured bus with their recorded timing."""
+def is_simulated_bus(interface: str, channel: str | None) -> bool:
+    """True for the virtual bus and for SLCAN on a pseudo-terminal (an emulator), False for hardware."""
+    if interface == "virtual":
+        return True
+    return interface == "slcan" and channel is not None and os.path.realpath(channel).startswith("/dev/pts/")
+
+
+def parse_ids(text: str | None, default: frozenset[int]) -> frozenset[int] | None:
+    """`--ids`: None -> `default`; "all" -> None (every frame); else comma-separated IDs (0x130 or 304)."""
+    if text is None:
+        return default
+    if text == "all":
+        return None
+    try:
+        return frozenset(int(part, 0) for part in text.split(","))
+    except ValueError:
+        raise ValueError(f"--ids takes 'all' or comma-separated frame IDs such as 0x130,0x131, got {text!r}") from None
+
+
+def replay_main(log_path: Path, interface: str = "virtual", channel: str | None = None, *, ids: str | None = None,
+                yes: bool = False, profile: str = DEFAULT_PROFILE) -> int:
+    """Play the command frames (or `ids`) of a .asc/.blf log onto the bus, paced by the log's timestamps; a
+    hardware bus needs `yes`."""
     if not log_path.is_file():
         raise FileNotFoundError(f"CAN log not found: {log_path}")
-    bus = BusConfig(interface, channel).open()
+    chosen = parse_ids(ids, load_profile(profile).command_ids)
+    if not yes and not is_simulated_bus(interface, channel):
+        raise ValueError(f"refusing to replay onto {interface}:{channel} (a hardware bus can move a vehicle); "
+                         "add --yes to confirm")
     try:
-        count = replay_log(log_path, bus)
+        bus = BusConfig(interface, channel).open()
+    except LINK_ERRORS as exc:
+        print(link_error_line(exc), file=sys.stderr)
+        return EXIT_LINK
+    try:
+        count = replay_log(log_path, bus, ids=chosen)
     finally:
         bus.shutdown()
-    print(f"replayed {count} frames from {log_path} onto {interface}:{channel or 'default'}")
+    which = "all" if chosen is None else ",".join(f"0x{i:03X}" for i in sorted(chosen))
+    print(f"replayed {count} frames (IDs {which}) from {log_path} onto {interface}:{channel or 'default'}")
     return 0
 
 
@@ -132,16 +184,29 @@ def cmd_hil(args: argparse.Namespace) -> int:
     if args.scenario == REPLAY:
         if args.log is None:
             raise ValueError("hil replay needs the log file: ld3 hil replay LOG.asc")
-        return replay_main(args.log, args.interface, args.channel)
+        return replay_main(args.log, args.interface, args.channel, ids=args.ids, yes=args.yes, profile=args.profile)
     if args.log is not None:
         raise ValueError(f"unexpected argument {str(args.log)!r} after the scenario")
     from hil.scenario_run import LinkConfig, run_hil_scenario
     from testbed.cli import scenario_from_args
 
     sc = scenario_from_args(args)
+    load_profile(args.profile)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
-    config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None)
-    result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty())
+    config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None,
+                        args.profile, args.truth)
+    drill: dict[str, object] = {}
+    if args.drill:
+        from hil.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
+
+        if args.interface != "virtual":
+            raise ValueError("--drill needs the in-process ECU emulator (--interface virtual)")
+        drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
+    try:
+        result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(), **drill)
+    except LINK_ERRORS as exc:
+        print(link_error_line(exc), file=sys.stderr)
+        return EXIT_LINK
     s = result.summary
     print(f"{sc.name} over {s['interface']} ({s['clock']}): consequence {s['consequence']}, "
           f"max |D| {s['max_abs_dev_m']:.3f} m, detected {s['detected']}, {s['sim_time_s']:.1f} s simulated "
@@ -149,6 +214,12 @@ def cmd_hil(args: argparse.Namespace) -> int:
     print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
           f"{s['can_frames_rejected']} rejected; log {s['can_log']}")
     print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png")
+    if s["faults"]:
+        first = s["faults"][0]
+        stop = f"standstill at {s['stop_time_s']:.2f} s" if s["stop_time_s"] is not None else "no standstill"
+        print(f"ld3: chassis fault: {first['kind']} at {first['time']:.2f} s ({first['detail']}); {stop}; "
+              f"outputs in {out}", file=sys.stderr)
+        return EXIT_CHASSIS_FAULT
     return 0
 
 
@@ -169,6 +240,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="lockstep (default) or realtime (default on socketcan)")
     p.add_argument("--log", dest="can_log", type=Path, default=None,
                    help="CAN log file (.asc or .blf; default OUT/can.asc)")
+    p.add_argument("--profile", default=DEFAULT_PROFILE,
+                   help="chassis profile: a shipped name (ld3-dev, pix-hooke) or a folder with chassis.dbc and "
+                        "profile.toml")
+    p.add_argument("--truth", action=argparse.BooleanOptionalAction, default=None,
+                   help="an emulated chassis also publishes its true pose, for measuring odometry drift only")
+    p.add_argument("--ids", default=None, help="with `replay`: frame IDs to send (default the profile's commands; "
+                                                "'all' for every frame)")
+    p.add_argument("--yes", action="store_true", help="with `replay`: allow a hardware bus")
+    p.add_argument("--drill", default=None, metavar="KIND[@T]",
+                   help="inject a fault into the emulated chassis at T s (see hil.fault_drill), e.g. chassis_estop@2")
     p.set_defaults(func=cmd_hil)
 
     p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)
@@ -186,10 +267,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.add_argument("log", type=Path)
             parser.add_argument("--interface", choices=INTERFACES, default="virtual")
             parser.add_argument("--channel", default=None)
+            parser.add_argument("--ids", default=None)
+            parser.add_argument("--yes", action="store_true")
+            parser.add_argument("--profile", default=DEFAULT_PROFILE)
             args = parser.parse_args(argv[1:])
-            return replay_main(args.log, args.interface, args.channel)
+            return replay_main(args.log, args.interface, args.channel, ids=args.ids, yes=args.yes,
+                               profile=args.profile)
     except (ValueError, FileNotFoundError) as exc:
         print(f"ld3: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
     print("usage: python -m hil ecu|replay ...", file=sys.stderr)
-    return 2
+    return EXIT_USAGE

@@ -1,21 +1,20 @@
-"""Chassis frame codec: cantools coding of hil/dbc/chassis.dbc plus life counters and checksums.
+"""Chassis frame codec: cantools coding of a chassis profile's DBC plus the life counters and checksums the
+profile declares.
 
 One codec instance is one endpoint: `encode` fills the next life counter of that frame ID (for IDs that
-carry one) and seals byte 7 with the XOR checksum; `decode` rejects a frame unless it is a standard, non-
-remote 8-byte frame of a known ID with a correct checksum, every signal within its DBC range, and (for
-IDs with a life counter) the successor of the previous counter on that ID. Physical units are those of
-the DBC (degrees for angles); the SI conversions live in `hil.actuator_map` and `hil.report_map`.
+carry one) and seals byte 7 with the XOR checksum (for IDs that carry one); `decode` rejects a frame unless it
+is a standard, non-remote 8-byte frame of a known ID with a correct checksum where one is declared, every
+signal within its DBC range, and (for IDs with a life counter) the successor of the previous counter on that
+ID. Physical units are those of the DBC (degrees for angles); the SI conversions live in `hil.actuator_map`
+and `hil.report_map`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 
 import can
-import cantools
-from cantools.database.can import Message as DbcMessage
 
 from hil.integrity import (
     CHECKSUM_BYTE,
@@ -26,8 +25,9 @@ from hil.integrity import (
     checksum_ok,
     xor_checksum,
 )
+from hil.profile import PROFILES_DIR, ChassisProfile, Integrity, default_profile
 
-DBC_PATH = Path(__file__).resolve().parent / "dbc" / "chassis.dbc"
+DBC_PATH = PROFILES_DIR / "ld3-dev" / "chassis.dbc"
 
 
 class FrameRejected(Exception):
@@ -47,19 +47,20 @@ class DecodedFrame:
     signals: Mapping[str, float]
 
 
-def _suffixed(message: DbcMessage, suffix: str) -> str | None:
-    names = [s.name for s in message.signals if s.name.endswith(suffix)]
-    return names[0] if names else None
+def _idle(lo: float | None, hi: float | None) -> float:
+    return min(max(0.0, lo if lo is not None else 0.0), hi if hi is not None else 0.0)
 
 
 class ChassisCodec:
     """Encodes and decodes chassis frames for one endpoint; owns its tx counters and rx monitors."""
 
-    def __init__(self, dbc_path: Path = DBC_PATH) -> None:
-        self.db = cantools.database.load_file(str(dbc_path), strict=True)
+    def __init__(self, profile: ChassisProfile | None = None) -> None:
+        self.profile = profile or default_profile()
+        self.db = self.profile.db
         self._messages = {m.frame_id: m for m in self.db.messages}
-        self._life = {m.frame_id: _suffixed(m, "Life") for m in self.db.messages}
-        self._checksum = {m.frame_id: _suffixed(m, "Checksum") for m in self.db.messages}
+        integrity = {m.frame_id: self.profile.integrity.get(m.name, Integrity()) for m in self.db.messages}
+        self._life = {i: spec.counter for i, spec in integrity.items()}
+        self._checksum = {i: spec.checksum for i, spec in integrity.items()}
         self._tx_life: dict[int, LifeCounter] = {i: LifeCounter() for i, n in self._life.items() if n}
         self._rx_life: dict[int, LifeMonitor] = {i: LifeMonitor() for i, n in self._life.items() if n}
 
@@ -70,15 +71,20 @@ class ChassisCodec:
         return frame_id in self._messages
 
     def encode(self, name: str, signals: Mapping[str, float]) -> can.Message:
-        """A sealed frame of message `name`; `signals` holds all signals but the life counter and checksum."""
+        """A sealed frame of message `name`; signals left out of `signals` (life counter, checksum, fields this
+        side does not use) are filled: counter and checksum as declared, the others at 0 clipped to their range."""
         message = self.db.get_message_by_name(name)
-        payload = dict(signals)
-        payload[self._checksum[message.frame_id]] = 0
+        payload = {s.name: _idle(s.minimum, s.maximum) for s in message.signals}
+        payload.update(signals)
+        checksum_name = self._checksum[message.frame_id]
+        if checksum_name:
+            payload[checksum_name] = 0
         life_name = self._life[message.frame_id]
         if life_name:
             payload[life_name] = self._tx_life[message.frame_id].next()
         data = bytearray(message.encode(payload, strict=True))
-        data[CHECKSUM_BYTE] = xor_checksum(data)
+        if checksum_name:
+            data[CHECKSUM_BYTE] = xor_checksum(data)
         return can.Message(arbitration_id=message.frame_id, is_extended_id=False, dlc=FRAME_LENGTH, data=data)
 
     def decode(self, frame: can.Message) -> DecodedFrame:
@@ -90,7 +96,7 @@ class ChassisCodec:
         data = bytes(frame.data)
         if frame.dlc != FRAME_LENGTH or len(data) != FRAME_LENGTH:
             raise FrameRejected("format", f"{message.name}: DLC {frame.dlc}, {len(data)} bytes")
-        if not checksum_ok(data):
+        if self._checksum[message.frame_id] and not checksum_ok(data):
             raise FrameRejected("checksum", f"{message.name}: {data.hex()}")
         signals = message.decode(data, decode_choices=False, scaling=False)
         physical = {}

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import can
 
-from hil.actuator_map import COMMAND_FRAMES
 from hil.codec import ChassisCodec, DecodedFrame, FrameRejected
 
 
@@ -32,7 +31,7 @@ class CommandGuard:
     def __init__(self, codec: ChassisCodec, limits: GuardLimits = GuardLimits()) -> None:
         self._codec = codec
         self._limits = limits
-        self.command_ids = frozenset(codec.frame_id(name) for name in COMMAND_FRAMES)
+        self.command_ids = frozenset(codec.frame_id(name) for name in codec.profile.commands.messages)
         self.rejected = {"format": 0, "checksum": 0, "range": 0, "counter": 0}
         self.admitted = 0
         self.bad_frames = False

@@ -9,7 +9,9 @@ Per step of `dt` (lockstep: on SIM_StepRequest; realtime: every 20 ms of wall ti
    brakes at `estop_decel` to standstill holding the steering angle; standby coasts;
 4. advances the plant by dt and publishes one report set (lockstep: closed by SIM_StepDone).
 Command frames are verified by a CommandGuard; its bad-frame and foreign-node faults revoke control like a
-command timeout does.
+command timeout does, and so do a pressed chassis e-stop and an injected subsystem fault (`press_estop`,
+`inject_fault`: the hardware faults a test drives the bridge with). Frame layout, counters, checksums and the
+command time-out come from the chassis profile; truth frames go out only with `truth` (default: the profile's).
 """
 
 from __future__ import annotations
@@ -21,11 +23,12 @@ from dataclasses import dataclass, field
 
 import can
 
-from hil.actuator_map import BRAKE, COMMAND_FRAMES, DRIVE, MAX_BRAKE_DECEL, STEER, ActuatorRequest, Gear
+from hil.actuator_map import ActuatorRequest, Gear
 from hil.codec import ChassisCodec, FrameRejected
 from hil.command_guard import CommandGuard, GuardLimits
+from hil.profile import ChassisProfile
 from hil.report_map import DrivingMode, EStopSource, VcuReport
-from hil.timing import COMMAND_TIMEOUT_S, CYCLE_S, STEP_DONE, STEP_REQUEST, ClockMode
+from hil.timing import ClockMode
 from testbed.chassis import ChassisCommand, ChassisPort
 
 STANDSTILL_MPS = 0.01
@@ -33,12 +36,12 @@ STANDSTILL_MPS = 0.01
 
 @dataclass(frozen=True)
 class EcuLimits:
-    """Actuator limits and time-outs the VCU enforces (rad, rad/s, m/s², s)."""
+    """Actuator limits and time-outs the VCU enforces (rad, rad/s, m/s², s; command_timeout None: the profile's)."""
 
     max_steer: float = 0.61
     max_steer_rate: float = 1.0
     estop_decel: float = 6.0
-    command_timeout: float = COMMAND_TIMEOUT_S
+    command_timeout: float | None = None
     guard: GuardLimits = field(default_factory=GuardLimits)
 
 
@@ -59,16 +62,22 @@ class EcuEmulator:
         limits: EcuLimits = EcuLimits(),
         clock: ClockMode = ClockMode.LOCKSTEP,
         wall_clock: Callable[[], float] = time.monotonic,
+        profile: ChassisProfile | None = None,
+        truth: bool | None = None,
     ) -> None:
         self.bus = bus
         self.plant = plant
         self.limits = limits
         self.clock = clock
         self._wall_clock = wall_clock
-        self.codec = ChassisCodec()
+        self.codec = ChassisCodec(profile)
+        self.profile = self.codec.profile
+        self.truth = self.profile.simulation.truth if truth is None else truth
+        self.command_timeout_s = limits.command_timeout or self.profile.timing.command_timeout_s
         self.guard = CommandGuard(self.codec, limits.guard)
-        self._names = {self.codec.frame_id(n): n for n in COMMAND_FRAMES}
-        self._step_request_id = self.codec.frame_id(STEP_REQUEST)
+        self._commands = self.profile.commands.messages
+        self._names = {self.codec.frame_id(n): n for n in self._commands}
+        self._step_request_id = self.codec.frame_id(self.profile.simulation.step_request)
         self._lock = threading.RLock()
         self._sim_us = 0
         self._latest: dict[str, dict[str, float]] = {}
@@ -82,6 +91,8 @@ class EcuEmulator:
         self._gear = Gear.NO_REQUEST
         self.mode = DrivingMode.STANDBY
         self.command_timeout = False
+        self.estop_pressed = False
+        self.injected_faults: dict[str, int] = {}
         self.frames_rx = 0
         self.frames_tx = 0
         self.step_requests_rejected = 0
@@ -107,8 +118,8 @@ class EcuEmulator:
     def _realtime_loop(self) -> None:
         deadline = self._wall_clock()
         while not self._stop.is_set():
-            deadline += CYCLE_S
-            self.step(CYCLE_S)
+            deadline += self.profile.timing.cycle_s
+            self.step(self.profile.timing.cycle_s)
             delay = deadline - self._wall_clock()
             if delay > 0:
                 self._stop.wait(delay)
@@ -122,8 +133,24 @@ class EcuEmulator:
 
     @property
     def faulted(self) -> bool:
-        return self.command_timeout or self.guard.bad_frames or self.guard.foreign_node
+        hardware = self.estop_pressed or any(self.injected_faults.values())
+        return hardware or self.command_timeout or self.guard.bad_frames or self.guard.foreign_node
 
+    def press_estop(self) -> None:
+        """The chassis's own e-stop: brake to standstill and stay out of self-driving until `release_estop`."""
+        with self._lock:
+            self.estop_pressed = True
+
+    def release_estop(self) -> None:
+        with self._lock:
+            self.estop_pressed = False
+
+    def inject_fault(self, name: str, level: int) -> None:
+        """Report fault `name` (a profile fault name) at `level`; a nonzero level e-stops like any fault."""
+        if name not in self.profile.reports.faults:
+            raise ValueError(f"profile {self.profile.name} has no fault {name!r}")
+        with self._lock:
+            self.injected_faults[name] = level
     def handle(self, frame: can.Message) -> None:
         """Process one received frame (the can.Notifier callback)."""
         with self._lock:
@@ -148,7 +175,7 @@ class EcuEmulator:
             return
         dt_us = round(request.signals["StepDt"] * 1e6)
         self.step(dt_us / 1e6)
-        self._send(STEP_DONE, {"StepCountEcho": request.signals["StepCount"]})
+        self._send(self.profile.simulation.step_done, {"StepCountEcho": request.signals["StepCount"]})
 
     # ------------------------------------------------------------------ the step
     def step(self, dt: float) -> None:
@@ -176,14 +203,14 @@ class EcuEmulator:
     def _check_timeout(self, now: float) -> None:
         if self.mode is not DrivingMode.SELF_DRIVING or self.faulted:
             return
-        if any(now - self._last_seen.get(n, -1e9) >= self.limits.command_timeout for n in COMMAND_FRAMES):
+        if any(now - self._last_seen.get(n, -1e9) >= self.command_timeout_s for n in self._commands):
             self.command_timeout = True
 
     def _newest_cycle(self) -> ActuatorRequest | None:
-        if not self._fresh or len(self._latest) < len(COMMAND_FRAMES):
+        if not self._fresh or len(self._latest) < len(self._commands):
             return None
         self._fresh.clear()
-        return ActuatorRequest.from_signals(self._latest[DRIVE], self._latest[BRAKE], self._latest[STEER])
+        return ActuatorRequest.from_signals(*(self._latest[n] for n in self._commands), self.profile)
 
     def _follow_enable(self, request: ActuatorRequest) -> None:
         if not request.enable:
@@ -205,7 +232,8 @@ class EcuEmulator:
         target = min(max(request.steer, -limit), limit)
         if self._applied_at is None:
             self._steer_cmd = self.plant.read().steer
-        elapsed = CYCLE_S if self._applied_at is None else max(now - self._applied_at, CYCLE_S)
+        cycle = self.profile.timing.cycle_s
+        elapsed = cycle if self._applied_at is None else max(now - self._applied_at, cycle)
         max_step = min(request.steer_rate, self.limits.max_steer_rate) * elapsed
         steer = min(max(target, self._steer_cmd - max_step), self._steer_cmd + max_step)
         self._steer_limited = abs(steer - request.steer) > 1e-9
@@ -218,6 +246,8 @@ class EcuEmulator:
 
     # ------------------------------------------------------------------ outputs
     def estop_source(self) -> EStopSource:
+        if self.estop_pressed:
+            return EStopSource.CHASSIS_BUTTON
         if self.command_timeout:
             return EStopSource.COMMAND_TIMEOUT
         if self.guard.bad_frames:
@@ -230,7 +260,9 @@ class EcuEmulator:
 
     def report(self) -> VcuReport:
         state = self.plant.read()
-        brake_pct = max(-self._accel_cmd, 0.0) / MAX_BRAKE_DECEL * 100.0
+        longitudinal = self.profile.longitudinal
+        brake_pct = max(-self._accel_cmd, 0.0) / longitudinal.full_brake_decel * 100.0
+        throttle_pct = max(self._accel_cmd, 0.0) / longitudinal.full_throttle_accel * 100.0
         estop = self.estop_source()
         return VcuReport(
             speed=state.speed,
@@ -251,10 +283,12 @@ class EcuEmulator:
             bad_format_count=self.guard.rejected["format"] + self.guard.rejected["range"],
             true_pose=state.true_pose,
             yaw_rate=state.yaw_rate,
+            throttle_pct=throttle_pct,
+            faults=dict(self.injected_faults),
         )
 
     def _publish(self) -> None:
-        for name, signals in self.report().to_signals().items():
+        for name, signals in self.report().to_signals(self.profile, truth=self.truth).items():
             self._send(name, signals)
 
     def _send(self, name: str, signals: dict[str, float]) -> None:

@@ -15,6 +15,10 @@ from hil.timing import ClockMode
 READY_PREFIX = "SLCAN_PTY "
 
 
+class EcuProcessError(RuntimeError):
+    """The ECU process did not come up."""
+
+
 class EcuProcess:
     """A running ECU emulator subprocess on a fresh pty (`tty_path`)."""
 
@@ -23,10 +27,13 @@ class EcuProcess:
         plant: str = "kinematic",
         plant_args: Mapping[str, str] | None = None,
         clock: ClockMode = ClockMode.LOCKSTEP,
-        start_timeout: float = 30.0,
+        profile: str = "ld3-dev",
+        truth: bool | None = None,
     ) -> None:
         command = [sys.executable, "-m", "hil", "ecu", "--interface", "slcan-pty", "--clock", clock.value]
-        command += ["--plant", plant]
+        command += ["--plant", plant, "--profile", str(profile)]
+        if truth is not None:
+            command += ["--truth" if truth else "--no-truth"]
         for key, value in (plant_args or {}).items():
             command += ["--plant-arg", f"{key}={value}"]
         self.popen = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
@@ -35,7 +42,7 @@ class EcuProcess:
         if not line.startswith(READY_PREFIX):
             self.stop()
             code = self.popen.returncode
-            raise RuntimeError(f"ECU process did not start: first line {line!r}, exit {code}")
+            raise EcuProcessError(f"ECU process did not start: first line {line!r}, exit {code}")
         self.tty_path = line[len(READY_PREFIX) :].strip()
 
     def stop(self, timeout: float = 5.0) -> int | None:

@@ -1,29 +1,27 @@
-"""The report set in SI units and its mapping onto the report frames 0x530-0x537 (and sim truth 0x540/1).
+"""The report set in SI units and its mapping onto a profile's report messages (and the emulator's truth frames).
 
-The VCU fills a `VcuReport` and encodes it with `to_signals`; the bridge feeds every verified report
-frame to a `ReportFollower`, which turns the latest values into a `ChassisState` (degrees on the wire,
-radians in the state).
+The VCU fills a `VcuReport` and encodes it with `to_signals`; the bridge feeds every verified report frame to
+a `ReportFollower`, which renders the latest values as a ChassisState without a pose (the bridge adds its own
+odometry pose). Quantities the profile has no signal for are neither sent nor read (yaw rate reads as 0).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 from hil.actuator_map import Gear
 from hil.codec import DecodedFrame
+from hil.profile import ChassisProfile, SignalRef, default_profile
 from testbed.chassis import ChassisState
 from tracks.pose import Pose
 
-DRIVE_STATUS, BRAKE_STATUS, STEER_STATUS = "VCU_DriveStatus", "VCU_BrakeStatus", "VCU_SteerStatus"
-WORK_STATUS, FAULT_STATUS = "VCU_WorkStatus", "VCU_FaultStatus"
-TRUTH_POSITION, TRUTH_MOTION = "SIM_TruthPosition", "SIM_TruthMotion"
-COUNT_SATURATION = 255
+NO_REPORT = "no-report"
 
 
 class DrivingMode(IntEnum):
-    """VCU_WorkStatus.DrivingMode; `label` is the ChassisState.mode string."""
+    """The VCU's driving mode by meaning (a profile's [modes] gives wire values); `label` is ChassisState.mode."""
 
     STANDBY = 0
     SELF_DRIVING = 1
@@ -36,17 +34,18 @@ class DrivingMode(IntEnum):
 
 
 class EStopSource(IntEnum):
-    """VCU_WorkStatus.EStopSource: why the VCU is braking to standstill on its own."""
+    """Why the VCU is braking to standstill on its own (a profile's [reports.estop_values] gives wire values)."""
 
     NONE = 0
     COMMAND_TIMEOUT = 1
     BAD_FRAMES = 2
     FOREIGN_NODE = 3
     EMERGENCY_BRAKE_COMMAND = 4
+    CHASSIS_BUTTON = 5
 
 
 class FaultLevel(IntEnum):
-    """Per-subsystem fault level of VCU_FaultStatus."""
+    """Per-subsystem fault level the emulator can report."""
 
     NO_FAULT = 0
     WARNING = 1
@@ -56,7 +55,9 @@ class FaultLevel(IntEnum):
 
 @dataclass(frozen=True)
 class VcuReport:
-    """One report set: motion, actuator status, driving mode, faults, rejection counts, simulation truth."""
+    """One report set: motion, actuator status, driving mode, faults, rejection counts, simulation truth.
+
+    `faults` holds further fault values by the profile's fault names (e.g. an injected subsystem fault)."""
 
     speed: float
     accel: float
@@ -76,49 +77,51 @@ class VcuReport:
     bad_format_count: int
     true_pose: Pose | None = None
     yaw_rate: float = 0.0
+    throttle_pct: float = 0.0
+    faults: dict[str, int] = field(default_factory=dict)
 
-    def to_signals(self) -> dict[str, dict[str, float]]:
-        """Signal values per report frame in publication order; truth frames only if a true pose is known."""
+    def _quantities(self, p: ChassisProfile) -> dict[str, float]:
+        estop_values = p.reports.estop_values
+        estop = estop_values.get(self.estop.name.lower())
+        if estop is None:
+            estop = estop_values.get("none", 0) if self.estop is EStopSource.NONE else max(estop_values.values())
         comm = FaultLevel.FATAL if (self.command_timeout or self.bad_frames or self.foreign_node) else 0
-        enabled = int(self.enabled)
-        frames: dict[str, dict[str, float]] = {
-            DRIVE_STATUS: {
-                "DriveEnableState": enabled,
-                "GearActual": int(self.gear),
-                "VehicleSpeed": _clip(self.speed, 65.534),
-                "VehicleAccel": _clip(self.accel, 32.767),
-            },
-            BRAKE_STATUS: {
-                "BrakeEnableState": enabled,
-                "EmergencyBrakeActive": int(self.emergency_active),
-                "BrakePedalActual": min(max(self.brake_pct, 0.0), 100.0),
-            },
-            STEER_STATUS: {
-                "SteerEnableState": enabled,
-                "SteerLimitActive": int(self.steer_limited),
-                "SteerAngleActual": _clip(math.degrees(self.steer), 65.534),
-            },
-            WORK_STATUS: {"DrivingMode": int(self.mode), "EStopSource": int(self.estop)},
-            FAULT_STATUS: {
-                "DriveFaultLevel": 0,
-                "BrakeFaultLevel": 0,
-                "SteerFaultLevel": 0,
-                "CommFaultLevel": int(comm),
-                "CommandTimeout": int(self.command_timeout),
-                "BadFrameRun": int(self.bad_frames),
-                "ForeignNode": int(self.foreign_node),
-                "BadChecksumCount": min(self.bad_checksum_count, COUNT_SATURATION),
-                "BadCounterCount": min(self.bad_counter_count, COUNT_SATURATION),
-                "BadFormatCount": min(self.bad_format_count, COUNT_SATURATION),
-            },
+        return {
+            "speed": self.speed, "accel": self.accel, "steer": p.steering.to_wire(self.steer),
+            "yaw_rate": self.yaw_rate, "gear": self.gear.wire(p),
+            "mode": p.modes.get(self.mode.name.lower(), p.modes["standby"]), "estop": estop,
+            "brake_pct": self.brake_pct, "throttle_pct": self.throttle_pct,
+            "emergency_active": int(self.emergency_active), "steer_limited": int(self.steer_limited),
+            "comm_fault_level": int(comm), "bad_checksum_count": self.bad_checksum_count,
+            "bad_counter_count": self.bad_counter_count, "bad_format_count": self.bad_format_count,
         }
-        if self.true_pose is not None:
+
+    def to_signals(self, profile: ChassisProfile | None = None, truth: bool = True) -> dict[str, dict[str, float]]:
+        """Signal values per report message in publication order; truth frames only if `truth`, the profile
+        names them and a true pose is known."""
+        p = profile or default_profile()
+        frames: dict[str, dict[str, float]] = {name: {} for name in p.reports.messages}
+
+        def put(ref: SignalRef, value: float) -> None:
+            signal = p.message(ref.message).get_signal_by_name(ref.signal)
+            lo = signal.minimum if signal.minimum is not None else -math.inf
+            hi = signal.maximum if signal.maximum is not None else math.inf
+            frames[ref.message][ref.signal] = min(max(value, lo), hi)
+
+        quantities = self._quantities(p)
+        for key, ref in p.reports.quantities.items():
+            put(ref, quantities[key])
+        for ref in p.reports.enabled:
+            put(ref, int(self.enabled))
+        flags = {"command_timeout": self.command_timeout, "bad_frames": self.bad_frames,
+                 "foreign_node": self.foreign_node}
+        for name, ref in p.reports.faults.items():
+            put(ref, int(flags[name]) if name in flags else self.faults.get(name, 0))
+        sim = p.simulation
+        if truth and self.true_pose is not None and sim.truth_position and sim.truth_motion:
             yaw = math.remainder(self.true_pose.yaw, math.tau)
-            frames[TRUTH_POSITION] = {"TruthX": self.true_pose.x, "TruthY": self.true_pose.y}
-            frames[TRUTH_MOTION] = {
-                "TruthYaw": _clip(yaw, 3.2767),
-                "TruthYawRate": _clip(self.yaw_rate, 3.2767),
-            }
+            frames[sim.truth_position] = {"TruthX": self.true_pose.x, "TruthY": self.true_pose.y}
+            frames[sim.truth_motion] = {"TruthYaw": _clip(yaw, 3.2767), "TruthYawRate": _clip(self.yaw_rate, 3.2767)}
         return frames
 
 
@@ -126,19 +129,13 @@ def _clip(value: float, bound: float) -> float:
     return min(max(value, -bound), bound)
 
 
-_FAULT_FLAGS = (
-    ("CommandTimeout", "command_timeout"),
-    ("BadFrameRun", "bad_frames"),
-    ("ForeignNode", "foreign_node"),
-)
-_FAULT_LEVELS = (("DriveFaultLevel", "drive"), ("BrakeFaultLevel", "brake"), ("SteerFaultLevel", "steer"))
-
-
 class ReportFollower:
     """Keeps the latest verified value of every report frame and renders them as a ChassisState."""
 
-    def __init__(self) -> None:
+    def __init__(self, profile: ChassisProfile | None = None) -> None:
+        self.profile = profile or default_profile()
         self._latest: dict[str, dict[str, float]] = {}
+        self._mode_names = {v: k for k, v in self.profile.modes.items()}
 
     def update(self, frame: DecodedFrame) -> None:
         self._latest[frame.name] = dict(frame.signals)
@@ -146,42 +143,62 @@ class ReportFollower:
     def has(self, name: str) -> bool:
         return name in self._latest
 
-    @property
-    def mode(self) -> DrivingMode | None:
-        work = self._latest.get(WORK_STATUS)
-        return DrivingMode(int(work["DrivingMode"])) if work else None
+    def value(self, quantity: str) -> float | None:
+        """The latest reported value (DBC units) of a report quantity, None before its first report."""
+        ref = self.profile.reports.quantities.get(quantity)
+        if ref is None or ref.message not in self._latest:
+            return None
+        return self._latest[ref.message][ref.signal]
 
     @property
-    def estop(self) -> EStopSource:
-        work = self._latest.get(WORK_STATUS)
-        return EStopSource(int(work["EStopSource"])) if work else EStopSource.NONE
+    def mode(self) -> str | None:
+        """The reported driving mode by name ("standby", "self_driving", ...), None before the first report."""
+        value = self.value("mode")
+        if value is None:
+            return None
+        return self._mode_names.get(int(value), f"mode-{int(value)}")
+
+    def estop(self) -> str | None:
+        """The reported e-stop state label when the chassis reports one active, else None."""
+        value = self.value("estop")
+        if value is None or int(value) == self.profile.reports.estop_values.get("none", 0):
+            return None
+        return _label(self.profile, self.profile.reports.quantities["estop"], int(value))
 
     def faults(self) -> tuple[str, ...]:
-        """VCU fault flags by name, then nonzero subsystem levels as "<subsystem>_fault:<level>"."""
-        status = self._latest.get(FAULT_STATUS, {})
-        names = [name for signal, name in _FAULT_FLAGS if status.get(signal)]
-        for signal, subsystem in _FAULT_LEVELS:
-            level = int(status.get(signal, 0))
-            if level:
-                names.append(f"{subsystem}_fault:{FaultLevel(level).name.lower()}")
+        """Fault signals reported nonzero: a 1-bit flag by its name, a level as "<name>:<level label>"."""
+        names = []
+        for name, ref in self.profile.reports.faults.items():
+            value = int(self._latest.get(ref.message, {}).get(ref.signal, 0))
+            if value:
+                length = self.profile.message(ref.message).get_signal_by_name(ref.signal).length
+                names.append(name if length == 1 else f"{name}:{_label(self.profile, ref, value)}")
         return tuple(names)
 
+    def truth_pose(self) -> Pose | None:
+        """The emulator's true pose, if it publishes one (for measuring only)."""
+        sim = self.profile.simulation
+        position = self._latest.get(sim.truth_position) if sim.truth_position else None
+        motion = self._latest.get(sim.truth_motion) if sim.truth_motion else None
+        if position is None or motion is None:
+            return None
+        return Pose(position["TruthX"], position["TruthY"], motion["TruthYaw"])
+
     def state(self, t: float, extra_faults: tuple[str, ...] = ()) -> ChassisState:
-        drive = self._latest.get(DRIVE_STATUS, {})
-        steer = self._latest.get(STEER_STATUS, {})
-        position = self._latest.get(TRUTH_POSITION)
-        motion = self._latest.get(TRUTH_MOTION)
-        pose = None
-        if position is not None and motion is not None:
-            pose = Pose(position["TruthX"], position["TruthY"], motion["TruthYaw"])
+        steer = self.value("steer")
         mode = self.mode
         return ChassisState(
             t=t,
-            speed=drive.get("VehicleSpeed", 0.0),
-            steer=math.radians(steer.get("SteerAngleActual", 0.0)),
-            accel=drive.get("VehicleAccel", 0.0),
-            true_pose=pose,
-            yaw_rate=motion["TruthYawRate"] if motion else 0.0,
-            mode=mode.label if mode is not None else "no-report",
+            speed=self.value("speed") or 0.0,
+            steer=self.profile.steering.from_wire(steer) if steer is not None else 0.0,
+            accel=self.value("accel") or 0.0,
+            true_pose=None,
+            yaw_rate=self.value("yaw_rate") or 0.0,
+            mode=mode.replace("_", "-") if mode is not None else NO_REPORT,
             faults=self.faults() + extra_faults,
         )
+
+
+def _label(profile: ChassisProfile, ref: SignalRef, value: int) -> str:
+    choices = profile.message(ref.message).get_signal_by_name(ref.signal).choices or {}
+    return str(choices[value]).lower() if value in choices else str(value)

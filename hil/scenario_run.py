@@ -5,12 +5,16 @@ Where the vehicle sits, by interface: `virtual` -> an ECU emulator in this proce
 virtual channel, its plant the PyBullet world the run also checks for curb and barrier contacts; `slcan`
 without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); `slcan` with
 a channel or `socketcan` -> an external VCU (socketcan defaults to the realtime clock, real hardware).
+The chassis profile (`LinkConfig.profile`) sets the protocol of bridge and emulator; the bridge's pose is its
+odometry from the scenario's start pose and the vehicle's geometry. A run that latches a fault brakes to
+standstill in lane and ends as chassis_fault (summary `faults`); the outputs and the CAN log are still written.
 """
 
 from __future__ import annotations
 
 import contextlib
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,25 +22,32 @@ import can
 
 from hil.bridge import BridgeError, CanChassisBridge
 from hil.bus_config import INTERFACES, BusConfig
-from hil.ecu import EcuEmulator
+from hil.ecu import EcuEmulator, EcuLimits
 from hil.ecu_process import EcuProcess
+from hil.odometry import KinematicOdometry, OdometryGeometry
 from hil.plants import plant_args_for, scenario_plant
+from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.timing import ClockMode
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
 from testbed.eval.scenario import Scenario
 from testbed.world import PhysicsWorld
+from tracks.presets import load_track
+from vehicles.params import get_vehicle
 
 ECU_PLANT = "hil.plants:pybullet_plant"
 
 
 @dataclass(frozen=True)
 class LinkConfig:
-    """Which bus carries the run and how time advances on it (None: lockstep, realtime on socketcan)."""
+    """Which bus carries the run, how time advances on it (None: lockstep, realtime on socketcan), the chassis
+    profile (shipped name or folder) and whether an emulator publishes truth frames (None: the profile's)."""
 
     interface: str = "virtual"
     channel: str | None = None
     clock: ClockMode | None = None
+    profile: str = DEFAULT_PROFILE
+    truth: bool | None = None
 
     def __post_init__(self) -> None:
         if self.interface not in INTERFACES:
@@ -51,11 +62,21 @@ class LinkConfig:
         return ClockMode.REALTIME if self.interface == "socketcan" else ClockMode.LOCKSTEP
 
 
+def scenario_odometry(sc: Scenario) -> KinematicOdometry:
+    """Odometry from the scenario's start pose with its vehicle's wheelbase and reference point."""
+    track = load_track(sc.track)
+    params = get_vehicle(sc.vehicle)
+    lane = sc.lane if sc.lane is not None else track.ego_lane
+    geometry = OdometryGeometry(wheelbase=params.wheelbase, ref_ahead=-params.rear_axle_x)
+    return KinematicOdometry(track.start_pose(lane, sc.start_s), geometry)
+
+
 class HilLink:
     """An engaged CanChassisBridge and the emulated vehicle behind it (if any); `close()` tears both down."""
 
     def __init__(self, sc: Scenario, config: LinkConfig, reply_timeout: float = 5.0) -> None:
         self.config = config
+        self.profile: ChassisProfile = load_profile(config.profile)
         self.world: PhysicsWorld | None = None
         self.channel = config.channel
         self._ecu: EcuEmulator | None = None
@@ -67,17 +88,25 @@ class HilLink:
             plant = scenario_plant(sc)
             self.world = plant.world
             self._ecu_bus = BusConfig("virtual", self.channel).open()
-            self._ecu = EcuEmulator(self._ecu_bus, plant, clock=clock)
+            self._ecu = EcuEmulator(self._ecu_bus, plant, EcuLimits(), clock, profile=self.profile,
+                                    truth=config.truth)
             self._ecu.start()
         elif config.interface == "slcan" and not config.channel:
-            self._process = EcuProcess(plant=ECU_PLANT, plant_args=plant_args_for(sc), clock=clock)
+            self._process = EcuProcess(plant=ECU_PLANT, plant_args=plant_args_for(sc), clock=clock,
+                                       profile=str(self.profile.root), truth=config.truth)
             self.channel = self._process.tty_path
         try:
             self.bus = BusConfig(config.interface, self.channel).open()
         except Exception:
             self._stop_vehicle()
             raise
-        self.bridge = CanChassisBridge(self.bus, clock=clock, reply_timeout=reply_timeout)
+        self.bridge = CanChassisBridge(self.bus, clock=clock, reply_timeout=reply_timeout, profile=self.profile,
+                                       odometry=scenario_odometry(sc))
+
+    @property
+    def ecu(self) -> EcuEmulator | None:
+        """The in-process ECU emulator (virtual interface), else None."""
+        return self._ecu
 
     @property
     def ecu_process(self) -> EcuProcess | None:
@@ -87,9 +116,9 @@ class HilLink:
         self.bridge.engage(timeout=timeout)
 
     def close(self) -> None:
-        """Hand control back (best effort), stop the bridge, the ECU and the buses."""
+        """Brake to standstill and hand control back (best effort), stop the bridge, the ECU and the buses."""
         with contextlib.suppress(BridgeError, can.CanError, OSError):  # must not mask the run's own outcome
-            self.bridge.release(timeout=1.0)
+            self.bridge.stop_and_release(timeout=10.0)
         self.bridge.close()
         self.bus.shutdown()
         self._stop_vehicle()
@@ -104,20 +133,25 @@ class HilLink:
 
 
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
-                     log_path: Path | None = None, progress: bool = False) -> RunResult:
+                     log_path: Path | None = None, progress: bool = False,
+                     prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0) -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
-    (`log_path`, default OUT/can.asc). The summary gains interface, channel, clock and frame counts."""
+    (`log_path`, default OUT/can.asc). The summary gains interface, channel, clock, profile, frame counts and
+    the odometry's largest and final distance from the emulator's truth (where truth frames are on). `prepare` is called
+    with the link before engaging (fault drills install their injections there)."""
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
         prepare_out_dir(out_dir)
         log_path = log_path or out_dir / "can.asc"
     recorder = FrameRecorder(log_path) if log_path is not None else None
-    link = HilLink(sc, config)
+    link = HilLink(sc, config, reply_timeout=reply_timeout)
     sim: SimRun | None = None
     try:
         if recorder is not None:
             link.bridge.add_listener(recorder)
+        if prepare is not None:
+            prepare(link)
         sim = SimRun(sc, chassis=link.bridge, world=link.world)
         link.engage()  # last before the run: a realtime bridge starts its clock here
         result = sim.run(progress=progress)
@@ -132,6 +166,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     bridge = link.bridge
     result.summary.update({
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
+        "profile": link.profile.name, "pose_source": "odometry",
+        "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
         "can_log": str(log_path) if log_path is not None else None,
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
         "can_frames_rejected": sum(bridge.rejected.values()),

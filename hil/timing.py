@@ -1,4 +1,4 @@
-"""Clock modes of the CAN link and the 50 Hz command rule shared by the bridge and the ECU emulator.
+"""Clock modes of the CAN link and the command-cycle rule shared by the bridge and the ECU emulator.
 
 lockstep (simulation): plant time advances only when the bridge sends SIM_StepRequest(dt); the ECU
 applies the commands received so far, steps its plant by dt and answers with one report set closed by
@@ -6,8 +6,9 @@ SIM_StepDone. Runs are deterministic and time-outs are measured in plant time. r
 sides pace themselves on the wall clock at 50 Hz; time-outs are wall time.
 
 Command rule (both modes): a command cycle goes out at the start of a tick whose time t has reached the
-next due time; due times are the multiples of 20 ms, so with 10 ms ticks the commands of ticks 0, 2, 4,
-... are sent and held for 20 ms, and the commands given at odd ticks are never applied.
+next due time, if the loop gave a command since the last cycle; due times are the multiples of the profile's
+cycle (20 ms), so with 10 ms ticks the commands of ticks 0, 2, 4, ... are sent and held for 20 ms, and the
+commands given at odd ticks are never applied.
 """
 
 from __future__ import annotations
@@ -16,8 +17,6 @@ from enum import Enum
 
 CYCLE_US = 20_000
 CYCLE_S = CYCLE_US / 1e6
-COMMAND_TIMEOUT_S = 0.1
-STEP_REQUEST, STEP_DONE = "SIM_StepRequest", "SIM_StepDone"  # the lockstep clock frames
 
 
 class ClockMode(Enum):

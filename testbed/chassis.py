@@ -34,8 +34,21 @@ class ChassisState:
     faults: tuple[str, ...] = field(default_factory=tuple)
 
 
+@dataclass(frozen=True)
+class ChassisFault:
+    """A fault that ends the run: its kind, the chassis time it was detected (s) and a one-line detail."""
+
+    kind: str
+    t: float
+    detail: str
+
+
 class ChassisPort(ABC):
     """A vehicle the loop can drive: read its state, send a command, let time advance by one tick."""
+
+    def latched_faults(self) -> tuple[ChassisFault, ...]:
+        """Faults after which the port only brakes to standstill; the run then ends as chassis_fault."""
+        return ()
 
     @abstractmethod
     def read(self) -> ChassisState: ...

@@ -19,8 +19,8 @@ TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_
                       "k_ld", "heading_used")
 SUMMARY_KEYS = ("scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
                 "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
-                "final_dev_m", "consequence", "detected", "detection_time_s", "detection_dev_m", "ar_max_dev_m",
-                "ar_stop_dev_m")
+                "final_dev_m", "consequence", "faults", "detected", "detection_time_s", "detection_dev_m",
+                "ar_max_dev_m", "ar_stop_dev_m")
 
 
 def _cell(value: Any) -> str:

@@ -184,7 +184,7 @@ class SimRun:
             edge = self._edge_beyond(pose)
             if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
                 break
-            if self.loop.stopping and abs(rec.speed) < STOP_SPEED:
+            if (self.loop.stopping or self.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED:
                 still_since = rec.t if still_since is None else still_since
                 if rec.t - still_since >= 0.5:
                     stop_t = still_since
@@ -208,7 +208,9 @@ class SimRun:
         before = phys[t <= det_t] if det_t is not None else phys
         during = phys[t >= det_t] if det_t is not None else np.array([])
         sim_time = float(t[-1] + 1.0 / self.loop.rates.control_hz) if len(t) else 0.0
-        consequence = self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev)
+        faults = self.chassis.latched_faults()
+        consequence = ("chassis_fault" if faults else
+                       self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         return {
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
@@ -219,6 +221,7 @@ class SimRun:
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
             "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
             "final_dev_m": final_dev, "consequence": consequence,
+            "faults": [{"kind": f.kind, "time": f.t, "detail": f.detail} for f in faults],
             "detected": bool(status.detected), "detection_time_s": det_t,
             "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
             "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,

@@ -13,7 +13,7 @@ from hil.bridge import CanChassisBridge
 from hil.codec import ChassisCodec
 from hil.ecu import EcuEmulator, EcuLimits
 from hil.kinematic_plant import KinematicBicyclePlant
-from hil.timing import STEP_REQUEST, CommandSchedule
+from hil.timing import CommandSchedule
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 
 
@@ -57,7 +57,8 @@ class SyncHost:
 
     def step(self, dt: float) -> None:
         self.step_count += 1
-        self.ecu.handle(self.codec.encode(STEP_REQUEST, {"StepCount": self.step_count, "StepDt": dt}))
+        request = self.codec.profile.simulation.step_request
+        self.ecu.handle(self.codec.encode(request, {"StepCount": self.step_count, "StepDt": dt}))
 
 
 @pytest.fixture

@@ -3,6 +3,7 @@
 import math
 
 from hil.kinematic_plant import KinematicBicyclePlant
+from hil.odometry import KinematicOdometry
 from testbed.chassis import ChassisCommand
 from tests.hil.conftest import SampleAndHoldPort
 from tracks.pose import Pose
@@ -34,3 +35,8 @@ def direct_run(ticks):
 def start_plant() -> KinematicBicyclePlant:
     """Plant factory for the ECU subprocess (`--plant tests.hil.driving:start_plant`)."""
     return KinematicBicyclePlant(pose=START)
+
+
+def start_odometry() -> KinematicOdometry:
+    """The bridge's odometry for a plant built by `start_plant` (same start pose and wheelbase)."""
+    return KinematicOdometry(START)

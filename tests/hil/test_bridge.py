@@ -15,7 +15,7 @@ from hil.recorder import FrameRecorder
 from hil.replay import replay_log
 from hil.timing import ClockMode
 from testbed.chassis import ChassisCommand
-from tests.hil.driving import START, direct_run, run
+from tests.hil.driving import START, direct_run, run, start_odometry
 
 
 def test_engage_reports_standby_then_self_driving(link):
@@ -33,7 +33,7 @@ def test_virtual_bus_run_stays_within_5_cm_of_the_direct_run(channel):
     # steering limits wide enough that the VCU never clips this controller (the direct run has none)
     ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(pose=START), EcuLimits(max_steer_rate=5.0))
     ecu.start()
-    bridge = CanChassisBridge(bridge_bus, steer_rate=5.0)
+    bridge = CanChassisBridge(bridge_bus, steer_rate=5.0, odometry=start_odometry())
     try:
         bridge.engage()
         over_can = run(bridge, 1500)

@@ -1,6 +1,7 @@
 """The `ld3 hil` / `ld3 ecu` commands: outputs of a short run, replay of its log, one-line user errors."""
 
 import json
+import time
 
 import can
 import pytest
@@ -18,15 +19,30 @@ def test_ld3_hil_writes_the_outputs_and_its_log_replays_onto_a_bus(tmp_path, cap
     assert summary["seed"] == 2 and summary["interface"] == "virtual"
     assert "over virtual (lockstep)" in capsys.readouterr().out
 
+    with can.LogReader(str(out / "can.asc")) as reader:
+        logged = list(reader)
+    commands = [f for f in logged if f.arbitration_id in (0x130, 0x131, 0x132)]
+    span = logged[-1].timestamp - logged[0].timestamp
+    assert len(logged) == summary["can_frames_logged"] and span >= 0.5  # plant time, not wall time
+
     listener_bus = can.Bus(interface="virtual", channel="hil-cli-replay")
     try:
+        start = time.monotonic()
         assert main(["hil", "replay", str(out / "can.asc"), "--channel", "hil-cli-replay"]) == 0
-        received = 0
+        elapsed = time.monotonic() - start
+        received = []
+        while (frame := listener_bus.recv(0.0)) is not None:
+            received.append(frame)
+        assert main(["hil", "replay", str(out / "can.asc"), "--channel", "hil-cli-replay", "--ids", "all"]) == 0
+        everything = 0
         while listener_bus.recv(0.0) is not None:
-            received += 1
+            everything += 1
     finally:
         listener_bus.shutdown()
-    assert received == summary["can_frames_logged"]
+    assert len(received) == len(commands) > 0  # only the command IDs by default
+    assert [bytes(f.data) for f in received] == [bytes(f.data) for f in commands]
+    assert elapsed >= 0.9 * (commands[-1].timestamp - commands[0].timestamp)  # paced by the log's time
+    assert everything == summary["can_frames_logged"]
 
 
 @pytest.mark.parametrize(

@@ -5,9 +5,10 @@ import math
 import can
 import pytest
 
-from hil.actuator_map import COMMAND_FRAMES, MAX_BRAKE_DECEL, ActuatorRequest, Gear
+from hil.actuator_map import ActuatorRequest, Gear
 from hil.codec import ChassisCodec, FrameRejected
 from hil.integrity import LifeMonitor, LifeVerdict, checksum_ok, xor_checksum
+from hil.profile import default_profile
 from testbed.chassis import ChassisCommand
 
 
@@ -69,8 +70,8 @@ def test_command_cycle_survives_the_wire_within_its_resolution(accel, steer):
     tx, rx = ChassisCodec(), ChassisCodec()
     request = ActuatorRequest.from_command(ChassisCommand(steer, accel), enable=True, steer_rate=1.0)
     frames = {name: rx.decode(tx.encode(name, s)).signals for name, s in request.to_signals().items()}
-    back = ActuatorRequest.from_signals(*(frames[name] for name in COMMAND_FRAMES))
+    back = ActuatorRequest.from_signals(*(frames[name] for name in default_profile().commands.messages))
     assert back.enable and back.gear is Gear.DRIVE
-    assert back.accel == pytest.approx(max(accel, -MAX_BRAKE_DECEL), abs=0.0005)
+    assert back.accel == pytest.approx(max(accel, -default_profile().longitudinal.full_brake_decel), abs=0.0005)
     assert back.steer == pytest.approx(steer, abs=math.radians(0.001) + 1e-12)
     assert back.steer_rate == pytest.approx(1.0, abs=1e-3)

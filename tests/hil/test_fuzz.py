@@ -1,12 +1,14 @@
-"""Hypothesis fuzz: >= 10,000 random and mutated frames into the ECU and into the bridge.
+"""Hypothesis fuzz, per shipped profile: >= 10,000 random and mutated frames into the ECU and into the bridge.
 
-No crash, and a frame is accepted exactly when an independent check of format, checksum, range and life
-counter passes.
+No crash, and a frame is accepted exactly when an independent check of format, checksum (where the profile
+declares one), range and life counter passes; the ranges are read straight from the bytes below.
 """
 
 import uuid
+from collections.abc import Callable
 
 import can
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -15,13 +17,15 @@ from hil.bridge import CanChassisBridge
 from hil.codec import ChassisCodec
 from hil.ecu import EcuEmulator
 from hil.kinematic_plant import KinematicBicyclePlant
+from hil.profile import load_profile
 from hil.report_map import DrivingMode, EStopSource, VcuReport
 from testbed.chassis import ChassisCommand
+from tracks.pose import Pose
 
 FRAMES_PER_EXAMPLE = 420
 EXAMPLES = 25
 COMMAND_IDS = (0x130, 0x131, 0x132)
-REPORT_IDS = (0x530, 0x531, 0x532, 0x534, 0x537, 0x540, 0x541, 0x5F1)
+STEP_REQUEST_ID = 0x5F0
 
 
 def _xor(data: bytes) -> int:
@@ -31,7 +35,71 @@ def _xor(data: bytes) -> int:
     return value
 
 
-def frames(ids: tuple[int, ...], templates: list[bytes]) -> st.SearchStrategy[can.Message]:
+def _u16(data: bytes, i: int) -> int:
+    return int.from_bytes(data[i : i + 2], "little")
+
+
+def _s16(data: bytes, i: int) -> int:
+    return int.from_bytes(data[i : i + 2], "little", signed=True)
+
+
+def _u10(data: bytes, i: int) -> int:
+    return data[i] | (data[i + 1] & 0x03) << 8
+
+
+def ld3_dev_in_range(frame_id: int, data: bytes) -> bool:
+    u16 = _u16(data, 2)
+    if frame_id == 0x130:
+        return data[1] & 0x0F <= 4 and u16 <= 10000
+    if frame_id == 0x131:
+        return u16 <= 10000
+    if frame_id == 0x132:
+        return _u16(data, 3) <= 60000
+    if frame_id == 0x530:
+        return data[1] & 0x0F <= 4
+    if frame_id == 0x531:
+        return u16 <= 10000
+    if frame_id == 0x534:
+        return data[1] & 0x0F <= 5
+    if frame_id == 0x537:
+        return all(level <= 3 for level in (data[0] & 0x0F, data[0] >> 4, data[1] & 0x0F, data[1] >> 4))
+    return True
+
+
+def pix_hooke_in_range(frame_id: int, data: bytes) -> bool:
+    steer_ok = data[0] >> 4 <= 4 and abs(_s16(data, 1)) <= 500 and abs(_s16(data, 3)) <= 500 and data[5] <= 250
+    if frame_id == 0x130:
+        return data[0] >> 4 <= 3 and _u16(data, 1) <= 5000 and _u10(data, 3) <= 1000
+    if frame_id == 0x131:
+        return _u10(data, 1) <= 1000 and data[3] & 0x03 <= 2
+    if frame_id in (0x132, 0x532):
+        return steer_ok
+    if frame_id == 0x530:
+        return abs(_s16(data, 1)) <= 5000 and _u10(data, 3) <= 1000 and abs(_s16(data, 5)) <= 2000
+    if frame_id == 0x531:
+        return _u10(data, 1) <= 1000
+    if frame_id == 0x534:
+        dc, eco = (data[0] >> 4) & 0x03, (data[1] >> 2) & 0x03
+        return dc <= 2 and eco <= 2 and _u16(data, 2) <= 500 and data[4] <= 250 and data[5] & 0x0F <= 3
+    if frame_id == 0x537:
+        nibbles = [b >> shift & 0x0F for b in data[1:6] for shift in (0, 4)] + [data[6] & 0x0F]
+        return all(level <= 4 for level in nibbles)
+    return True
+
+
+PROFILES = {
+    # name: (report IDs, report IDs with a life counter, IDs carrying the XOR checksum, range check)
+    "ld3-dev": ((0x530, 0x531, 0x532, 0x534, 0x537, 0x540, 0x541, 0x5F1), (0x534,), None, ld3_dev_in_range),
+    "pix-hooke": (
+        (0x530, 0x531, 0x532, 0x534, 0x537, 0x5F1, 0x5F2, 0x5F3),
+        (0x534,),
+        (*COMMAND_IDS, 0x534, 0x5F0, 0x5F1, 0x5F2, 0x5F3),
+        pix_hooke_in_range,
+    ),
+}
+
+
+def frames(ids: tuple[int, ...], templates: list[tuple[int, bytes]]) -> st.SearchStrategy[can.Message]:
     """Random frames, plus valid templates with one byte mutated and the checksum recomputed (or not)."""
     random_frame = st.builds(
         lambda i, ext, rem, data: can.Message(
@@ -67,96 +135,69 @@ def frames(ids: tuple[int, ...], templates: list[bytes]) -> st.SearchStrategy[ca
     return st.one_of(random_frame, mutated, mutated)
 
 
-def command_templates() -> list[tuple[int, bytes]]:
-    codec = ChassisCodec()
-    request = ActuatorRequest.from_command(ChassisCommand(0.1, 1.0), enable=True, steer_rate=1.0)
-    encoded = [codec.encode(n, s) for n, s in request.to_signals().items()]
+def command_templates(profile) -> list[tuple[int, bytes]]:
+    codec = ChassisCodec(profile)
+    request = ActuatorRequest.from_command(ChassisCommand(0.1, 1.0), enable=True, steer_rate=0.5)
+    encoded = [codec.encode(n, s) for n, s in request.to_signals(profile).items()]
     return [(f.arbitration_id, bytes(f.data)) for f in encoded]
 
 
-def report_templates() -> list[tuple[int, bytes]]:
-    codec = ChassisCodec()
+def report_templates(profile) -> list[tuple[int, bytes]]:
+    codec = ChassisCodec(profile)
     report = VcuReport(
-        1.0,
-        0.1,
-        0.05,
-        Gear.DRIVE,
-        True,
-        0.0,
-        False,
-        False,
-        DrivingMode.SELF_DRIVING,
-        EStopSource.NONE,
-        False,
-        False,
-        False,
-        0,
-        0,
-        0,
-        None,
-        0.0,
+        1.0, 0.1, 0.05, Gear.DRIVE, True, 0.0, False, False, DrivingMode.SELF_DRIVING, EStopSource.NONE,
+        False, False, False, 0, 0, 0, Pose(10.0, -3.0, 0.4), 0.0,
     )
-    return [(codec.frame_id(n), bytes(codec.encode(n, s).data)) for n, s in report.to_signals().items()]
-
-
-def in_range(frame_id: int, data: bytes) -> bool:
-    """The DBC ranges that raw values can exceed, read straight from the bytes."""
-    u16 = int.from_bytes(data[2:4], "little")
-    if frame_id == 0x130:
-        return data[1] & 0x0F <= 4 and u16 <= 10000
-    if frame_id == 0x131:
-        return u16 <= 10000
-    if frame_id == 0x132:
-        return int.from_bytes(data[3:5], "little") <= 60000
-    if frame_id == 0x530:
-        return data[1] & 0x0F <= 4
-    if frame_id == 0x531:
-        return u16 <= 10000
-    if frame_id == 0x534:
-        return data[1] & 0x0F <= 4
-    if frame_id == 0x537:
-        return all(level <= 3 for level in (data[0] & 0x0F, data[0] >> 4, data[1] & 0x0F, data[1] >> 4))
-    return True
+    signals = report.to_signals(profile, truth=True)
+    return [(codec.frame_id(n), bytes(codec.encode(n, s).data)) for n, s in signals.items()]
 
 
 class Oracle:
     """Independent verdict per frame, tracking the life counters of the IDs in `life_ids`."""
 
-    def __init__(self, known_ids: tuple[int, ...], life_ids: tuple[int, ...]) -> None:
+    def __init__(self, known_ids, life_ids, checksum_ids, in_range: Callable[[int, bytes], bool]) -> None:
         self.known = known_ids
         self.life_ids = life_ids
+        self.checksum_ids = checksum_ids
+        self.in_range = in_range
         self.last: dict[int, int] = {}
 
     def valid(self, frame: can.Message) -> bool:
         data = bytes(frame.data)
-        if frame.arbitration_id not in self.known or frame.is_extended_id or frame.is_remote_frame:
+        frame_id = frame.arbitration_id
+        if frame_id not in self.known or frame.is_extended_id or frame.is_remote_frame:
             return False
-        if frame.dlc != 8 or len(data) != 8 or data[7] != _xor(data):
+        if frame.dlc != 8 or len(data) != 8:
             return False
-        if not in_range(frame.arbitration_id, data):
+        if (self.checksum_ids is None or frame_id in self.checksum_ids) and data[7] != _xor(data):
             return False
-        if frame.arbitration_id not in self.life_ids:
+        if not self.in_range(frame_id, data):
+            return False
+        if frame_id not in self.life_ids:
             return True
-        life, last = data[6] & 0x0F, self.last.get(frame.arbitration_id)
-        self.last[frame.arbitration_id] = life
+        life, last = data[6] & 0x0F, self.last.get(frame_id)
+        self.last[frame_id] = life
         return last is None or life == (last + 1) % 16
 
 
-def test_fuzz_ecu_accepts_exactly_the_valid_command_frames():
+@pytest.mark.parametrize("name", sorted(PROFILES))
+def test_fuzz_ecu_accepts_exactly_the_valid_command_frames(name):
+    profile = load_profile(name)
+    _, _, checksum_ids, in_range = PROFILES[name]
     seen = []
 
     @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck), database=None)
     @given(
         st.lists(
-            frames((*COMMAND_IDS, 0x5F0), command_templates()),
+            frames((*COMMAND_IDS, STEP_REQUEST_ID), command_templates(profile)),
             min_size=FRAMES_PER_EXAMPLE,
             max_size=FRAMES_PER_EXAMPLE,
         )
     )
     def check(batch):
         bus = can.Bus(interface="virtual", channel=f"fuzz-ecu-{uuid.uuid4().hex}")
-        ecu = EcuEmulator(bus, KinematicBicyclePlant())
-        oracle = Oracle(COMMAND_IDS, COMMAND_IDS)
+        ecu = EcuEmulator(bus, KinematicBicyclePlant(), profile=profile)
+        oracle = Oracle(COMMAND_IDS, COMMAND_IDS, checksum_ids, in_range)
         try:
             for frame in batch:
                 before = ecu.guard.admitted
@@ -172,7 +213,10 @@ def test_fuzz_ecu_accepts_exactly_the_valid_command_frames():
     assert sum(seen) >= 10_000
 
 
-def test_fuzz_bridge_accepts_exactly_the_valid_report_frames():
+@pytest.mark.parametrize("name", sorted(PROFILES))
+def test_fuzz_bridge_accepts_exactly_the_valid_report_frames(name):
+    profile = load_profile(name)
+    report_ids, life_ids, checksum_ids, in_range = PROFILES[name]
     seen = []
     bus = can.Bus(interface="virtual", channel=f"fuzz-bridge-{uuid.uuid4().hex}")
     try:
@@ -182,15 +226,15 @@ def test_fuzz_bridge_accepts_exactly_the_valid_report_frames():
         )
         @given(
             st.lists(
-                frames((*REPORT_IDS, *COMMAND_IDS), report_templates()),
+                frames((*report_ids, *COMMAND_IDS), report_templates(profile)),
                 min_size=FRAMES_PER_EXAMPLE,
                 max_size=FRAMES_PER_EXAMPLE,
             )
         )
         def check(batch):
-            bridge = CanChassisBridge(bus)
+            bridge = CanChassisBridge(bus, profile=profile)
             bridge.close()  # frames are fed by hand below
-            oracle = Oracle(REPORT_IDS, (0x534,))
+            oracle = Oracle(report_ids, life_ids, checksum_ids, in_range)
             for frame in batch:
                 before = bridge.frames_accepted
                 bridge.handle(frame)

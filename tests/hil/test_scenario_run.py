@@ -84,3 +84,40 @@ def test_link_config_rejects_unknown_interfaces_and_socketcan_without_a_channel(
     with pytest.raises(ValueError, match="socketcan needs --channel"):
         LinkConfig("socketcan")
     assert LinkConfig("socketcan", "can0").clock_mode.value == "realtime"
+
+
+def pix_parking_lot(seconds: float):
+    sc = load_scenario("parking-lot").with_overrides(duration=seconds, seed=3, speed=4.0)
+    return dataclasses.replace(sc, rates={"command_hold_s": 0.02})
+
+
+def test_pix_hooke_runs_over_virtual_and_slcan_stay_within_5_cm_of_the_direct_run(tmp_path):
+    sc = pix_parking_lot(3.0)
+    direct = direct_rows(sc)
+    virtual = run_hil_scenario(sc, tmp_path, LinkConfig("virtual", profile="pix-hooke"))
+    slcan = run_hil_scenario(sc, None, LinkConfig("slcan", profile="pix-hooke"))
+    assert direct[-1].x - direct[0].x > 3.0
+    for result in (virtual, slcan):
+        assert result.summary["profile"] == "pix-hooke" and result.summary["can_frames_rejected"] == 0
+        assert max_gap(result.rows, direct) < TOLERANCE_M
+    with can.LogReader(str(tmp_path / "can.asc")) as reader:
+        ids = {frame.arbitration_id for frame in reader}
+    assert {0x130, 0x131, 0x132, 0x530, 0x532, 0x534} <= ids
+    assert not ids & {0x540, 0x541, 0x5F2, 0x5F3}  # no truth frames on a pix-hooke bus by default
+    assert virtual.summary["odometry_error_max_m"] is None and virtual.summary["pose_source"] == "odometry"
+
+
+def test_truth_frames_on_request_measure_the_odometry_against_the_plant():
+    result = run_hil_scenario(pix_parking_lot(3.0), None, LinkConfig("virtual", profile="pix-hooke", truth=True))
+    assert 0.0 < result.summary["odometry_error_max_m"] < TOLERANCE_M
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("interface", ["virtual", "slcan"])
+def test_pix_hooke_20_s_parking_lot_stays_within_5_cm_of_the_direct_run(interface):
+    sc = pix_parking_lot(20.0)
+    result = run_hil_scenario(sc, None, LinkConfig(interface, profile="pix-hooke"))
+    direct = direct_rows(sc)
+    n = min(len(result.rows), len(direct))
+    assert n > 1000 and abs(len(result.rows) - len(direct)) <= 1  # the track's end stops both near 13 s
+    assert max_gap(result.rows[:n], direct[:n]) < TOLERANCE_M

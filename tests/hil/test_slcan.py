@@ -10,7 +10,7 @@ from hil.bridge import CanChassisBridge
 from hil.bus_config import BusConfig
 from hil.ecu_process import EcuProcess
 from hil.slcan_pty import SlcanPtyBus
-from tests.hil.driving import direct_run, run
+from tests.hil.driving import direct_run, run, start_odometry
 
 
 def test_slcan_pty_carries_frames_both_ways_and_answers_protocol_commands():
@@ -40,7 +40,7 @@ def test_slcan_pty_carries_frames_both_ways_and_answers_protocol_commands():
 def test_ecu_subprocess_over_slcan_matches_the_direct_run():
     process = EcuProcess(plant="tests.hil.driving:start_plant")
     bus = BusConfig("slcan", process.tty_path).open()
-    bridge = CanChassisBridge(bus, reply_timeout=5.0)
+    bridge = CanChassisBridge(bus, reply_timeout=5.0, odometry=start_odometry())
     try:
         bridge.engage(timeout=5.0)
         assert bridge.read().mode == "self-driving"
