@@ -128,7 +128,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         return 0
     out = args.out or Path("runs") / f"campaign-{args.name}"
     report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty(),
-                       select=args.runs)
+                       select=args.runs, settings=args.set)
     print(report.read_text())
     print(f"report: {report}")
     return 0
@@ -164,6 +164,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
     p.add_argument("--workers", type=int, default=2, help="worker processes")
     p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB, e.g. 'local@101-*'")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("patch-figure", help="before/after camera frames of a dirty-road patch (drp-patch) with the "

@@ -4,8 +4,9 @@ runs and a table of what the paper reports for it.
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_c
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
-from testbed.eval.scenario import load_scenario
+from testbed.eval.scenario import apply_settings, load_scenario
 
 
 @dataclass(frozen=True)
@@ -293,8 +294,9 @@ CAMPAIGNS: dict[str, CampaignSpec] = {
 
 
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True,
-              select: str | None = None) -> Path:
-    """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None)."""
+              select: str | None = None, settings: Sequence[str] = ()) -> Path:
+    """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None),
+    `settings` are `--set KEY=VALUE` overrides applied to every run's scenario."""
     if name not in CAMPAIGNS:
         raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
     spec = CAMPAIGNS[name]
@@ -303,9 +305,12 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
         runs = [r for r in runs if fnmatch.fnmatchcase(r.run_id, select)]
         if not runs:
             raise ValueError(f"--runs {select!r} matches no run of campaign {name!r}")
+    if settings:
+        runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
     done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
-    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector {used}.\n\n"
+    overrides = f" Every run with `--set {' '.join(settings)}`." if settings else ""
+    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector {used}.{overrides}\n\n"
                       f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
     return report

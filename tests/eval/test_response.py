@@ -43,7 +43,8 @@ def test_attack_response_internals_are_written(fr_runs):
     ar = [r for r in rows if r["mode"] == "ar"]
     assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])
     assert all(0.0 < float(r["k_msf"]) < 1.0 and 0.0 < float(r["k_ld"]) < 1.0 for r in ar)
-    assert max(abs(float(r["heading_used"])) for r in ar) <= 0.05  # the fused heading stays within a few hundredths of a radian of the lane
+    # the fused heading stays within a few hundredths of a radian of the lane
+    assert max(abs(float(r["heading_used"])) for r in ar) <= 0.05
     assert (run_dir / "ar_fusion.png").stat().st_size > 10_000
     assert json.loads((run_dir / "summary.json").read_text())["defense_params"]["heading_clamp"] == 0.02
 
