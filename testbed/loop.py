@@ -63,6 +63,10 @@ class TickRecord:
     heading_used: float | None = None
 
 
+_NOT_RESPONDING = DefenseStatus(detected=False)
+"""Stands in for the defense's status outside attack response: no fusion internals are recorded there."""
+
+
 def safe_dev(smap: SemanticMap, pose: Pose, lane: int | None) -> float | None:
     """Signed lane deviation, or None off the map."""
     try:
@@ -169,7 +173,7 @@ class ControlLoop:
         status = self.defense.status()
         mode = self.defense.mode
         attack_state = self.attack.state() if self.attack is not None else {}
-        ar = status if mode == "ar" else DefenseStatus(detected=False)
+        ar = status if mode == "ar" else _NOT_RESPONDING
         return TickRecord(
             t=state.t, x=truth.x, y=truth.y, yaw=truth.yaw, speed=state.speed,
             phys_dev=safe_dev(self.smap, state.true_pose, self.lane) if state.true_pose is not None else None,
