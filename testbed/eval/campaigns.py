@@ -39,6 +39,19 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _span(values: list[float]) -> str:
+    """'a' when every value rounds alike, else 'min–max' (the lane straddle deviation over road layouts)."""
+    lo, hi = min(values), max(values)
+    return f"{lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"{lo:.2f}–{hi:.2f}"
+
+
+def _margin(sums: list[dict[str, Any]]) -> str:
+    """Smallest lane straddle deviation − max |D| over the runs that stayed in lane ('–' if none did)."""
+    margins = [s["lane_straddle_dev_m"] - (s["max_abs_dev_m"] or 0.0) for s in sums
+               if s["consequence"] in ("stop_in_lane", "reach_destination")]
+    return f"{min(margins):.2f}" if margins else "–"
+
+
 def _stats(values: list[float]) -> str:
     arr = np.array([v for v in values if v is not None], dtype=float)
     if arr.size == 0:
@@ -147,9 +160,10 @@ def table4_runs(detector: str) -> list[CampaignRun]:
 
 
 def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
-    lines = ["| defense | runs | lane straddle dev (m) | max dev (m) | consequences | detected | detection dev (m) "
-             "| AR max dev (m) | stop dev (m) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["Margin = lane straddle deviation − max |D|, the smallest over the row's runs that stayed in lane.",
+             "", "| defense | runs | lane straddle dev (m) | max dev (m) | margin (m) | consequences | detected "
+             "| detection dev (m) | AR max dev (m) | stop dev (m) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     by_def: dict[str, list[dict[str, Any]]] = {}
     for run, s in done:
         by_def.setdefault(f"{run.tags.get('track', '')} {s['defense']}".strip(), []).append(s)
@@ -158,8 +172,9 @@ def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
         for s in sums:
             cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
         lines.append(
-            f"| {key} | {len(sums)} | {sums[0]['lane_straddle_dev_m']:.2f} "
+            f"| {key} | {len(sums)} | {_span([s['lane_straddle_dev_m'] for s in sums])} "
             f"| {_stats([s['max_abs_dev_m'] for s in sums])} "
+            f"| {_margin(sums)} "
             f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} "
             f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
             f"| {_stats([s['detection_dev_m'] for s in sums])} | {_stats([s['ar_max_dev_m'] for s in sums])} "
