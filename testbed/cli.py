@@ -25,6 +25,11 @@ class UserError(Exception):
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:
+    from testbed.attacks.registry import ATTACKS
+    from testbed.defense.registry import DEFENSES
+    from testbed.localization.registry import LOCALIZATIONS
+    from testbed.perception.registry import DETECTORS
+
     p.add_argument("scenario", help="shipped scenario name (see `ld3 scenarios`) or path to a .toml file")
     p.add_argument("--track", help="track preset NAME[@SEED]")
     p.add_argument("--vehicle", help="vehicle parameter set (sedan, dev-chassis)")
@@ -33,10 +38,13 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument("--condition", help="day, dusk, night, rain, worn, shadows")
     p.add_argument("--seed", type=int, help="scenario seed (all random draws)")
     p.add_argument("--lane", type=int, help="ego lane index (0 = rightmost)")
-    p.add_argument("--detector", help="lane detector: neural, classical, oracle, none")
-    p.add_argument("--localization", help="truth or msf")
-    p.add_argument("--defense", help="ld3, ld3-naive-ar, savior, none")
-    p.add_argument("--attack", help="attack spec, e.g. trace:default or fusionripper:d=0.5,f=1.3")
+    p.add_argument("--detector", choices=DETECTORS.names(), metavar="NAME",
+                   help=f"lane detector: {DETECTORS.choices_help()}")
+    p.add_argument("--localization", choices=LOCALIZATIONS.names(), metavar="NAME",
+                   help=f"localization: {LOCALIZATIONS.choices_help()}")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", help=f"defense: {DEFENSES.choices_help()}")
+    p.add_argument("--attack", help="attack spec KIND[:key=value,...], e.g. trace:default or fusionripper:d=0.5,f=1.3;"
+                                    f" kinds: {', '.join(ATTACKS.names())} (`ld3 components` lists their parameters)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
@@ -65,6 +73,20 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
           f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
     print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", camera.mp4" if args.video else ""))
+    return 0
+
+
+def cmd_components(args: argparse.Namespace) -> int:
+    from testbed.attacks.registry import ATTACKS
+    from testbed.defense.registry import DEFENSES
+    from testbed.eval.campaigns import CAMPAIGNS
+    from testbed.localization.registry import LOCALIZATIONS
+    from testbed.perception.registry import DETECTORS
+
+    for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, CAMPAIGNS):
+        group = f" (plugins: entry-point group {registry.group})" if registry.group else ""
+        print(f"## {registry.family}s{group}\n\n{registry.markdown()}\n")
+    print("Attack parameters: " + "; ".join(f"{c.name}: {', '.join(c.params)}" for c in ATTACKS))
     return 0
 
 
@@ -123,8 +145,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     from testbed.eval.campaigns import CAMPAIGNS, run_named
 
     if args.name == "list":
-        for name, spec in CAMPAIGNS.items():
-            print(f"{name:18s} {spec.description}")
+        for spec in CAMPAIGNS:
+            print(f"{spec.name:18s} {spec.help}")
         return 0
     out = args.out or Path("runs") / f"campaign-{args.name}"
     report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty(),
@@ -145,6 +167,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("scenarios", help="list the shipped scenarios")
     p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser("components", help="every registered defense, lane detector, localization, attack and "
+                                          "campaign, with what it needs (markdown)")
+    p.set_defaults(func=cmd_components)
 
     p = sub.add_parser("demo", help="run the default attacked scenario with and without LD3 and write a report")
     p.add_argument("--out", type=Path, default=Path("runs/demo"))

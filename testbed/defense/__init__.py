@@ -5,14 +5,14 @@ from testbed.defense.bicycle import BicycleCoefficients, fit_bicycle_coefficient
 from testbed.defense.config import DefenseConfig
 from testbed.defense.cusum import Cusum, cusum_alarm_index
 from testbed.defense.detector import Ld3Detector
-from testbed.defense.factory import DEFENSE_NAMES, make_defense
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.no_defense import NoDefense
+from testbed.defense.registry import DEFENSES, make_defense
 from testbed.defense.savior import SaviorDefense
 
 __all__ = [
-    "DEFENSE_NAMES",
+    "DEFENSES",
     "BicycleCoefficients",
     "Cusum",
     "Defense",

@@ -19,16 +19,20 @@ from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import apply_settings, load_scenario
+from testbed.registry import Capability, Registry
 
 
 @dataclass(frozen=True)
 class CampaignSpec:
-    """A named campaign: its runs for a lane detector, how each is executed, and its report table."""
+    """A named campaign (an entry of the campaign registry): what it reproduces, its runs for a lane
+    detector, how each is executed, and its report table."""
 
-    description: str
+    name: str
+    help: str
     build: Callable[[str], list[CampaignRun]]
     table: Callable[[list[tuple[CampaignRun, dict[str, Any]]], Path], str]
     execute: RunExecutor = run_and_write
+    needs: frozenset[Capability] = frozenset()
 
 
 def _fmt(v: Any) -> str:
@@ -286,35 +290,34 @@ def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
     return "\n".join(lines)
 
 
-CAMPAIGNS: dict[str, CampaignSpec] = {
-    "lane-keeping": CampaignSpec("benign lane keeping with the true pose, and a 4 m/s² stop from 27 m/s",
-                                 lane_keeping_runs, lane_keeping_table),
-    "lane-keeping-msf": CampaignSpec("benign lane keeping steered on the MSF (GNSS + LiDAR locator + IMU), "
-                                     "5 seeds per track", lane_keeping_msf_runs, lane_keeping_msf_table),
-    "table4": CampaignSpec("urban-straight 12 m/s, default trace injection, 5 start times × none/naive/LD3",
-                           table4_runs, defense_table),
-    "fusionripper-ld3": CampaignSpec("FusionRipper (d=1.0, f=1.5) through the MSF on local and highway, LD3: "
-                                     "3 held-out track seeds × 3 noise seeds × 5 start times per track",
-                                     fusionripper_ld3_runs, defense_table),
-    "benign": CampaignSpec("benign LD3 runs on every preset, 5 seeds each: false alarms",
-                           benign_runs, benign_table),
-    "fusionripper-grid": CampaignSpec("FusionRipper d×f grid without defense, 20 start times (paper Table 2)",
-                                      fr_grid_runs, fr_grid_table),
-    "ablation": CampaignSpec("LD3 response variants (paper mode first) × FusionRipper, trace, drp-trace, "
-                             "drp-bend, stealthy × held-out local, highway, urban-straight; oracle detector",
-                             ablation_runs, ablation_table),
-    "roc": CampaignSpec("LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
-                        "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
-}
+CAMPAIGNS: Registry[CampaignSpec] = Registry("campaign", CampaignSpec, "ld3.campaigns")
+for _spec in (
+    CampaignSpec("lane-keeping", "benign lane keeping with the true pose, and a 4 m/s² stop from 27 m/s",
+                 lane_keeping_runs, lane_keeping_table),
+    CampaignSpec("lane-keeping-msf", "benign lane keeping steered on the MSF (GNSS + LiDAR locator + IMU), "
+                 "5 seeds per track", lane_keeping_msf_runs, lane_keeping_msf_table),
+    CampaignSpec("table4", "urban-straight 12 m/s, default trace injection, 5 start times × none/naive/LD3",
+                 table4_runs, defense_table),
+    CampaignSpec("fusionripper-ld3", "FusionRipper (d=1.0, f=1.5) through the MSF on local and highway, LD3: "
+                 "3 held-out track seeds × 3 noise seeds × 5 start times per track",
+                 fusionripper_ld3_runs, defense_table),
+    CampaignSpec("benign", "benign LD3 runs on every preset, 5 seeds each: false alarms", benign_runs, benign_table),
+    CampaignSpec("fusionripper-grid", "FusionRipper d×f grid without defense, 20 drives per cell (start time, "
+                 "noise seed and road layout vary; paper Table 2)", fr_grid_runs, fr_grid_table),
+    CampaignSpec("ablation", "LD3 response variants (paper mode first) × FusionRipper, trace, drp-trace, "
+                 "drp-bend, stealthy × held-out local, highway, urban-straight; oracle detector",
+                 ablation_runs, ablation_table),
+    CampaignSpec("roc", "LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
+                 "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
+):
+    CAMPAIGNS.add(_spec)
 
 
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = ()) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None),
     `settings` are `--set KEY=VALUE` overrides applied to every run's scenario."""
-    if name not in CAMPAIGNS:
-        raise ValueError(f"unknown campaign {name!r}; choose one of {', '.join(CAMPAIGNS)}")
-    spec = CAMPAIGNS[name]
+    spec = CAMPAIGNS.get(name)
     runs = spec.build(detector)
     if select is not None:
         runs = [r for r in runs if fnmatch.fnmatchcase(r.run_id, select)]
@@ -326,6 +329,6 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
     overrides = f" Every run with `--set {' '.join(settings)}`." if settings else ""
-    report.write_text(f"# Campaign {name}\n\n{spec.description}; lane detector {used}.{overrides}\n\n"
+    report.write_text(f"# Campaign {name}\n\n{spec.help}; lane detector {used}.{overrides}\n\n"
                       f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
     return report

@@ -25,17 +25,19 @@ from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.factory import make_defense
+from testbed.defense.registry import DEFENSES
 from testbed.direct_chassis import DirectChassis
 from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import write_summary, write_trajectory
-from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.scenario import Scenario, ScenarioError, check_needs
 from testbed.eval.video import VideoWriter
-from testbed.localization.stack import GroundTruthLocalization, LocalizationConfig, LocalizationStack
+from testbed.localization.registry import LOCALIZATIONS
+from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, LoopRates, TickRecord
-from testbed.perception.factory import make_detector
+from testbed.perception.registry import DETECTORS
+from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
 from tracks.presets import load_track
@@ -79,11 +81,10 @@ class SimRun:
             self.defense_config = DefenseConfig.from_dict(sc.defense_params)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
+        check_needs(sc)
         if sc.speed > self.params.max_speed:
             raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach "
                                 f"({self.params.max_speed} m/s)")
-        if sc.defense != "none" and sc.detector == "none":
-            raise ScenarioError(f"defense {sc.defense!r} needs a lane detector; detector is 'none'")
         seeds = np.random.SeedSequence(sc.seed).spawn(4)
         rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
         self.smap = self.track.map
@@ -105,7 +106,10 @@ class SimRun:
         if self.attack is not None:
             for painter in self.attack.painters():
                 self.track.add_painter(painter)
-        needs_camera = sc.detector in ("neural", "classical") if render is None else render
+        detector_component = DETECTORS.get(sc.detector)
+        localization_component = LOCALIZATIONS.get(sc.localization)
+        self.provided = detector_component.provides | localization_component.provides
+        needs_camera = Capability.CAMERA_IMAGE in self.provided if render is None else render
         self.rig = CameraRig(self.params.camera)
         self.streamer: TileStreamer | None = None
         self.camera: FrontCamera | None = None
@@ -113,17 +117,15 @@ class SimRun:
             self.streamer = TileStreamer(self.track, self.condition.lighting, ground=ground)
             self.camera = FrontCamera(self.streamer, self.rig, self.condition, rng_camera)
         self.video = VideoWriter(self.rig) if video else None
-        if sc.localization == "msf":
-            self.localization = LocalizationStack(self._localization_config(), rng_loc, self._lidar_quality, start, 0.0)
-        else:
-            self.localization = GroundTruthLocalization()
-        self.detector = make_detector(sc.detector, track=self.track, rig=self.rig, lane=self.lane, rng=rng_detector)
+        self.localization = localization_component.factory(self._localization_config, rng_loc, self._lidar_quality,
+                                                            start)
+        self.detector = detector_component.factory(self.track, self.rig, rng_detector)
         if (sc.defense == "ld3" and self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
             raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                                 f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
-        self.defense = defense if defense is not None else make_defense(
-            sc.defense, self.defense_config, bicycle=BicycleCoefficients(wheelbase=self.params.wheelbase))
+        self.defense = defense if defense is not None else DEFENSES.get(sc.defense).factory(
+            self.defense_config, BicycleCoefficients(wheelbase=self.params.wheelbase))
         dt = 1.0 / rates.control_hz
         self.loop = ControlLoop(
             chassis=self.chassis, localization=self.localization, smap=self.smap, lane=self.lane,
@@ -214,7 +216,7 @@ class SimRun:
         return {
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
-            "defense": sc.defense, "defense_params": dataclasses.asdict(self.defense_config),
+            "defense": self.defense.name, "defense_params": dataclasses.asdict(self.defense_config),
             "condition": sc.condition, "detector": sc.detector,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,

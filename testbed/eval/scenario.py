@@ -11,9 +11,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-LOCALIZATIONS = ("truth", "msf")
-DETECTORS = ("oracle", "neural", "classical", "none")
-DEFENSES = ("none", "ld3", "ld3-naive-ar", "savior")
+from testbed.attacks.registry import ATTACKS
+from testbed.defense.registry import DEFENSES
+from testbed.localization.registry import LOCALIZATIONS
+from testbed.perception.registry import DETECTORS
+from testbed.registry import FIXES, UnknownComponent, missing_needs
 
 
 class ScenarioError(ValueError):
@@ -56,10 +58,26 @@ def validate(sc: Scenario) -> Scenario:
     _check(sc.speed > 0, f"speed must be > 0 m/s, got {sc.speed}")
     _check(sc.duration > 0, f"duration must be > 0 s, got {sc.duration}")
     _check(sc.seed >= 0, f"seed must be >= 0, got {sc.seed}")
-    _check(sc.localization in LOCALIZATIONS, f"localization must be one of {LOCALIZATIONS}, got {sc.localization!r}")
-    _check(sc.detector in DETECTORS, f"detector must be one of {DETECTORS}, got {sc.detector!r}")
-    _check(sc.defense in DEFENSES, f"defense must be one of {DEFENSES}, got {sc.defense!r}")
+    for registry, name in ((LOCALIZATIONS, sc.localization), (DETECTORS, sc.detector), (DEFENSES, sc.defense)):
+        _check(isinstance(name, str) and name in registry,
+               f"{registry.family} must be one of {', '.join(registry.names())}, got {name!r}")
     return sc
+
+
+def check_needs(sc: Scenario) -> None:
+    """Refuse, naming the fix, a scenario whose defense or attack could not act with its detector and
+    localization (each component declares its needs in its registry)."""
+    provided = DETECTORS.get(sc.detector).provides | LOCALIZATIONS.get(sc.localization).provides
+    users = [("defense", DEFENSES.get(sc.defense))]
+    if sc.attack:
+        try:
+            users.append(("attack", ATTACKS.get(str(sc.attack.get("kind")))))
+        except UnknownComponent as exc:
+            raise ScenarioError(str(exc)) from None
+    for family, component in users:
+        missing = missing_needs(component, provided)
+        _check(not missing, f"{family} {component.name!r} has no effect with detector = {sc.detector!r} and "
+                            f"localization = {sc.localization!r}: it needs {FIXES[missing[0]] if missing else ''}")
 
 
 _TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params"}

@@ -1,7 +1,7 @@
 import pytest
 
 from testbed.defense.config import DefenseConfig
-from testbed.defense.factory import make_defense
+from testbed.defense.registry import make_defense
 
 
 def test_defaults_follow_the_paper():

@@ -75,7 +75,7 @@ def test_ablation_runs_put_every_variant_on_every_attack_and_held_out_road():
 
 
 def test_roc_campaign_records_benign_fit_and_attacked_drives():
-    assert CAMPAIGNS["roc"].execute is record_detection_run
+    assert CAMPAIGNS.get("roc").execute is record_detection_run
     runs = roc_runs("oracle")
     roles = Counter((r.tags["track"], r.tags["role"]) for r in runs)
     assert roles == {("local", "benign"): 10, ("local", "fit"): 2, ("local", "attacked"): 10,

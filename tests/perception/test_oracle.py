@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from testbed.perception.detection import CameraFrame
-from testbed.perception.factory import make_detector
+from testbed.perception.registry import make_detector
 from testbed.perception.labels import ego_lines
 from testbed.perception.oracle import OracleLaneDetector
 from tests.perception.conftest import pose_on

@@ -1,0 +1,34 @@
+"""The defense registry: built-in defenses and the `ld3.defenses` entry points.
+
+A defense component's factory is `factory(config: DefenseConfig, bicycle: BicycleCoefficients | None)`,
+returning a `Defense`; `bicycle` carries the vehicle's wheelbase for model-based defenses.
+"""
+
+from __future__ import annotations
+
+from testbed.defense.base import Defense
+from testbed.defense.bicycle import BicycleCoefficients
+from testbed.defense.config import DefenseConfig
+from testbed.defense.ld3 import Ld3Defense
+from testbed.defense.naive_ar import NaiveArDefense
+from testbed.defense.no_defense import NoDefense
+from testbed.defense.savior import SaviorDefense
+from testbed.registry import Capability, Component, Registry
+
+DEFENSES: Registry[Component] = Registry("defense", Component, "ld3.defenses")
+DEFENSES.add(Component("ld3", lambda config, bicycle: Ld3Defense(config),
+                       "LD3: CUSUM on MSF/LD deviation, in-lane stop on the safety-driven fusion",
+                       needs=frozenset({Capability.LANE_DETECTOR})))
+DEFENSES.add(Component("ld3-naive-ar", lambda config, bicycle: NaiveArDefense(config),
+                       "LD3's detection, a maximum-deceleration stop steered on the MSF",
+                       needs=frozenset({Capability.LANE_DETECTOR})))
+DEFENSES.add(Component("savior", lambda config, bicycle: SaviorDefense(config, bicycle),
+                       "SAVIOR: bicycle-model EKF and CUSUM on the GNSS residuals",
+                       needs=frozenset({Capability.LANE_DETECTOR, Capability.GNSS})))
+DEFENSES.add(Component("none", lambda config, bicycle: NoDefense(), "no defense: the car steers on the MSF"))
+
+
+def make_defense(name: str, config: DefenseConfig | None = None, *,
+                 bicycle: BicycleCoefficients | None = None) -> Defense:
+    """A fresh defense of the registered component `name` (UnknownComponent for an unknown name)."""
+    return DEFENSES.get(name).factory(config or DefenseConfig(), bicycle)
