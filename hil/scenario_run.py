@@ -148,11 +148,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     if out_dir is not None:
         prepare_out_dir(out_dir)
         log_path = log_path or out_dir / "can.asc"
-    recorder = FrameRecorder(log_path) if log_path is not None else None
-    link = HilLink(sc, config, reply_timeout=reply_timeout)
+    link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no open log behind
+    recorder: FrameRecorder | None = None
     sim: SimRun | None = None
     try:
-        if recorder is not None:
+        if log_path is not None:
+            recorder = FrameRecorder(log_path)
             link.bridge.add_listener(recorder)
         if prepare is not None:
             prepare(link)
