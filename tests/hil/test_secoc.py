@@ -16,11 +16,13 @@ from hil.ecu import EcuEmulator
 from hil.kinematic_plant import KinematicBicyclePlant
 from hil.profile import PROFILES_DIR, ProfileError, load_profile
 from hil.report_map import DrivingMode, EStopSource
+from hil.scenario_run import HilLink, LinkConfig, run_hil_scenario
 from hil.secoc import FreshnessMonitor, aes_cmac
 from hil.secoc_key import SecocKeyError, link_key
 from hil.timing import ClockMode
 from testbed.chassis import ChassisCommand
 from testbed.cli import main
+from testbed.eval.scenario import load_scenario
 from tests.hil.cmac_reference import RFC4493_EXAMPLES, RFC4493_KEY, RFC4493_SUBKEYS, cmac, subkeys
 
 SECOC = load_profile("ld3-dev-secoc")
@@ -188,6 +190,49 @@ def test_the_bridge_rejects_forged_reports_and_faults_on_a_run_of_them():
     assert bridge.frames_accepted == 1 and bridge.rejected["mac"] == 3
     assert bridge.read().speed == pytest.approx(3.0)
     assert [f.kind for f in bridge.latched_faults()] == ["bad_frames"]
+
+
+class ForgedReports(can.Listener):
+    """From chassis time `at`, three speed reports of 0 m/s carrying the next freshness values read off the
+    bus and the last genuine MAC, sent while the bridge sends (before the next genuine report)."""
+
+    def __init__(self, link: HilLink, at: float) -> None:
+        self.link, self.at = link, at
+        self.genuine: bytes | None = None
+        self.sent = False
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_rx and msg.arbitration_id == 0x530:
+            self.genuine = bytes(msg.data)
+        if self.sent or msg.is_rx or self.genuine is None or self.link.bridge.time() < self.at:
+            return
+        self.sent = True
+        intruder = can.Bus(interface="virtual", channel=self.link.channel)
+        try:
+            for k in range(1, 4):
+                data = bytearray(self.genuine)
+                data[2:4] = bytes(2)  # VehicleSpeed 0
+                data[4] = (data[4] + k) % 256
+                intruder.send(can.Message(arbitration_id=0x530, is_extended_id=False, data=data))
+        finally:
+            intruder.shutdown()
+
+
+def test_forged_reports_during_a_run_stop_the_car_in_lane_as_a_chassis_fault():
+    sc = load_scenario("parking-lot").with_overrides(duration=4.0, seed=1)
+    forged: list[ForgedReports] = []
+
+    def install(link: HilLink) -> None:
+        forged.append(ForgedReports(link, 1.5))
+        link.bridge.add_listener(forged[0])
+
+    result = run_hil_scenario(sc, None, LinkConfig("virtual", profile="ld3-dev-secoc"), prepare=install)
+    summary = result.summary
+    assert forged[0].sent and summary["consequence"] == "chassis_fault"
+    first = summary["faults"][0]
+    assert first["kind"] == "bad_frames" and "mac" in first["detail"] and 1.5 <= first["time"] <= 1.52
+    assert summary["can_frames_rejected"] == 3 and summary["stop_time_s"] is not None
+    assert abs(summary["final_dev_m"]) < 0.1
 
 
 @pytest.mark.parametrize("clock", [ClockMode.LOCKSTEP, ClockMode.REALTIME])
