@@ -62,6 +62,21 @@ def test_steer_frame_bytes_and_mac_by_hand():
     assert bytes(frame.data[5:]) == bytes([tag[2], tag[1], tag[0]])  # leading 24 bits, little-endian signal
 
 
+def test_every_command_and_report_frame_is_secured_in_bytes_4_to_7():
+    chassis = [m for m in SECOC.db.messages if m.name.startswith(("ACU_", "VCU_"))]
+    assert {m.frame_id for m in chassis} == {0x130, 0x131, 0x132, 0x530, 0x531, 0x532, 0x533, 0x534, 0x537, 0x538}
+    assert set(SECOC.secoc.messages) == {m.name for m in chassis}
+    for message in chassis:
+        fields = SECOC.secoc.messages[message.name]
+        for signal in message.signals:
+            span = {fields.freshness: (32, 8), fields.mac: (40, 24)}.get(signal.name)
+            if span is None:
+                assert signal.start + signal.length <= 32, signal.name  # payload in bytes 0-3
+            else:
+                assert (signal.start, signal.length) == span
+    assert set(SECOC.integrity) == {m.name for m in SECOC.db.messages if m.name.startswith("SIM_")}
+
+
 def test_freshness_reconstruction_and_window():
     monitor = FreshnessMonitor(bits=8, window=8)
     monitor.last = 0x1FE
