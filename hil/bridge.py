@@ -25,7 +25,7 @@ from collections.abc import Callable
 import can
 
 from hil.actuator_map import ActuatorRequest
-from hil.codec import ChassisCodec, FrameRejected
+from hil.codec import REJECT_REASONS, ChassisCodec, FrameRejected
 from hil.faults import FaultLatch
 from hil.odometry import KinematicOdometry
 from hil.profile import ChassisProfile, default_profile
@@ -44,7 +44,8 @@ class BridgeError(RuntimeError):
 
 
 class CanChassisBridge(ChassisPort):
-    """ChassisPort over a python-can bus in lockstep (simulation) or realtime (hardware) clock mode."""
+    """ChassisPort over a python-can bus in lockstep (simulation) or realtime (hardware) clock mode; `key` is the
+    SecOC key of a profile that authenticates frames (`hil.secoc_key.link_key`)."""
 
     def __init__(
         self,
@@ -56,6 +57,7 @@ class CanChassisBridge(ChassisPort):
         *,
         profile: ChassisProfile | None = None,
         odometry: KinematicOdometry | None = None,
+        key: bytes | None = None,
     ) -> None:
         self.bus = bus
         self.clock = clock
@@ -63,7 +65,7 @@ class CanChassisBridge(ChassisPort):
         self.steer_rate = min(steer_rate, self.profile.steering.max_rate)
         self.reply_timeout = reply_timeout
         self._wall_clock = wall_clock
-        self.codec = ChassisCodec(self.profile)
+        self.codec = ChassisCodec(self.profile, key)
         self.follower = ReportFollower(self.profile)
         self.odometry = odometry or KinematicOdometry()
         self.fault_latch = FaultLatch()
@@ -95,7 +97,7 @@ class CanChassisBridge(ChassisPort):
         self._window: Counter[int] = Counter()
         self._arrivals: dict[int, deque[float]] = {i: deque() for i in self._report_ids}
         self._reject_run: Counter[int] = Counter()
-        self.rejected = {"format": 0, "checksum": 0, "range": 0, "counter": 0}
+        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.frames_tx = 0
         self.frames_rx = 0
         self.frames_accepted = 0

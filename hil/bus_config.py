@@ -3,6 +3,7 @@ or socketcan on a named kernel interface (real hardware)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import can
@@ -10,6 +11,13 @@ import can
 INTERFACES = ("virtual", "slcan", "socketcan")
 DEFAULT_VIRTUAL_CHANNEL = "ld3-chassis"
 DEFAULT_BITRATE = 500_000
+
+
+def is_simulated_bus(interface: str, channel: str | None) -> bool:
+    """True for the virtual bus and for SLCAN on a pseudo-terminal (an emulator), False for hardware."""
+    if interface in ("virtual", "slcan-pty"):
+        return True
+    return interface == "slcan" and channel is not None and os.path.realpath(channel).startswith("/dev/pts/")
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
-import os
 import signal
 import sys
 import threading
@@ -26,12 +25,13 @@ from pathlib import Path
 import can
 
 from hil.bridge import BridgeError
-from hil.bus_config import INTERFACES, BusConfig
+from hil.bus_config import INTERFACES, BusConfig, is_simulated_bus
 from hil.ecu import EcuEmulator, EcuLimits
 from hil.ecu_process import READY_PREFIX, EcuProcessError
 from hil.kinematic_plant import KinematicBicyclePlant
 from hil.profile import DEFAULT_PROFILE, load_profile
 from hil.replay import replay_log
+from hil.secoc_key import link_key
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
 from testbed.chassis import ChassisPort
@@ -105,6 +105,7 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
 def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None) -> int:
     """Run the ECU emulator until SIGTERM/SIGINT or --duration; slcan-pty prints `SLCAN_PTY <path>` first."""
     profile = load_profile(args.profile)
+    key = link_key(profile, args.interface, args.channel)
     plant = _plant(args, plant_factory)
     limits = EcuLimits(
         max_steer=math.radians(args.max_steer_deg),
@@ -120,7 +121,7 @@ def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None)
     done = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGINT):
         signal.signal(signum, lambda *_: done.set())
-    ecu = EcuEmulator(bus, plant, limits, ClockMode(args.clock), profile=profile, truth=args.truth)
+    ecu = EcuEmulator(bus, plant, limits, ClockMode(args.clock), profile=profile, truth=args.truth, key=key)
     ecu.start()
     if isinstance(bus, SlcanPtyBus):
         print(f"{READY_PREFIX}{bus.tty_path}", flush=True)
@@ -135,13 +136,6 @@ def ecu_main(argv: Sequence[str] | None = None, plant_factory: PlantFactory | No
 
 
 # ---------------------------------------------------------------------- replay
-def is_simulated_bus(interface: str, channel: str | None) -> bool:
-    """True for the virtual bus and for SLCAN on a pseudo-terminal (an emulator), False for hardware."""
-    if interface == "virtual":
-        return True
-    return interface == "slcan" and channel is not None and os.path.realpath(channel).startswith("/dev/pts/")
-
-
 def parse_ids(text: str | None, default: frozenset[int]) -> frozenset[int] | None:
     """`--ids`: None -> `default`; "all" -> None (every frame); else comma-separated IDs (0x130 or 304)."""
     if text is None:
@@ -241,8 +235,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--log", dest="can_log", type=Path, default=None,
                    help="CAN log file (.asc or .blf; default OUT/can.asc)")
     p.add_argument("--profile", default=DEFAULT_PROFILE,
-                   help="chassis profile: a shipped name (ld3-dev, pix-hooke) or a folder with chassis.dbc and "
-                        "profile.toml")
+                   help="chassis profile: a shipped name (ld3-dev, ld3-dev-secoc, pix-hooke) or a folder with "
+                        "chassis.dbc and profile.toml")
     p.add_argument("--truth", action=argparse.BooleanOptionalAction, default=None,
                    help="an emulated chassis also publishes its true pose, for measuring odometry drift only")
     p.add_argument("--ids", default=None, help="with `replay`: frame IDs to send (default the profile's commands; "

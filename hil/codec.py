@@ -1,12 +1,13 @@
-"""Chassis frame codec: cantools coding of a chassis profile's DBC plus the life counters and checksums the
-profile declares.
+"""Chassis frame codec: cantools coding of a chassis profile's DBC plus the life counters, checksums and SecOC
+fields the profile declares.
 
 One codec instance is one endpoint: `encode` fills the next life counter of that frame ID (for IDs that
-carry one) and seals byte 7 with the XOR checksum (for IDs that carry one); `decode` rejects a frame unless it
-is a standard, non-remote 8-byte frame of a known ID with a correct checksum where one is declared, every
-signal within its DBC range, and (for IDs with a life counter) the successor of the previous counter on that
-ID. Physical units are those of the DBC (degrees for angles); the SI conversions live in `hil.actuator_map`
-and `hil.report_map`.
+carry one) and seals byte 7 with the XOR checksum (for IDs that carry one), or, for IDs the profile's [secoc]
+table secures, writes the next freshness value and the truncated MAC (`hil.secoc`); `decode` rejects a frame
+unless it is a standard, non-remote 8-byte frame of a known ID with a correct checksum where one is declared,
+fresh and with a valid MAC where secured, every signal within its DBC range, and (for IDs with a life counter)
+the successor of the previous counter on that ID. Physical units are those of the DBC (degrees for angles);
+the SI conversions live in `hil.actuator_map` and `hil.report_map`.
 """
 
 from __future__ import annotations
@@ -26,12 +27,14 @@ from hil.integrity import (
     xor_checksum,
 )
 from hil.profile import PROFILES_DIR, ChassisProfile, Integrity, default_profile
+from hil.secoc import BitField, SecocEndpoint, SecocVerdict, SecuredLayout
 
 DBC_PATH = PROFILES_DIR / "ld3-dev" / "chassis.dbc"
+REJECT_REASONS = ("format", "checksum", "range", "counter", "freshness", "mac")
 
 
 class FrameRejected(Exception):
-    """A received frame failed verification; `reason` is "format", "checksum", "range" or "counter"."""
+    """A received frame failed verification; `reason` is one of REJECT_REASONS."""
 
     def __init__(self, reason: str, detail: str) -> None:
         super().__init__(f"{reason}: {detail}")
@@ -51,11 +54,28 @@ def _idle(lo: float | None, hi: float | None) -> float:
     return min(max(0.0, lo if lo is not None else 0.0), hi if hi is not None else 0.0)
 
 
-class ChassisCodec:
-    """Encodes and decodes chassis frames for one endpoint; owns its tx counters and rx monitors."""
+def _secoc_endpoint(profile: ChassisProfile, key: bytes | None) -> SecocEndpoint | None:
+    spec = profile.secoc
+    if spec is None:
+        return None
+    if key is None:
+        raise ValueError(f"profile {profile.name} authenticates frames: the codec needs its key "
+                         "(hil.secoc_key.link_key)")
+    layouts = {}
+    for name, signals in spec.messages.items():
+        message = profile.message(name)
+        fields = (message.get_signal_by_name(s) for s in (signals.freshness, signals.mac))
+        layouts[message.frame_id] = SecuredLayout(*(BitField(f.start, f.length) for f in fields))
+    return SecocEndpoint(key, layouts, spec.freshness_window)
 
-    def __init__(self, profile: ChassisProfile | None = None) -> None:
+
+class ChassisCodec:
+    """Encodes and decodes chassis frames for one endpoint; owns its tx counters and rx monitors. A profile with
+    a [secoc] table needs the 128-bit `key`."""
+
+    def __init__(self, profile: ChassisProfile | None = None, key: bytes | None = None) -> None:
         self.profile = profile or default_profile()
+        self._secoc = _secoc_endpoint(self.profile, key)
         self.db = self.profile.db
         self._messages = {m.frame_id: m for m in self.db.messages}
         integrity = {m.frame_id: self.profile.integrity.get(m.name, Integrity()) for m in self.db.messages}
@@ -71,8 +91,9 @@ class ChassisCodec:
         return frame_id in self._messages
 
     def encode(self, name: str, signals: Mapping[str, float]) -> can.Message:
-        """A sealed frame of message `name`; signals left out of `signals` (life counter, checksum, fields this
-        side does not use) are filled: counter and checksum as declared, the others at 0 clipped to their range."""
+        """A sealed frame of message `name`; signals left out of `signals` (life counter, checksum, SecOC fields,
+        fields this side does not use) are filled: counter, checksum, freshness and MAC as declared, the others at
+        0 clipped to their range."""
         message = self.db.get_message_by_name(name)
         payload = {s.name: _idle(s.minimum, s.maximum) for s in message.signals}
         payload.update(signals)
@@ -85,6 +106,8 @@ class ChassisCodec:
         data = bytearray(message.encode(payload, strict=True))
         if checksum_name:
             data[CHECKSUM_BYTE] = xor_checksum(data)
+        if self._secoc is not None and self._secoc.protects(message.frame_id):
+            self._secoc.seal(message.frame_id, data)
         return can.Message(arbitration_id=message.frame_id, is_extended_id=False, dlc=FRAME_LENGTH, data=data)
 
     def decode(self, frame: can.Message) -> DecodedFrame:
@@ -98,6 +121,10 @@ class ChassisCodec:
             raise FrameRejected("format", f"{message.name}: DLC {frame.dlc}, {len(data)} bytes")
         if self._checksum[message.frame_id] and not checksum_ok(data):
             raise FrameRejected("checksum", f"{message.name}: {data.hex()}")
+        if self._secoc is not None and self._secoc.protects(message.frame_id):
+            verdict = self._secoc.verify(message.frame_id, data)
+            if verdict is not SecocVerdict.OK:
+                raise FrameRejected(verdict.value, f"{message.name}: {data.hex()}")
         signals = message.decode(data, decode_choices=False, scaling=False)
         physical = {}
         for signal in message.signals:

@@ -1,9 +1,10 @@
 """ECU-side admission of command frames: verification, rejection counts, bad-run and foreign-node faults.
 
 A frame on a command ID is admitted only if the codec verifies it (format, checksum, range, life
-counter). `run_limit` consecutive rejections on one ID latch the bad-frames fault; more than
-`max_per_window` frames on one command ID within `window_s` (two senders doubling the 50 Hz rate) latch
-the foreign-node fault. Faults stay latched until `clear_faults`; counts are cumulative.
+counter; freshness and MAC where the profile secures the ID). `run_limit` consecutive rejections on one ID
+latch the bad-frames fault; more than `max_per_window` frames on one command ID within `window_s` (two
+senders doubling the 50 Hz rate) latch the foreign-node fault. Faults stay latched until `clear_faults`;
+counts are cumulative.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import can
 
-from hil.codec import ChassisCodec, DecodedFrame, FrameRejected
+from hil.codec import REJECT_REASONS, ChassisCodec, DecodedFrame, FrameRejected
 
 
 @dataclass(frozen=True)
@@ -32,7 +33,7 @@ class CommandGuard:
         self._codec = codec
         self._limits = limits
         self.command_ids = frozenset(codec.frame_id(name) for name in codec.profile.commands.messages)
-        self.rejected = {"format": 0, "checksum": 0, "range": 0, "counter": 0}
+        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.admitted = 0
         self.bad_frames = False
         self.foreign_node = False

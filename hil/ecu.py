@@ -12,6 +12,7 @@ Command frames are verified by a CommandGuard; its bad-frame and foreign-node fa
 command timeout does, and so do a pressed chassis e-stop and an injected subsystem fault (`press_estop`,
 `inject_fault`: the hardware faults a test drives the bridge with). Frame layout, counters, checksums and the
 command time-out come from the chassis profile; truth frames go out only with `truth` (default: the profile's).
+A profile that authenticates frames (SecOC) needs its `key` (`hil.secoc_key.link_key`).
 """
 
 from __future__ import annotations
@@ -64,13 +65,14 @@ class EcuEmulator:
         wall_clock: Callable[[], float] = time.monotonic,
         profile: ChassisProfile | None = None,
         truth: bool | None = None,
+        key: bytes | None = None,
     ) -> None:
         self.bus = bus
         self.plant = plant
         self.limits = limits
         self.clock = clock
         self._wall_clock = wall_clock
-        self.codec = ChassisCodec(profile)
+        self.codec = ChassisCodec(profile, key)
         self.profile = self.codec.profile
         self.truth = self.profile.simulation.truth if truth is None else truth
         self.command_timeout_s = limits.command_timeout or self.profile.timing.command_timeout_s
@@ -285,6 +287,8 @@ class EcuEmulator:
             yaw_rate=state.yaw_rate,
             throttle_pct=throttle_pct,
             faults=dict(self.injected_faults),
+            bad_freshness_count=self.guard.rejected["freshness"],
+            bad_mac_count=self.guard.rejected["mac"],
         )
 
     def _publish(self) -> None:

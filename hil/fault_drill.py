@@ -94,7 +94,7 @@ def _action(kind: str, link: HilLink) -> Callable[[], None]:
     ecu, bridge, profile = link.ecu, link.bridge, link.profile
     if ecu is None:
         raise ValueError("fault drills need the in-process ECU emulator (--interface virtual)")
-    codec = ChassisCodec(profile)
+    codec = ChassisCodec(profile, link.key)
     if kind == "report_timeout":
         return lambda: setattr(ecu, "bus", DropFrames(ecu.bus, profile.report_ids))
     if kind == "ecu_lost":

@@ -4,7 +4,8 @@ and report, the units and enums, life counters and checksums, cycle times, time-
 `load_profile("pix-hooke")` finds a shipped profile under hil/profiles/; any other argument is a folder path (a
 user's own chassis needs no code change). Every problem raises a one-line ProfileError naming the field.
 Signals are written "Message.Signal"; values in profile.toml are SI units except where a key says otherwise
-(`*_deg`, `*_ms`, percent on the wire).
+(`*_deg`, `*_ms`, percent on the wire). An optional [secoc] table authenticates messages (`hil.secoc`): their
+freshness and MAC signals, the lengths, the freshness window and where the key comes from (`hil.secoc_key`).
 """
 
 from __future__ import annotations
@@ -20,13 +21,16 @@ import cantools
 from cantools.database.can import Database
 from cantools.database.can import Message as DbcMessage
 
+from hil.secoc import key_from_hex
+
 PROFILES_DIR = Path(__file__).resolve().parent / "profiles"
 DEFAULT_PROFILE = "ld3-dev"
 CHECKSUM_START_BIT, CHECKSUM_LENGTH = 56, 8
+MAC_BITS, FRESHNESS_BITS = (16, 64), (2, 16)  # the lengths [secoc] accepts
 REPORT_QUANTITIES = (
     "speed", "accel", "steer", "yaw_rate", "gear", "mode", "estop", "brake_pct", "throttle_pct",
     "emergency_active", "steer_limited", "comm_fault_level", "bad_checksum_count", "bad_counter_count",
-    "bad_format_count",
+    "bad_format_count", "bad_freshness_count", "bad_mac_count",
 )
 ESTOP_SOURCES = (
     "none", "command_timeout", "bad_frames", "foreign_node", "emergency_brake_command", "chassis_button",
@@ -133,6 +137,27 @@ class Integrity:
 
 
 @dataclass(frozen=True)
+class SecuredSignals:
+    """The signals of one message that carry its truncated freshness value and truncated MAC."""
+
+    freshness: str
+    mac: str
+
+
+@dataclass(frozen=True)
+class Secoc:
+    """SecOC-style authentication (`hil.secoc`): the secured messages, field lengths in bits, the receiver's
+    freshness window, the environment variable holding the key and an optional published test key."""
+
+    mac_bits: int
+    freshness_bits: int
+    freshness_window: int
+    key_env: str
+    test_key: bytes | None
+    messages: dict[str, SecuredSignals]
+
+
+@dataclass(frozen=True)
 class SimulationFrames:
     """Emulator-only frames: the lockstep clock and (optional, for measuring) the true pose."""
 
@@ -161,6 +186,7 @@ class ChassisProfile:
     reports: ReportLayout
     integrity: dict[str, Integrity]
     simulation: SimulationFrames
+    secoc: Secoc | None = None
 
     def message(self, name: str) -> DbcMessage:
         return self.db.get_message_by_name(name)
@@ -215,6 +241,14 @@ class _Table:
         if positive and value <= 0:
             raise self.error(key, f"must be > 0, got {value!r}")
         return float(value)
+
+    def integer(self, key: str, lo: int, hi: int) -> int:
+        value = self.raw(key)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"expected an integer, got {value!r}")
+        if not lo <= value <= hi:
+            raise self.error(key, f"must be {lo} to {hi}, got {value}")
+        return value
 
     def integers(self, names: tuple[str, ...] | None, required: tuple[str, ...]) -> dict[str, int]:
         out = {}
@@ -288,9 +322,10 @@ class _Builder:
         reports = self.reports(top.table("reports"))
         integrity = self.integrity(top.table("integrity", {}))
         simulation = self.simulation(top.table("simulation"))
+        secoc = self.secoc(top.table("secoc"), integrity) if "secoc" in top.data else None
         top.check_unknown()
         return ChassisProfile(profile_name, description, self.root, self.dbc_path, self.db, timing, longitudinal,
-                              steering, commands, gears, modes, reports, integrity, simulation)
+                              steering, commands, gears, modes, reports, integrity, simulation, secoc)
 
     def timing(self, t: _Table) -> Timing:
         timing = Timing(t.number("cycle_ms") / 1e3, t.number("command_timeout_ms") / 1e3,
@@ -384,6 +419,41 @@ class _Builder:
             entry.check_unknown()
             out[message_name] = Integrity(counter, checksum)
         return out
+
+    def secoc(self, t: _Table, integrity: dict[str, Integrity]) -> Secoc:
+        mac_bits = t.integer("mac_bits", MAC_BITS[0], MAC_BITS[1])
+        freshness_bits = t.integer("freshness_bits", FRESHNESS_BITS[0], FRESHNESS_BITS[1])
+        window = t.integer("freshness_window", 1, (1 << freshness_bits) - 1)
+        key_env = t.text("key_env")
+        if not key_env:
+            raise t.error("key_env", "expected the name of an environment variable")
+        test_key = t.text("test_key", None)
+        if test_key is not None:
+            try:
+                test_key = key_from_hex(test_key)
+            except ValueError as exc:
+                raise t.error("test_key", str(exc)) from None
+        table = t.table("messages")
+        if not table.data:
+            raise t.error("messages", "no secured message")
+        messages = {}
+        for message_name in table.data:
+            entry = table.table(message_name)
+            message = self.message(table, message_name, message_name)
+            if message_name in integrity:
+                raise table.error(message_name, "also in [integrity]: a secured message carries no life counter or "
+                                                "checksum")
+            fields = {}
+            for key, bits in (("freshness", freshness_bits), ("mac", mac_bits)):
+                name = self.signal(entry, key, message, entry.text(key))
+                signal = message.get_signal_by_name(name)
+                if signal.byte_order != "little_endian" or signal.is_signed or signal.length != bits:
+                    raise entry.error(key, f"{name} must be an unsigned little-endian signal of {bits} bits")
+                fields[key] = name
+            entry.check_unknown()
+            messages[message_name] = SecuredSignals(fields["freshness"], fields["mac"])
+        t.check_unknown()
+        return Secoc(mac_bits, freshness_bits, window, key_env, test_key, messages)
 
     def simulation(self, t: _Table) -> SimulationFrames:
         names = {}

@@ -79,6 +79,8 @@ class VcuReport:
     yaw_rate: float = 0.0
     throttle_pct: float = 0.0
     faults: dict[str, int] = field(default_factory=dict)
+    bad_freshness_count: int = 0
+    bad_mac_count: int = 0
 
     def _quantities(self, p: ChassisProfile) -> dict[str, float]:
         estop_values = p.reports.estop_values
@@ -94,6 +96,7 @@ class VcuReport:
             "emergency_active": int(self.emergency_active), "steer_limited": int(self.steer_limited),
             "comm_fault_level": int(comm), "bad_checksum_count": self.bad_checksum_count,
             "bad_counter_count": self.bad_counter_count, "bad_format_count": self.bad_format_count,
+            "bad_freshness_count": self.bad_freshness_count, "bad_mac_count": self.bad_mac_count,
         }
 
     def to_signals(self, profile: ChassisProfile | None = None, truth: bool = True) -> dict[str, dict[str, float]]:

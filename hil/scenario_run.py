@@ -5,9 +5,10 @@ Where the vehicle sits, by interface: `virtual` -> an ECU emulator in this proce
 virtual channel, its plant the PyBullet world the run also checks for curb and barrier contacts; `slcan`
 without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); `slcan` with
 a channel or `socketcan` -> an external VCU (socketcan defaults to the realtime clock, real hardware).
-The chassis profile (`LinkConfig.profile`) sets the protocol of bridge and emulator; the bridge's pose is its
-odometry from the scenario's start pose and the vehicle's geometry. A run that latches a fault brakes to
-standstill in lane and ends as chassis_fault (summary `faults`); the outputs and the CAN log are still written.
+The chassis profile (`LinkConfig.profile`) sets the protocol of bridge and emulator (a secured profile's key:
+`hil.secoc_key.link_key`, resolved before any bus opens); the bridge's pose is its odometry from the scenario's
+start pose and the vehicle's geometry. A run that latches a fault brakes to standstill in lane and ends as
+chassis_fault (summary `faults`); the outputs and the CAN log are still written.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from hil.odometry import KinematicOdometry, OdometryGeometry
 from hil.plants import plant_args_for, scenario_plant
 from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
+from hil.secoc_key import link_key
 from hil.timing import ClockMode
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
 from testbed.eval.scenario import Scenario
@@ -83,15 +85,17 @@ class HilLink:
         self._ecu_bus: can.BusABC | None = None
         self._process: EcuProcess | None = None
         clock = config.clock_mode
+        spawns_ecu = config.interface == "slcan" and not config.channel
+        self.key = link_key(self.profile, "slcan-pty" if spawns_ecu else config.interface, config.channel)
         if config.interface == "virtual":
             self.channel = config.channel or f"ld3-hil-{uuid.uuid4().hex[:12]}"
             plant = scenario_plant(sc)
             self.world = plant.world
             self._ecu_bus = BusConfig("virtual", self.channel).open()
             self._ecu = EcuEmulator(self._ecu_bus, plant, EcuLimits(), clock, profile=self.profile,
-                                    truth=config.truth)
+                                    truth=config.truth, key=self.key)
             self._ecu.start()
-        elif config.interface == "slcan" and not config.channel:
+        elif spawns_ecu:
             self._process = EcuProcess(plant=ECU_PLANT, plant_args=plant_args_for(sc), clock=clock,
                                        profile=str(self.profile.root), truth=config.truth)
             self.channel = self._process.tty_path
@@ -101,7 +105,7 @@ class HilLink:
             self._stop_vehicle()
             raise
         self.bridge = CanChassisBridge(self.bus, clock=clock, reply_timeout=reply_timeout, profile=self.profile,
-                                       odometry=scenario_odometry(sc))
+                                       odometry=scenario_odometry(sc), key=self.key)
 
     @property
     def ecu(self) -> EcuEmulator | None:
@@ -144,11 +148,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     if out_dir is not None:
         prepare_out_dir(out_dir)
         log_path = log_path or out_dir / "can.asc"
-    recorder = FrameRecorder(log_path) if log_path is not None else None
-    link = HilLink(sc, config, reply_timeout=reply_timeout)
+    link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no open log behind
+    recorder: FrameRecorder | None = None
     sim: SimRun | None = None
     try:
-        if recorder is not None:
+        if log_path is not None:
+            recorder = FrameRecorder(log_path)
             link.bridge.add_listener(recorder)
         if prepare is not None:
             prepare(link)

@@ -124,5 +124,5 @@ def test_malformed_profile_is_a_one_line_error_naming_the_field(edit, field, tmp
 
 
 def test_unknown_profile_names_the_shipped_ones():
-    with pytest.raises(ProfileError, match="ld3-dev, pix-hooke"):
+    with pytest.raises(ProfileError, match="ld3-dev, ld3-dev-secoc, pix-hooke"):
         load_profile("no-such-chassis")

@@ -121,3 +121,32 @@ def test_pix_hooke_20_s_parking_lot_stays_within_5_cm_of_the_direct_run(interfac
     n = min(len(result.rows), len(direct))
     assert n > 1000 and abs(len(result.rows) - len(direct)) <= 1  # the track's end stops both near 13 s
     assert max_gap(result.rows[:n], direct[:n]) < TOLERANCE_M
+
+
+def test_ld3_dev_secoc_run_over_the_virtual_bus_stays_within_5_cm_of_the_ld3_dev_run():
+    sc = short_parking_lot()
+    plain = run_hil_scenario(sc, None, LinkConfig("virtual"))
+    secured = run_hil_scenario(sc, None, LinkConfig("virtual", profile="ld3-dev-secoc"))
+    assert plain.rows[-1].x - plain.rows[0].x > 3.0  # it drove off
+    assert secured.summary["profile"] == "ld3-dev-secoc" and secured.summary["can_frames_rejected"] == 0
+    assert secured.summary["consequence"] == plain.summary["consequence"] == "reach_destination"
+    assert max_gap(secured.rows, plain.rows) < TOLERANCE_M
+
+
+def test_ld3_dev_secoc_over_slcan_with_the_ecu_in_its_own_process():
+    sc = short_parking_lot(1.5)
+    result = run_hil_scenario(sc, None, LinkConfig("slcan", profile="ld3-dev-secoc"))
+    assert result.summary["channel"].startswith("/dev/") and result.summary["can_frames_rejected"] == 0
+    assert result.rows[-1].x - result.rows[0].x > 1.0 and not result.summary["faults"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("interface", ["virtual", "slcan"])
+def test_ld3_dev_secoc_20_s_parking_lot_stays_within_5_cm_of_the_ld3_dev_run(interface):
+    sc = short_parking_lot(20.0)
+    plain = run_hil_scenario(sc, None, LinkConfig("virtual"))
+    secured = run_hil_scenario(sc, None, LinkConfig(interface, profile="ld3-dev-secoc"))
+    n = min(len(secured.rows), len(plain.rows))
+    assert n > 1000 and abs(len(secured.rows) - len(plain.rows)) <= 1
+    assert secured.summary["can_frames_rejected"] == 0
+    assert max_gap(secured.rows[:n], plain.rows[:n]) < TOLERANCE_M
