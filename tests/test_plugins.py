@@ -3,6 +3,7 @@ its entry points during the test, is found by the registries, accepted by scenar
 and runs end to end with the names recorded as they are."""
 
 import json
+import re
 import subprocess
 import sys
 import textwrap
@@ -118,7 +119,7 @@ def test_unknown_and_clashing_plugins_are_refused(plugin_path):
     info = plugin_path / "ld3_testplugin-0.1.dist-info" / "entry_points.txt"
     info.write_text("[ld3.defenses]\nld3 = ld3_testplugin:DEFENSE\n")
     DEFENSES.reload_plugins()
-    with pytest.raises(ValueError, match="entry point 'ld3' of ld3.defenses names component 'eager-ld3'"):
+    with pytest.raises(ValueError, match=re.escape("entry point 'ld3' of ld3.defenses names component 'eager-ld3'")):
         DEFENSES.names()
     info.write_text("[ld3.defenses]\neager-ld3 = ld3_testplugin:ENTRY_THAT_IS_NOT_THERE\n")
     DEFENSES.reload_plugins()
@@ -126,5 +127,5 @@ def test_unknown_and_clashing_plugins_are_refused(plugin_path):
         DEFENSES.names()
     info.write_text("[ld3.defenses]\neager-ld3 = ld3_testplugin:EagerLd3\n")
     DEFENSES.reload_plugins()
-    with pytest.raises(TypeError, match="not a testbed.registry.Component"):
+    with pytest.raises(TypeError, match=re.escape("not a testbed.registry.Component")):
         DEFENSES.names()
