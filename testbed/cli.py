@@ -68,6 +68,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
+    attack = sc.attack["kind"] if sc.attack else "none"
+    print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
+          f"attack {attack}, seed {sc.seed}")
     result = run_scenario(sc, out, video=args.video, progress=sys.stderr.isatty())
     s = result.summary
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
@@ -158,6 +161,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
+    parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
     sub = parser.add_subparsers(dest="cmd", required=True)
 
     p = sub.add_parser("run", help="run one scenario and write summary.json, trajectory.csv, birdseye.png")
@@ -230,6 +234,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
+    if args.debug:
+        return func(args)
     try:
         return func(args)
     except _user_errors() as exc:

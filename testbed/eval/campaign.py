@@ -2,7 +2,8 @@
 
 A run whose `summary.json` exists is not run again, so a campaign interrupted half-way continues
 where it stopped; a run that fails is recorded in `failures.txt` with its error and the campaign goes on.
-The collected summaries go to `runs.csv` and the campaign's own table to `report.md`.
+The collected summaries go to `runs.csv` (nested fields as dotted columns) and the campaign's own table to
+`report.md`.
 """
 
 from __future__ import annotations
@@ -76,9 +77,22 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progr
     return done
 
 
+def flatten(value: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested dicts as dotted keys (`attack.kind`, `defense_params.b`); lists as JSON text."""
+    flat: dict[str, Any] = {}
+    for key, item in value.items():
+        name = f"{prefix}{key}"
+        if isinstance(item, dict):
+            flat.update(flatten(item, f"{name}."))
+        elif isinstance(item, list):
+            flat[name] = json.dumps(item)
+        else:
+            flat[name] = item
+    return flat
+
+
 def _write_runs_csv(path: Path, done: Iterable[tuple[CampaignRun, dict[str, Any]]]) -> None:
-    rows = [{"run_id": r.run_id, **r.tags, **{k: v for k, v in s.items() if not isinstance(v, dict | list)}}
-            for r, s in done]
+    rows = [{"run_id": r.run_id, **r.tags, **flatten(s)} for r, s in done]
     if not rows:
         return
     keys: list[str] = []

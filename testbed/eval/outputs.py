@@ -4,8 +4,11 @@ trajectory.csv's numeric columns that reports and campaign tables use."""
 from __future__ import annotations
 
 import csv
+import functools
+import importlib.metadata
 import json
 import math
+import subprocess
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -17,10 +20,34 @@ from testbed.loop import TickRecord
 TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "ld_fresh", "cusum", "mode",
                       "steer", "accel", "attack_stage", "attack_offset", "fused_dev", "r_msf", "r_ld", "k_msf",
                       "k_ld", "heading_used")
-SUMMARY_KEYS = ("scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
+SCHEMA_VERSION = 2
+"""Version of summary.json's layout; raised when a key changes meaning or goes away."""
+SUMMARY_KEYS = ("schema_version", "package_version", "git_commit", "resolved_scenario",
+                "scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
                 "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
                 "final_dev_m", "consequence", "faults", "detected", "detection_time_s", "detection_dev_m",
                 "ar_max_dev_m", "ar_stop_dev_m")
+
+
+@functools.cache
+def provenance() -> dict[str, Any]:
+    """What produced a run: the summary schema version, the package version and the git commit of the
+    source tree (None outside a git checkout; suffixed `-dirty` when it has uncommitted changes)."""
+    root = Path(__file__).resolve().parents[2]
+    commit: str | None = None
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+        commit = head + ("-dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    try:
+        version = importlib.metadata.version("ld3-testbed")
+    except importlib.metadata.PackageNotFoundError:
+        version = None
+    return {"schema_version": SCHEMA_VERSION, "package_version": version, "git_commit": commit}
 
 
 def _cell(value: Any) -> str:

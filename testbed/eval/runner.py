@@ -30,7 +30,7 @@ from testbed.direct_chassis import DirectChassis
 from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
-from testbed.eval.outputs import write_summary, write_trajectory
+from testbed.eval.outputs import provenance, write_summary, write_trajectory
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs
 from testbed.eval.video import VideoWriter
 from testbed.localization.registry import LOCALIZATIONS
@@ -214,6 +214,8 @@ class SimRun:
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         return {
+            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params":
+                                                   dataclasses.asdict(self.defense_config)},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": dataclasses.asdict(self.defense_config),

@@ -115,3 +115,16 @@ def test_benign_table_reports_msf_lateral_error_per_track(tmp_path):
     cells = [c.strip() for c in row.split("|")]
     assert cells[5] == "0.129 (worst run)"  # sqrt((0 + 0.01 + 0.04) / 3)
     assert cells[6] == "0.200"
+
+
+def test_a_sweep_over_defense_b_is_recorded_in_runs_csv(tmp_path):
+    import csv
+
+    base = load_scenario("slr").with_overrides(duration=1.0, defense="ld3", localization="msf")
+    runs = [CampaignRun(f"b{b:g}", base.with_overrides(defense_params={"b": b}), {"b": b}) for b in (0.45, 0.6)]
+    run_campaign(runs, tmp_path, workers=1, progress=False)
+    with (tmp_path / "runs.csv").open() as fh:
+        rows = {r["run_id"]: r for r in csv.DictReader(fh)}
+    assert (rows["b0.45"]["defense_params.b"], rows["b0.6"]["defense_params.b"]) == ("0.45", "0.6")
+    assert rows["b0.45"]["resolved_scenario.defense_params.window"] == "5"
+    assert rows["b0.45"]["schema_version"] == "2" and json.loads(rows["b0.6"]["faults"]) == []

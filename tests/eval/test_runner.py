@@ -94,3 +94,12 @@ def test_savior_in_the_loop_models_the_scenario_vehicle():
             assert sim.defense.model.c.wheelbase == get_vehicle(vehicle).wheelbase
         finally:
             sim.close()
+
+
+def test_debug_shows_the_traceback_that_the_one_line_error_hides():
+    plain = subprocess.run([sys.executable, "-m", "testbed.cli", "run", "no-such-scenario"], capture_output=True,
+                           text=True)
+    debug = subprocess.run([sys.executable, "-m", "testbed.cli", "--debug", "run", "no-such-scenario"],
+                           capture_output=True, text=True)
+    assert plain.returncode == 2 and "Traceback" not in plain.stderr and "unknown scenario" in plain.stderr
+    assert debug.returncode == 1 and "Traceback" in debug.stderr and "ScenarioError" in debug.stderr
