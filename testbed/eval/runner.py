@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from testbed.attacks.base import Attack
 from testbed.attacks.spec import attack_from_dict
 from testbed.camera import FrontCamera, get_condition
 from testbed.chassis import ChassisPort
@@ -36,6 +37,7 @@ from testbed.eval.video import VideoWriter
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, LoopRates, TickRecord
+from testbed.perception.detection import LaneDetector
 from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
@@ -68,11 +70,13 @@ class SimRun:
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
-                 defense: Defense | None = None) -> None:
+                 defense: Defense | None = None, detector: LaneDetector | None = None,
+                 attack: Attack | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
-        `ground` is how the camera draws the road surface (`TileStreamer`). `defense` replaces the one the
-        scenario names (e.g. a passive detection recorder)."""
+        `ground` is how the camera draws the road surface (`TileStreamer`). `defense`, `detector` and `attack`
+        replace the ones the scenario names (your own objects, or a passive detection recorder); the summary
+        records their own names."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -99,8 +103,9 @@ class SimRun:
         self.world = world
         self.chassis = chassis
         rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
-        self.attack = (attack_from_dict(sc.attack, rng=rng_attack, defense=self.defense_config)
-                       if sc.attack else None)
+        self.attack: Attack | None = attack
+        if attack is None and sc.attack:
+            self.attack = attack_from_dict(sc.attack, rng=rng_attack, defense=self.defense_config)
         for painter in self.condition.track_painters(sc.seed):
             self.track.add_painter(painter)
         if self.attack is not None:
@@ -109,7 +114,8 @@ class SimRun:
         detector_component = DETECTORS.get(sc.detector)
         localization_component = LOCALIZATIONS.get(sc.localization)
         self.provided = detector_component.provides | localization_component.provides
-        needs_camera = Capability.CAMERA_IMAGE in self.provided if render is None else render
+        reads_camera = Capability.CAMERA_IMAGE in self.provided if detector is None else detector.reads_camera
+        needs_camera = reads_camera if render is None else render
         self.rig = CameraRig(self.params.camera)
         self.streamer: TileStreamer | None = None
         self.camera: FrontCamera | None = None
@@ -119,7 +125,9 @@ class SimRun:
         self.video = VideoWriter(self.rig) if video else None
         self.localization = localization_component.factory(self._localization_config, rng_loc, self._lidar_quality,
                                                             start)
-        self.detector = detector_component.factory(self.track, self.rig, rng_detector)
+        self.detector = detector if detector is not None else detector_component.factory(self.track, self.rig,
+                                                                                          rng_detector)
+        self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
         if (sc.defense == "ld3" and self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
             raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
@@ -140,6 +148,13 @@ class SimRun:
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width
         self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
+        self.n_ticks = round(sc.duration * rates.control_hz)
+        self.rows: list[TickRecord] = []
+        self.believed: list[tuple[float, float]] = []
+        self.stop_t: float | None = None
+        self._still_since: float | None = None
+        self.wall_time = 0.0
+        self.done = False
 
     def _localization_config(self) -> LocalizationConfig:
         """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
@@ -166,39 +181,49 @@ class SimRun:
         off = [k for k in kinds if k is not None]
         return off[0] if len(off) >= 2 else None
 
-    def run(self, progress: bool = False) -> RunResult:
-        sc = self.sc
-        rows: list[TickRecord] = []
-        believed: list[tuple[float, float]] = []
-        n_ticks = round(sc.duration * self.loop.rates.control_hz)
-        stop_t: float | None = None
-        still_since: float | None = None
+    def step(self) -> TickRecord:
+        """One control tick; sets `done` once the run is over: a consequence (curb, barrier, off road, out of
+        lane), standstill after a stop, the end of the road, or the scenario's duration."""
+        if self.done:
+            raise RuntimeError("the run is over; build a new SimRun to run again")
         wall0 = time.perf_counter()
-        bar = tqdm(total=n_ticks, desc=f"{sc.name}", unit="tick", disable=not progress, leave=False)
-        for _ in range(n_ticks):
-            rec = self.loop.tick()
-            rows.append(rec)
-            est_pose = self.loop.last_estimate.pose
-            believed.append((est_pose.x, est_pose.y))
+        rec = self.loop.tick()
+        self.rows.append(rec)
+        est_pose = self.loop.last_estimate.pose
+        self.believed.append((est_pose.x, est_pose.y))
+        pose = self.loop.last_state.true_pose
+        contacts = self.world.contact_kinds() if self.world is not None else set()
+        edge = self._edge_beyond(pose)
+        self.done = (self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off")
+                     or self._stopped(rec) or self.smap.project(pose, self.lane).s > self.track.length - END_MARGIN_M
+                     or len(self.rows) >= self.n_ticks)
+        self.wall_time += time.perf_counter() - wall0
+        return rec
+
+    def _stopped(self, rec: TickRecord) -> bool:
+        """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""
+        if not ((self.loop.stopping or self.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED):
+            self._still_since = None
+            return False
+        self._still_since = rec.t if self._still_since is None else self._still_since
+        if rec.t - self._still_since < 0.5:
+            return False
+        self.stop_t = self._still_since
+        return True
+
+    def run(self, progress: bool = False) -> RunResult:
+        """Step to the end and return the result."""
+        bar = tqdm(total=self.n_ticks, desc=f"{self.sc.name}", unit="tick", disable=not progress, leave=False)
+        while not self.done:
+            self.step()
             bar.update(1)
-            pose = self.loop.last_state.true_pose
-            contacts = self.world.contact_kinds() if self.world is not None else set()
-            edge = self._edge_beyond(pose)
-            if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
-                break
-            if (self.loop.stopping or self.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED:
-                still_since = rec.t if still_since is None else still_since
-                if rec.t - still_since >= 0.5:
-                    stop_t = still_since
-                    break
-            else:
-                still_since = None
-            coord = self.smap.project(pose, self.lane)
-            if coord.s > self.track.length - END_MARGIN_M:
-                break
         bar.close()
-        wall = time.perf_counter() - wall0
-        return RunResult(self._summary(rows, wall, stop_t), rows, np.array(believed).reshape(-1, 2), stop_t)
+        return self.result()
+
+    def result(self) -> RunResult:
+        """The summary and records of the ticks run so far (the whole run once `done`)."""
+        return RunResult(self._summary(self.rows, self.wall_time, self.stop_t), list(self.rows),
+                         np.array(self.believed).reshape(-1, 2), self.stop_t)
 
     def _summary(self, rows: list[TickRecord], wall: float, stop_t: float | None) -> dict[str, Any]:
         sc = self.sc
@@ -219,7 +244,7 @@ class SimRun:
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": dataclasses.asdict(self.defense_config),
-            "condition": sc.condition, "detector": sc.detector,
+            "condition": sc.condition, "detector": self.detector_name,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,

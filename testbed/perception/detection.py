@@ -45,6 +45,8 @@ class LaneDetector(ABC):
 
     reports_variance: bool = False
     """True when every detection carries `left_var` / `right_var` for its present lines."""
+    reads_camera: bool = True
+    """True when it reads `CameraFrame.image` (the run then renders the camera); False for map-based ones."""
 
     @abstractmethod
     def detect(self, frame: CameraFrame) -> LaneDetection: ...

@@ -21,6 +21,7 @@ class OracleLaneDetector(LaneDetector):
     its c0 variance as noise_std² (at least `MIN_VAR`)."""
 
     reports_variance = True
+    reads_camera = False
 
     def __init__(self, track, rng: np.random.Generator, noise_std: float = 0.0, dropout: float = 0.0) -> None:
         if noise_std < 0.0 or not 0.0 <= dropout <= 1.0:
