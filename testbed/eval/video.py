@@ -87,7 +87,7 @@ def draw_signals(image: np.ndarray, s: FrameSignals) -> np.ndarray:
     if s.cusum is None or not math.isfinite(s.cusum):
         text("CUSUM  -", 3, 2)
         return out
-    label = f"CUSUM {s.cusum:.2f}" + (f"/{s.tau:g}" if s.tau is not None else "")
+    label = f"CUSUM {s.cusum:.2f}" + (f"/{s.tau:.2f}" if s.tau is not None else "")
     text(label, 3, 2)
     if s.tau is None or s.tau <= 0:
         return out
