@@ -54,6 +54,8 @@ def synthetic_run(tmp_path):
     recording.set_lane_lines(ego_lane_lines(lane, np.array(path)))
     out = tmp_path / "run.mcap"
     recording.write(out)
+    recording.write(tmp_path / "again.mcap")
+    assert out.read_bytes() == (tmp_path / "again.mcap").read_bytes()  # deterministic; writing changes nothing
     return out, track
 
 

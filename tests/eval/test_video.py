@@ -71,3 +71,13 @@ def test_a_run_without_frames_writes_no_video_and_a_resized_frame_is_refused(tmp
     with pytest.raises(ValueError, match="size changed"):
         writer.add(CameraFrame(0.05, np.zeros((80, 160, 3), np.uint8)), LaneDetection.empty(0.05), signals)
     writer.close()
+
+
+def test_the_same_frames_give_the_same_bytes(tmp_path, rig):
+    for name in ("a.mp4", "b.mp4"):
+        writer = VideoWriter(rig)
+        for i in range(10):
+            writer.add(CameraFrame(i / 20.0, synthetic_image()), LaneDetection.empty(i / 20.0),
+                       FrameSignals(i / 20.0, 0.1 * i, -0.1 * i, 0.05 * i, 1.2, "normal"))
+        writer.write(tmp_path / name)
+    assert (tmp_path / "a.mp4").read_bytes() == (tmp_path / "b.mp4").read_bytes()
