@@ -11,6 +11,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
 import numpy as np
 
 from testbed.eval.ablation import ablation_runs, ablation_table
@@ -264,6 +268,34 @@ def fr_grid_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
+def _save_grid_heatmap(path: Path, cells: dict[tuple[str, float, float], list[bool]]) -> None:
+    """One panel per track: the attack success rate of each d × f cell, annotated with the rate and the
+    number of drives (grey where the cell has none)."""
+    fig, axes = plt.subplots(1, len(FR_TRACKS), figsize=(4.2 * len(FR_TRACKS) + 1.0, 3.8), squeeze=False,
+                             layout="constrained")
+    for ax, track in zip(axes[0], FR_TRACKS, strict=True):
+        rate = np.full((len(GRID_D), len(GRID_F)), np.nan)
+        for i, d in enumerate(GRID_D):
+            for j, f in enumerate(GRID_F):
+                res = cells.get((track, d, f), [])
+                if res:
+                    rate[i, j] = 100.0 * np.mean(res)
+                label = f"{rate[i, j]:.0f}%\n({len(res)})" if res else "–"
+                colour = "white" if res and rate[i, j] < 60.0 else "black"
+                ax.text(j, i, label, ha="center", va="center", fontsize=8, color=colour)
+        image = ax.imshow(rate, cmap=matplotlib.colormaps["viridis"].with_extremes(bad="0.85"), vmin=0.0,
+                          vmax=100.0, origin="lower")
+        ax.set_xticks(range(len(GRID_F)), [f"{f:g}" for f in GRID_F])
+        ax.set_yticks(range(len(GRID_D)), [f"{d:g}" for d in GRID_D])
+        ax.set_xlabel("f")
+        ax.set_ylabel("d (m)")
+        ax.set_title(f"{track} (goal {ATTACK_GOAL_M[track]} m)", fontsize=9)
+    fig.colorbar(image, ax=axes[0].tolist(), label="attack success (%)", shrink=0.8)
+    fig.suptitle("FusionRipper without defense: success rate per d × f cell (drives in brackets)", fontsize=9)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
     cells: dict[tuple[str, float, float], list[bool]] = {}
     giveway: dict[tuple[str, float, float], list[float]] = {}
@@ -287,6 +319,8 @@ def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
                 row.append(f"{100 * np.mean(res):.0f}% ({len(res)}){spread}" if res else "–")
             lines.append(f"| {d:g} | " + " | ".join(row) + " |")
         lines.append("")
+    _save_grid_heatmap(out / "fusionripper_grid.png", cells)
+    lines.append("![success rate per d × f cell](fusionripper_grid.png)")
     return "\n".join(lines)
 
 
