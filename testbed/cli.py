@@ -71,11 +71,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     attack = sc.attack["kind"] if sc.attack else "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
-    result = run_scenario(sc, out, video=args.video, progress=sys.stderr.isatty())
+    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
     s = result.summary
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
           f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
-    print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", camera.mp4" if args.video else ""))
+    extra = [name for name, wanted in (("camera.mp4", args.video), ("run.mcap", args.record)) if wanted]
+    print(f"outputs: {out}/" + ", ".join(["summary.json", "trajectory.csv", "birdseye.png", *extra]))
     return 0
 
 
@@ -166,7 +167,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run one scenario and write summary.json, trajectory.csv, birdseye.png")
     _add_run_overrides(p)
-    p.add_argument("--video", action="store_true", help="also write camera.mp4 with the lane-detection overlay")
+    p.add_argument("--video", action="store_true", help="also write camera.mp4 (H.264) with the lane-detection "
+                                                        "overlay and the signals")
+    p.add_argument("--record", action="store_true", help="also write run.mcap (Foxglove): camera, poses, map lines, "
+                                                         "signals, attack")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("scenarios", help="list the shipped scenarios")

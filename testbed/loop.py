@@ -105,6 +105,8 @@ class ControlLoop:
         self.planned_stop = planned_stop
         self.last_state: ChassisState | None = None
         self.last_estimate: LocalizationEstimate | None = None
+        self.last_control_pose: Pose | None = None
+        """The pose the controller tracked on the last tick (the MSF's, or the defense's own in response)."""
 
     def _attacker_view(self, state: ChassisState) -> AttackerView | None:
         pose = state.true_pose
@@ -135,6 +137,7 @@ class ControlLoop:
         if fresh:
             self._on_camera_tick(t, state, est, view)
         pose = self.defense.pose_for_control(est, self.smap)
+        self.last_control_pose = pose
         decel = self.defense.stop_decel
         if decel is None and self.planned_stop is not None and t >= self.planned_stop[0]:
             decel = self.planned_stop[1]

@@ -20,13 +20,11 @@ import cv2
 import numpy as np
 from mcap.writer import Writer
 
-from testbed.defense.fusion import pose_on_lane
 from testbed.eval import mcap_schemas
 from testbed.eval.video import draw_detection
 from testbed.loop import TickRecord
 from testbed.perception.detection import LaneDetection
 from tracks.lane import Lane
-from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
@@ -73,19 +71,6 @@ def _pose(x: float, y: float, yaw: float) -> dict[str, Any]:
 
 def _encoded(channel: Channel, t: float, message: Mapping[str, Any]) -> tuple[int, Channel, bytes]:
     return nanoseconds(t), channel, json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
-
-
-def fused_pose(rec: TickRecord, msf_pose: Pose, smap: SemanticMap, lane: int) -> Pose | None:
-    """The pose control tracked in attack response, rebuilt from the tick's record as LD3 builds it: the
-    lane point at the MSF pose shifted by the fused d, with the recorded heading relative to the lane.
-    None outside AR, for a defense without fusion internals, or off the map."""
-    if rec.mode != "ar" or rec.fused_dev is None or rec.heading_used is None:
-        return None
-    try:
-        point, heading = smap.lane_point(msf_pose, lane)
-    except OffMapError:
-        return None
-    return pose_on_lane(point, heading, rec.fused_dev, heading + rec.heading_used)
 
 
 def ego_lane_lines(lane: Lane, path_xy: np.ndarray, margin: float = 30.0, step: float = 1.0) -> list[np.ndarray]:

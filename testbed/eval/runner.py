@@ -32,12 +32,13 @@ from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import provenance, write_summary, write_trajectory
+from testbed.eval.recording import Recording, ego_lane_lines
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs
-from testbed.eval.video import VideoWriter
+from testbed.eval.video import FrameSignals, VideoWriter
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, LoopRates, TickRecord
-from testbed.perception.detection import LaneDetector
+from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
@@ -68,15 +69,15 @@ def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
 class SimRun:
     """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
 
-    def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False,
+    def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
                  attack: Attack | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
-        `ground` is how the camera draws the road surface (`TileStreamer`). `defense`, `detector` and `attack`
-        replace the ones the scenario names (your own objects, or a passive detection recorder); the summary
-        records their own names."""
+        `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
+        surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
+        own objects, or a passive detection recorder); the summary records their own names."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -119,10 +120,12 @@ class SimRun:
         self.rig = CameraRig(self.params.camera)
         self.streamer: TileStreamer | None = None
         self.camera: FrontCamera | None = None
-        if needs_camera or video:
+        if needs_camera or video or record:
             self.streamer = TileStreamer(self.track, self.condition.lighting, ground=ground)
             self.camera = FrontCamera(self.streamer, self.rig, self.condition, rng_camera)
-        self.video = VideoWriter(self.rig) if video else None
+        self.video = VideoWriter(self.rig, fps=rates.camera_hz) if video else None
+        self.recording = Recording(self.rig) if record else None
+        self._frames: list[tuple[CameraFrame, LaneDetection]] = []
         self.localization = localization_component.factory(self._localization_config, rng_loc, self._lidar_quality,
                                                             start)
         self.detector = detector if detector is not None else detector_component.factory(self.track, self.rig,
@@ -141,7 +144,7 @@ class SimRun:
             lateral=LqrLateralController.from_vehicle(self.params, dt),
             longitudinal=SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel),
             defense=self.defense, detector=self.detector, camera=self._capture if self.camera else None,
-            attack=self.attack, rates=rates, on_frame=self.video.add if self.video else None,
+            attack=self.attack, rates=rates, on_frame=self._keep_frame if (video or record) else None,
             existence_threshold=self.defense_config.existence_threshold,
             planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
         )
@@ -164,6 +167,23 @@ class SimRun:
             return LocalizationConfig.from_dict(table)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
+
+    def _keep_frame(self, frame: CameraFrame, ld: LaneDetection) -> None:
+        """A camera frame and its detection, held until the tick's record exists (video and recording)."""
+        self._frames.append((frame, ld))
+
+    def _record_tick(self, rec: TickRecord) -> None:
+        """Hand the tick and the frames that arrived on it to the video and the recording."""
+        tau = self.defense.alarm_threshold
+        for frame, ld in self._frames:
+            if self.video is not None:
+                self.video.add(frame, ld, FrameSignals.of(rec, tau))
+            if self.recording is not None:
+                self.recording.add_camera(frame.t, frame.image, ld)
+        self._frames.clear()
+        if self.recording is not None:
+            control = self.loop.last_control_pose if rec.mode == "ar" else None
+            self.recording.add_tick(rec, self.loop.last_estimate.pose, control, tau)
 
     def _lidar_quality(self, x: float, y: float) -> float:
         """LiDAR feature richness at a world point (the track's profile along the road)."""
@@ -191,6 +211,8 @@ class SimRun:
         self.rows.append(rec)
         est_pose = self.loop.last_estimate.pose
         self.believed.append((est_pose.x, est_pose.y))
+        if self.video is not None or self.recording is not None:
+            self._record_tick(rec)
         pose = self.loop.last_state.true_pose
         contacts = self.world.contact_kinds() if self.world is not None else set()
         edge = self._edge_beyond(pose)
@@ -276,8 +298,14 @@ class SimRun:
                              title=f"{sc.name} · {sc.track} · {self.attack.name} · attack response")
         if self.video is not None:
             self.video.write(out_dir / "camera.mp4")
+        if self.recording is not None:
+            path = np.array([(r.x, r.y) for r in result.rows]).reshape(-1, 2)
+            self.recording.set_lane_lines(ego_lane_lines(self.track.lanes[self.lane], path))
+            self.recording.write(out_dir / "run.mcap")
 
     def close(self) -> None:
+        if self.video is not None:
+            self.video.close()
         if self.world is not None:
             self.world.close()
         if self.streamer is not None:
@@ -295,12 +323,13 @@ def prepare_out_dir(out_dir: Path) -> None:
         raise ScenarioError(f"cannot write to output directory {out_dir}: {exc.strerror}") from None
 
 
-def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, progress: bool = False,
-                 render: bool | None = None) -> RunResult:
-    """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4)."""
+def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
+                 progress: bool = False, render: bool | None = None) -> RunResult:
+    """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4,
+    run.mcap)."""
     if out_dir is not None:
         prepare_out_dir(out_dir)
-    sim = SimRun(sc, render=render, video=video)
+    sim = SimRun(sc, render=render, video=video, record=record)
     try:
         result = sim.run(progress=progress)
         if out_dir is not None:

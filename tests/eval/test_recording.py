@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from testbed.eval.recording import CHANNELS, Recording, ego_lane_lines, fused_pose
+from testbed.eval.recording import CHANNELS, Recording, ego_lane_lines
 from testbed.loop import TickRecord
 from testbed.perception.detection import LaneDetection
 from tracks.pose import Pose
@@ -47,7 +47,8 @@ def synthetic_run(tmp_path):
                          fused_dev=FUSED_D if ar else None, heading_used=0.0 if ar else None)
         if i % CAMERA_EVERY == 0:
             recording.add_camera(t, image, ld)
-        recording.add_tick(rec, msf, fused_pose(rec, msf, track.map, track.ego_lane), TAU)
+        fused = Pose(*lane.position(s0 + 10.0 * t, FUSED_D), yaw) if ar else None
+        recording.add_tick(rec, msf, fused, TAU)
         if i % 10 == 0:
             recording.add_can(t, 0x101, bytes([i % 256, 0, 0, 0]), {"SteerAngle": 1.5, "Mode": _Named("AUTO")})
         path.append((x, y))

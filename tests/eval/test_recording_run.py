@@ -1,52 +1,43 @@
-"""A real 2-s LD3 run recorded into camera.mp4 and run.mcap, fed the way the runner feeds them: each camera
-frame with its lane detection, paired with the record of the control tick it arrived on."""
+"""Real runs recorded into camera.mp4 and run.mcap by the runner (`ld3 run --video --record`): every camera
+frame and control tick, the fused pose in attack response, and the trajectory unchanged by recording."""
 
 import json
 from collections import Counter
 
 import imageio_ffmpeg
-import numpy as np
 from mcap.reader import make_reader
 
-from testbed.eval.recording import Recording, ego_lane_lines, fused_pose
-from testbed.eval.runner import SimRun
+from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
-from testbed.eval.video import FrameSignals, VideoWriter
 
 
 def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):
     sc = load_scenario("urban-straight").with_overrides(duration=2.0, defense="ld3")
-    sim = SimRun(sc, render=True)
-    pending = []
-    sim.loop.on_frame = lambda frame, ld: pending.append((frame, ld))
-    video = VideoWriter(sim.rig, fps=sim.loop.rates.camera_hz)
-    recording = Recording(sim.rig)
-    tau = sim.defense.alarm_threshold
-    path = []
-    try:
-        for _ in range(round(sc.duration * sim.loop.rates.control_hz)):
-            rec = sim.loop.tick()
-            msf = sim.loop.last_estimate.pose
-            for frame, ld in pending:
-                video.add(frame, ld, FrameSignals.of(rec, tau))
-                recording.add_camera(frame.t, frame.image, ld)
-            pending.clear()
-            recording.add_tick(rec, msf, fused_pose(rec, msf, sim.smap, sim.lane), tau)
-            path.append((rec.x, rec.y))
-        recording.set_lane_lines(ego_lane_lines(sim.track.lanes[sim.lane], np.array(path)))
-        video.write(tmp_path / "camera.mp4")
-        recording.write(tmp_path / "run.mcap")
-    finally:
-        sim.close()
-
+    result = run_scenario(sc, tmp_path, video=True, record=True)
     frames = imageio_ffmpeg.read_frames(str(tmp_path / "camera.mp4"))
     meta = next(frames)
-    assert meta["codec"] == "h264" and meta["size"] == (sim.rig.width, sim.rig.height)
+    assert meta["codec"] == "h264" and meta["size"] == (320, 160)
     assert sum(1 for _ in frames) == 40
     with open(tmp_path / "run.mcap", "rb") as f:
         messages = [(c.topic, json.loads(m.data)) for _, c, m in make_reader(f).iter_messages()]
     counts = Counter(topic for topic, _ in messages)
     assert counts == {"/camera/image": 40, "/pose/true": 200, "/pose/msf": 200, "/signals": 200, "/map/lanes": 1}
     signals = [m for topic, m in messages if topic == "/signals"]
-    assert all(m["tau"] == tau and m["mode"] == "normal" for m in signals)
+    assert all(m["tau"] == 0.1 and m["mode"] == "normal" for m in signals)
     assert signals[-1]["cusum"] is not None and signals[-1]["ld_dev"] is not None
+    assert len(result.rows) == 200
+
+
+def test_attack_response_records_the_pose_control_used_and_recording_changes_nothing(tmp_path):
+    sc = load_scenario("urban-straight").with_overrides(duration=12.0, defense="ld3", localization="msf",
+                                                        attack={"kind": "trace", "trace": "default", "start": 2.0})
+    recorded = run_scenario(sc, tmp_path / "rec", record=True)
+    plain = run_scenario(sc, tmp_path / "plain")
+    assert (tmp_path / "rec" / "trajectory.csv").read_bytes() == (tmp_path / "plain" / "trajectory.csv").read_bytes()
+    assert recorded.summary["detected"] and plain.summary["detected"]
+    ar_ticks = sum(r.mode == "ar" for r in recorded.rows)
+    with open(tmp_path / "rec" / "run.mcap", "rb") as f:
+        topics = Counter(c.topic for _, c, _ in make_reader(f).iter_messages())
+    assert topics["/pose/fused"] == ar_ticks > 0
+    sim_time = recorded.summary["sim_time_s"]
+    assert topics["/camera/image"] >= 19 * sim_time  # the camera at 20 Hz: at least 19 frames per simulated second
