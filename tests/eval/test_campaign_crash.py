@@ -144,3 +144,25 @@ def test_one_campaign_process_per_folder(tmp_path):
     with _folder_lock(tmp_path), pytest.raises(CampaignBusyError, match="in use by another campaign"):
         run_campaign(runs, tmp_path, workers=1, progress=False, execute=slow_writer)
     assert not (tmp_path / "a").exists()
+
+
+def test_ld3_campaign_passes_timeout_and_refuses_a_busy_folder(tmp_path, monkeypatch, capsys):
+    from testbed import cli
+    from testbed.eval import campaigns
+
+    seen = {}
+
+    def fake_run_campaign(runs, out, **kwargs):
+        seen.update(kwargs, runs=[r.run_id for r in runs])
+        return []
+
+    monkeypatch.setattr(campaigns, "run_campaign", fake_run_campaign)
+    argv = ["campaign", "table4", "--runs", "ld3-start6", "--out", str(tmp_path), "--workers", "1"]
+    assert cli.main([*argv, "--timeout", "5"]) == 0
+    assert (seen["runs"], seen["timeout"], seen["workers"]) == (["ld3-start6"], 5.0, 1)
+    assert cli.main(argv) == 0 and seen["timeout"] is None
+    monkeypatch.undo()
+    capsys.readouterr()
+    with _folder_lock(tmp_path):
+        assert cli.main(argv) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == f"ld3: error: campaign folder {tmp_path} is in use by another campaign process\n"
