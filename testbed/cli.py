@@ -146,6 +146,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
+    from testbed.eval.campaign import CampaignBusyError
     from testbed.eval.campaigns import CAMPAIGNS, run_named
 
     if args.name == "list":
@@ -153,8 +154,11 @@ def cmd_campaign(args: argparse.Namespace) -> int:
             print(f"{spec.name:18s} {spec.help}")
         return 0
     out = args.out or Path("runs") / f"campaign-{args.name}"
-    report = run_named(args.name, out, detector=args.detector, workers=args.workers, progress=sys.stderr.isatty(),
-                       select=args.runs, settings=args.set)
+    try:
+        report = run_named(args.name, out, detector=args.detector, workers=args.workers,
+                           progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout)
+    except CampaignBusyError as exc:
+        raise UserError(str(exc)) from None
     print(report.read_text())
     print(f"report: {report}")
     return 0
@@ -194,9 +198,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
-    p.add_argument("--out", type=Path, help="output directory (default runs/campaign-NAME); reruns resume")
+    p.add_argument("--out", type=Path, help="output directory (default runs/campaign-NAME); reruns resume, redoing "
+                                             "unfinished runs (redone.txt)")
     p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
-    p.add_argument("--workers", type=int, default=2, help="worker processes")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (1: every run in this process)")
+    p.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="time limit of each run (default 120 s + 10 × its simulated duration); a run over it is "
+                        "stopped and listed in failures.txt")
     p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB, e.g. 'local@101-*'")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")

@@ -1,0 +1,62 @@
+"""Executor doubles for the campaign tests: module-level, so that spawned workers import them. Run as a module
+(`python -m tests.eval.campaign_helpers OUT`) it is a campaign process for the kill test to kill."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+from pathlib import Path
+
+from testbed.eval.campaign import CampaignRun, run_campaign
+from testbed.eval.scenario import load_scenario
+
+PARTS = 20
+PART_PERIOD_S = 0.05
+
+
+def _log(path: Path, line: str) -> None:
+    """Append one line in one write (O_APPEND), safe with several writers."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND)
+    try:
+        os.write(fd, f"{line}\n".encode())
+    finally:
+        os.close(fd)
+
+
+def slow_writer(run: CampaignRun, run_dir: Path) -> dict:
+    """Writes `part-0` … `part-19` 0.05 s apart, then summary.json, then logs the run id in
+    `completed.log` beside the run folders. Tags: `fail` raises, `die` ends the process, `hang` sleeps
+    (after logging its pid in `pids.log`)."""
+    if run.tags.get("fail"):
+        raise RuntimeError("boom\nsecond line")
+    if run.tags.get("die"):
+        os._exit(3)
+    if run.tags.get("hang"):
+        _log(run_dir.parent / "pids.log", str(os.getpid()))
+        time.sleep(120.0)
+    for i in range(run.tags.get("parts", PARTS)):
+        (run_dir / f"part-{i}").write_text(f"{run.run_id} {i}\n")
+        time.sleep(PART_PERIOD_S)
+    summary = {"run": run.run_id, "consequence": "reach_destination"}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    _log(run_dir.parent / "completed.log", run.run_id)
+    return summary
+
+
+def process_probe(run: CampaignRun, run_dir: Path) -> dict:
+    """Records the process it runs in and how many child processes that process has."""
+    summary = {"pid": os.getpid(), "children": len(mp.active_children())}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    return summary
+
+
+def crash_runs(n: int = 8) -> list[CampaignRun]:
+    sc = load_scenario("slr")
+    return [CampaignRun(f"run-{i}", sc, {"i": i}) for i in range(n)]
+
+
+if __name__ == "__main__":
+    run_campaign(crash_runs(), Path(sys.argv[1]), workers=2, progress=False, execute=slow_writer)
