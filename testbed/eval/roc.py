@@ -63,7 +63,7 @@ def roc_runs(detector: str) -> list[CampaignRun]:
 
 
 def record_detection_run(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
-    """Executor: the run with a `DetectionRecorder` as its defense; detection_log.npz before summary.json."""
+    """Executor: the run with a `DetectionRecorder` as its defense; its outputs plus detection_log.npz."""
     from testbed.eval.runner import SimRun, prepare_out_dir
 
     prepare_out_dir(run_dir)
