@@ -116,7 +116,11 @@ class DefenseConfig:
             if not check(value):
                 raise ValueError(f"[defense] {key} = {raw!r} {message}")
             values[key] = value
-        return cls(**values)
+        config = cls(**values)
+        if "heading_clamp" in values and config.heading not in ("ld", "fused"):
+            raise ValueError(f"[defense] heading_clamp acts only with heading = 'ld' or 'fused', not "
+                             f"{config.heading!r}: drop it or set the heading")
+        return config
 
 
 PAPER_MODE: dict[str, Any] = {"heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}

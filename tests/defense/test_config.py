@@ -34,6 +34,13 @@ def test_from_dict_accepts_ints_for_floats():
         ({"b": "0.6"}, "b"),
         ({"b": True}, "b"),
         ({"p_ld": float("nan")}, "p_ld"),
+        ({"heading": "gps"}, "heading"),
+        ({"heading": 1}, "heading"),
+        ({"p_source": "guess"}, "p_source"),
+        ({"heading_clamp": 0.0}, "heading_clamp"),
+        ({"r_power": 9.0}, "r_power"),
+        ({"heading": "msf", "heading_clamp": 0.03}, "acts only with heading"),
+        ({"heading": "lane", "heading_clamp": 0.03}, "acts only with heading"),
     ],
 )
 def test_from_dict_rejects_bad_tables(table, message):
@@ -46,3 +53,8 @@ def test_factory_names_and_unknown_name():
         assert make_defense(name, DefenseConfig()).name == name
     with pytest.raises(ValueError, match=r"unknown defense 'ld4'.*ld3, ld3-naive-ar, savior, none"):
         make_defense("ld4", DefenseConfig())
+
+
+def test_heading_clamp_is_accepted_where_it_acts():
+    assert DefenseConfig.from_dict({"heading": "ld", "heading_clamp": 0.03}).heading_clamp == 0.03
+    assert DefenseConfig.from_dict({"heading_clamp": 0.04}).heading == "fused"  # the default heading uses it
