@@ -132,6 +132,9 @@ def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
     wheelbase = get_vehicle(fit_runs[0].scenario.vehicle).wheelbase
     coefficients = fit_savior(out, fit_runs, wheelbase)
     series = _series(out, done, coefficients)
+    if not series:
+        return (f"SAVIOR bicycle model fitted on {len(fit_runs)} benign drives: {coefficients}. No benign or "
+                "attacked drive finished, so there is no ROC to sweep yet.")
     grids = {"ld3": (LD3_BS, LD3_TAUS, _DEFAULTS.b, _DEFAULTS.tau),
              "savior": (SAVIOR_BS, SAVIOR_TAUS, _DEFAULTS.savior_b, _DEFAULTS.savior_tau)}
     failed = sum(r.tags["role"] == "attacked" and not attack_succeeded(r.tags["track"], s["max_abs_dev_m"],

@@ -128,3 +128,11 @@ def test_a_sweep_over_defense_b_is_recorded_in_runs_csv(tmp_path):
     assert (rows["b0.45"]["defense_params.b"], rows["b0.6"]["defense_params.b"]) == ("0.45", "0.6")
     assert rows["b0.45"]["resolved_scenario.defense_params.window"] == "5"
     assert rows["b0.45"]["schema_version"] == "2" and json.loads(rows["b0.6"]["faults"]) == []
+
+
+def test_roc_report_with_only_a_fit_drive_says_there_is_nothing_to_sweep(tmp_path):
+    from testbed.eval.campaigns import run_named
+
+    report = run_named("roc", tmp_path, detector="oracle", workers=1, progress=False, select="local-fit-seed100")
+    text = report.read_text()
+    assert "fitted on 1 benign drives" in text and "no ROC to sweep yet" in text
