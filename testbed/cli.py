@@ -94,6 +94,15 @@ def cmd_components(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from testbed.eval.report import compare_runs
+
+    report = compare_runs(args.runs, args.out)
+    print(report.read_text())
+    print(f"report: {report} (plot: {args.out / 'deviations.png'})")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from testbed.eval.scenario import load_scenario, shipped_scenarios
 
@@ -179,6 +188,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("scenarios", help="list the shipped scenarios")
     p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser("compare", help="a table and an overlay plot of the physical deviation of any finished runs")
+    p.add_argument("runs", nargs="+", type=Path, help="run folders (each with summary.json and trajectory.csv)")
+    p.add_argument("--out", type=Path, default=Path("runs/compare"), help="where report.md and deviations.png go")
+    p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("components", help="every registered defense, lane detector, localization, attack and "
                                           "campaign, with what it needs (markdown)")

@@ -4,6 +4,8 @@ of the physical deviation of each run against time.
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,7 +77,8 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
         spec = s.get("attack")
         attack = spec.get("kind", "?") if isinstance(spec, dict) else _fmt(spec)
         lines.append(
-            f"| [{r.label}]({r.run_dir.name}/birdseye.png) | {s['defense']} | {attack} | {s['consequence']} "
+            f"| [{r.label}]({os.path.relpath(r.run_dir / 'birdseye.png', out_dir)}) | {s['defense']} | {attack} "
+            f"| {s['consequence']} "
             f"| {_fmt(s['detected'])} | {_fmt(s['detection_time_s'])} | {_fmt(s['detection_dev_m'])} "
             f"| {_fmt(s['ar_max_dev_m'])} | {_fmt(s['ar_stop_dev_m'])} | {_fmt(s['max_abs_dev_m'])} "
             f"| {_fmt(s['lane_straddle_dev_m'])} |")
@@ -83,3 +86,32 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
     path = out_dir / "report.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
+    """report.md and deviations.png comparing any finished runs (folders with summary.json and trajectory.csv);
+    each run is labelled by its folder. ValueError names a folder that is not a finished run."""
+    rows = []
+    for run_dir in run_dirs:
+        summary_path = run_dir / "summary.json"
+        if not summary_path.is_file() or not (run_dir / "trajectory.csv").is_file():
+            raise ValueError(f"{run_dir} is not a finished run (no summary.json and trajectory.csv)")
+        try:
+            summary = json.loads(summary_path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{summary_path} is not readable JSON: {exc}") from None
+        rows.append(ReportRow(str(run_dir), run_dir, summary))
+    if not rows:
+        raise ValueError("name at least one run folder to compare")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return write_report(out_dir, f"{len(rows)} runs compared", rows, _differing_defense_params(rows))
+
+
+def _differing_defense_params(rows: Sequence[ReportRow]) -> str:
+    """One line per run with the `[defense]` parameters whose values differ between the runs."""
+    params = [r.summary.get("defense_params") or {} for r in rows]
+    keys = sorted({k for p in params for k in p if len({json.dumps(q.get(k)) for q in params}) > 1})
+    if not keys:
+        return "The runs share every recorded [defense] parameter."
+    return "[defense] parameters that differ:\n\n" + "\n".join(
+        f"- {r.label}: " + ", ".join(f"{k} = {p.get(k)}" for k in keys) for r, p in zip(rows, params, strict=True))

@@ -103,3 +103,16 @@ def test_debug_shows_the_traceback_that_the_one_line_error_hides():
                            capture_output=True, text=True)
     assert plain.returncode == 2 and "Traceback" not in plain.stderr and "unknown scenario" in plain.stderr
     assert debug.returncode == 1 and "Traceback" in debug.stderr and "ScenarioError" in debug.stderr
+
+
+def test_compare_tables_any_runs_and_names_what_differs(tmp_path):
+    from testbed.eval.report import compare_runs
+
+    base = load_scenario("slr").with_overrides(duration=2.0, defense="ld3", localization="msf")
+    run_scenario(base, tmp_path / "a")
+    run_scenario(base.with_overrides(defense_params={"heading": "msf", "window": 20}), tmp_path / "b")
+    report = compare_runs([tmp_path / "a", tmp_path / "b"], tmp_path / "cmp").read_text()
+    assert "heading = fused, window = 5" in report and "heading = msf, window = 20" in report
+    assert report.count("| reach_destination |") == 2 and (tmp_path / "cmp" / "deviations.png").stat().st_size > 5000
+    with pytest.raises(ValueError, match="not a finished run"):
+        compare_runs([tmp_path / "nowhere"], tmp_path / "cmp")
