@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -129,3 +130,12 @@ def test_unknown_and_clashing_plugins_are_refused(plugin_path):
     DEFENSES.reload_plugins()
     with pytest.raises(TypeError, match=re.escape("not a testbed.registry.Component")):
         DEFENSES.names()
+
+
+def test_docs_components_table_is_the_registries_output():
+    """docs/components.md is `ld3 components` (with no plugin installed): regenerate it when a component changes."""
+    out = subprocess.run([sys.executable, "-m", "testbed.cli", "components"], capture_output=True, text=True,
+                         check=True).stdout
+    out = "\n".join(line for line in out.splitlines() if not line.startswith("pybullet build time"))
+    doc = (Path(__file__).parents[1] / "docs" / "components.md").read_text()
+    assert out.strip() in doc, "docs/components.md is stale: regenerate it from `ld3 components`"
