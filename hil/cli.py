@@ -197,7 +197,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
             raise ValueError("--drill needs the in-process ECU emulator (--interface virtual)")
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
-        result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(), **drill)
+        result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
+                                  record=args.record, **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -207,7 +208,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
           f"at {s['real_time_factor']:.1f}x real time")
     print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
           f"{s['can_frames_rejected']} rejected; log {s['can_log']}")
-    print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png")
+    print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", run.mcap" if args.record else ""))
     if s["faults"]:
         first = s["faults"][0]
         stop = f"standstill at {s['stop_time_s']:.2f} s" if s["stop_time_s"] is not None else "no standstill"
@@ -234,6 +235,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="lockstep (default) or realtime (default on socketcan)")
     p.add_argument("--log", dest="can_log", type=Path, default=None,
                    help="CAN log file (.asc or .blf; default OUT/can.asc)")
+    p.add_argument("--record", action="store_true",
+                   help="also write run.mcap (Foxglove): the run's channels plus the CAN frames decoded by the DBC")
     p.add_argument("--profile", default=DEFAULT_PROFILE,
                    help="chassis profile: a shipped name (ld3-dev, ld3-dev-secoc, pix-hooke) or a folder with "
                         "chassis.dbc and profile.toml")

@@ -25,6 +25,7 @@ from hil.bridge import BridgeError, CanChassisBridge
 from hil.bus_config import INTERFACES, BusConfig
 from hil.ecu import EcuEmulator, EcuLimits
 from hil.ecu_process import EcuProcess
+from hil.mcap_can import CanToRecording
 from hil.odometry import KinematicOdometry, OdometryGeometry
 from hil.plants import plant_args_for, scenario_plant
 from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
@@ -138,11 +139,13 @@ class HilLink:
 
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
-                     prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0) -> RunResult:
+                     prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
+                     record: bool = False) -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
-    (`log_path`, default OUT/can.asc). The summary gains interface, channel, clock, profile, frame counts and
-    the odometry's largest and final distance from the emulator's truth (where truth frames are on). `prepare` is called
-    with the link before engaging (fault drills install their injections there)."""
+    (`log_path`, default OUT/can.asc), and with `record` run.mcap with the CAN frames decoded by the profile's
+    DBC. The summary gains interface, channel, clock, profile, frame counts and the odometry's largest and
+    final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
+    before engaging (fault drills install their injections there)."""
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
@@ -157,7 +160,9 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
             link.bridge.add_listener(recorder)
         if prepare is not None:
             prepare(link)
-        sim = SimRun(sc, chassis=link.bridge, world=link.world)
+        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record)
+        if sim.recording is not None:
+            link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
         link.engage()  # last before the run: a realtime bridge starts its clock here
         result = sim.run(progress=progress)
     finally:
