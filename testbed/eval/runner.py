@@ -86,7 +86,7 @@ class SimRun:
             self.defense_config = DefenseConfig.from_dict(sc.defense_params)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
-        check_needs(sc)
+        provided = check_needs(sc)
         if sc.speed > self.params.max_speed:
             raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach "
                                 f"({self.params.max_speed} m/s)")
@@ -112,10 +112,7 @@ class SimRun:
         if self.attack is not None:
             for painter in self.attack.painters():
                 self.track.add_painter(painter)
-        detector_component = DETECTORS.get(sc.detector)
-        localization_component = LOCALIZATIONS.get(sc.localization)
-        self.provided = detector_component.provides | localization_component.provides
-        reads_camera = Capability.CAMERA_IMAGE in self.provided if detector is None else detector.reads_camera
+        reads_camera = Capability.CAMERA_IMAGE in provided if detector is None else detector.reads_camera
         needs_camera = reads_camera if render is None else render
         self.rig = CameraRig(self.params.camera)
         self.streamer: TileStreamer | None = None
@@ -126,12 +123,12 @@ class SimRun:
         self.video = VideoWriter(self.rig, fps=rates.camera_hz) if video else None
         self.recording = Recording(self.rig) if record else None
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
-        self.localization = localization_component.factory(self._localization_config, rng_loc, self._lidar_quality,
-                                                            start)
-        self.detector = detector if detector is not None else detector_component.factory(self.track, self.rig,
-                                                                                          rng_detector)
+        self.localization = LOCALIZATIONS.get(sc.localization).factory(self._localization_config, rng_loc,
+                                                                        self._lidar_quality, start)
+        self.detector = detector if detector is not None else DETECTORS.get(sc.detector).factory(
+            self.track, self.rig, rng_detector)
         self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
-        if (sc.defense == "ld3" and self.defense_config.p_source == "reported" and self.detector is not None
+        if (self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
             raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                                 f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
@@ -244,11 +241,10 @@ class SimRun:
 
     def result(self) -> RunResult:
         """The summary and records of the ticks run so far (the whole run once `done`)."""
-        return RunResult(self._summary(self.rows, self.wall_time, self.stop_t), list(self.rows),
-                         np.array(self.believed).reshape(-1, 2), self.stop_t)
+        return RunResult(self._summary(), list(self.rows), np.array(self.believed).reshape(-1, 2), self.stop_t)
 
-    def _summary(self, rows: list[TickRecord], wall: float, stop_t: float | None) -> dict[str, Any]:
-        sc = self.sc
+    def _summary(self) -> dict[str, Any]:
+        sc, rows, wall, stop_t = self.sc, self.rows, self.wall_time, self.stop_t
         status = self.defense.status()
         det_t = status.detection_time
         phys = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
@@ -260,12 +256,12 @@ class SimRun:
         faults = self.chassis.latched_faults()
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
+        defense_params = dataclasses.asdict(self.defense_config)
         return {
-            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params":
-                                                   dataclasses.asdict(self.defense_config)},
+            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
-            "defense": self.defense.name, "defense_params": dataclasses.asdict(self.defense_config),
+            "defense": self.defense.name, "defense_params": defense_params,
             "condition": sc.condition, "detector": self.detector_name,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,

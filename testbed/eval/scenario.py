@@ -15,7 +15,7 @@ from testbed.attacks.registry import ATTACKS
 from testbed.defense.registry import DEFENSES
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.perception.registry import DETECTORS
-from testbed.registry import FIXES, UnknownComponent, missing_needs
+from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
 
 
 class ScenarioError(ValueError):
@@ -64,9 +64,9 @@ def validate(sc: Scenario) -> Scenario:
     return sc
 
 
-def check_needs(sc: Scenario) -> None:
-    """Refuse, naming the fix, a scenario whose defense or attack could not act with its detector and
-    localization (each component declares its needs in its registry)."""
+def check_needs(sc: Scenario) -> frozenset[Capability]:
+    """What the scenario's detector and localization provide; ScenarioError, naming the fix, when its defense
+    or attack could not act with them (each component declares its needs in its registry)."""
     provided = DETECTORS.get(sc.detector).provides | LOCALIZATIONS.get(sc.localization).provides
     users = [("defense", DEFENSES.get(sc.defense))]
     if sc.attack:
@@ -78,6 +78,7 @@ def check_needs(sc: Scenario) -> None:
         missing = missing_needs(component, provided)
         _check(not missing, f"{family} {component.name!r} has no effect with detector = {sc.detector!r} and "
                             f"localization = {sc.localization!r}: it needs {FIXES[missing[0]] if missing else ''}")
+    return provided
 
 
 _TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params"}

@@ -53,3 +53,14 @@ def test_no_fusion_plot_without_attack_response(tmp_path):
     sc = load_scenario("urban-straight").with_overrides(duration=3.0, defense="ld3", localization="msf")
     run_scenario(sc, tmp_path)
     assert not (tmp_path / "ar_fusion.png").exists() and (tmp_path / "birdseye.png").exists()
+
+
+@pytest.mark.parametrize("defense", ["ld3", "ld3-naive-ar"])
+def test_reported_p_source_is_refused_with_a_detector_that_reports_no_variance(defense):
+    from testbed.eval.runner import SimRun
+    from testbed.eval.scenario import ScenarioError
+
+    sc = load_scenario("slr").with_overrides(duration=1.0, defense=defense, detector="classical",
+                                             defense_params={"p_source": "reported"})
+    with pytest.raises(ScenarioError, match=r"reports its c0 variance.*use detector oracle"):
+        SimRun(sc)
