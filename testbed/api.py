@@ -23,8 +23,8 @@ from testbed.defense.base import Defense
 from testbed.eval.outputs import TRAJECTORY_COLUMNS
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
 from testbed.eval.scenario import Scenario, load_scenario
+from testbed.lane_detection import LaneDetector
 from testbed.loop import TickRecord
-from testbed.perception.detection import LaneDetector
 
 __all__ = ["Result", "Scenario", "Simulation", "run", "scenario"]
 

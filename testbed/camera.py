@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as pb
 
 from testbed.ground import OPEN_GROUND_RGB, Lighting
-from testbed.perception.detection import CameraFrame
+from testbed.lane_detection import CameraFrame
 from testbed.world import TileStreamer
 from tracks.paint import ShadowPainter, WearPainter
 from tracks.pose import Pose

@@ -17,8 +17,8 @@ from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 

@@ -6,7 +6,7 @@ Run: python docs/examples/custom_detector.py
 import numpy as np
 
 from testbed import api
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.oracle import OracleLaneDetector
 from tracks.presets import load_track
 

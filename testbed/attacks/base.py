@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix
-from testbed.perception.detection import LaneDetection
 from tracks.pose import Pose
 
 

@@ -16,7 +16,7 @@ import math
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 
 IDLE, ACTIVE, OVER, PAINTED = "idle", "active", "over", "painted"
 

@@ -10,8 +10,8 @@ from testbed.defense.base import Defense, DefenseStatus, Mode
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog
 from testbed.defense.monitor import LaneConsistencyMonitor
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 
 logger = logging.getLogger(__name__)

@@ -13,8 +13,8 @@ from typing import Literal
 
 import numpy as np
 
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 

@@ -15,8 +15,8 @@ import numpy as np
 
 from testbed.defense.config import DefenseConfig
 from testbed.defense.ld3 import Ld3Defense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import LaneCoord, OffMapError
 from tracks.pose import Pose
 

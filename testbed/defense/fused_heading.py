@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from testbed.defense.ld_deviation import line_distance
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 from tracks.pose import wrap_angle
 
 

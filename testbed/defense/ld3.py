@@ -19,8 +19,8 @@ from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
 from testbed.defense.fused_heading import FusedHeading
 from testbed.defense.fusion import SafetyDrivenFusion, pose_on_lane
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 
 
 def line_distance(coeffs: np.ndarray | None, prob: float, existence_threshold: float) -> float:

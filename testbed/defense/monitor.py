@@ -13,8 +13,8 @@ import math
 from testbed.defense.detector import Ld3Detector
 from testbed.defense.faults import FaultLog
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 

@@ -4,8 +4,8 @@ steering on the MSF output (like Apollo's in-lane-stop emergency planning)."""
 from __future__ import annotations
 
 from testbed.defense.alarmed import Ld3AlarmedDefense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 

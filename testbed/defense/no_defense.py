@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from testbed.defense.base import Defense, DefenseStatus, Mode
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 

@@ -29,8 +29,8 @@ from testbed.defense.detector import Ld3Detector
 from testbed.defense.faults import FaultLog
 from testbed.defense.monitor import LaneConsistencyMonitor
 from testbed.defense.no_defense import NoDefense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 
 logger = logging.getLogger(__name__)

@@ -24,8 +24,8 @@ from testbed.defense.bicycle import BicycleCoefficients, BicycleModel, fit_bicyc
 from testbed.defense.config import DefenseConfig
 from testbed.defense.cusum import Cusum
 from testbed.defense.faults import FaultLog
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 

@@ -120,9 +120,9 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
     import numpy as np
 
     from testbed.camera import CONDITIONS
+    from testbed.lane_detection import CameraFrame
     from testbed.perception.classical import ClassicalLaneDetector
     from testbed.perception.dataset import HELD_OUT_SEEDS, Episode, render_episode
-    from testbed.perception.detection import CameraFrame
     from testbed.perception.neural import NeuralLaneDetector
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle

@@ -21,7 +21,7 @@ import numpy as np
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.eval.scenario import load_scenario
 from testbed.eval.video import draw_detection
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,8 @@ from mcap.writer import Writer
 
 from testbed.eval import mcap_schemas
 from testbed.eval.video import draw_detection
+from testbed.lane_detection import LaneDetection
 from testbed.loop import TickRecord
-from testbed.perception.detection import LaneDetection
 from tracks.lane import Lane
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig

@@ -35,10 +35,10 @@ from testbed.eval.outputs import provenance, write_summary, write_trajectory
 from testbed.eval.recording import Recording, ego_lane_lines
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs
 from testbed.eval.video import FrameSignals, VideoWriter
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, LoopRates, TickRecord
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer

@@ -14,8 +14,8 @@ import cv2
 import imageio_ffmpeg
 import numpy as np
 
+from testbed.lane_detection import CameraFrame, LaneDetection
 from testbed.loop import TickRecord
-from testbed.perception.detection import CameraFrame, LaneDetection
 from vehicles.camera_rig import CameraRig
 
 LINE_COLOURS = {"left": (255, 80, 0), "right": (0, 200, 255)}

@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from vehicles.camera_rig import CameraRig
 
 X_NEAR, X_FAR, Y_HALF = 5.0, 30.0, 6.0  # m: bird's-eye extent

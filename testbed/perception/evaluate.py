@@ -20,8 +20,8 @@ import numpy as np
 import torch
 
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.dataset import FrameSet
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 

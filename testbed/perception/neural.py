@@ -29,7 +29,7 @@ from torch import nn
 from torch.nn import functional as F
 from torch.nn.utils.fusion import fuse_conv_bn_eval
 
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from vehicles.camera_rig import CameraRig
 from vehicles.params import CameraParams
 

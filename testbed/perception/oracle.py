@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from testbed.perception.detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.labels import X_MAX, LineTruth, ego_lines
 from tracks.map_api import OffMapError
 

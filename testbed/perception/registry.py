@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from testbed.perception.detection import LaneDetector
+from testbed.lane_detection import LaneDetector
 from testbed.registry import Capability, Component, Registry
 
 _LD = frozenset({Capability.LANE_DETECTOR})

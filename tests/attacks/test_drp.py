@@ -5,7 +5,7 @@ import pytest
 
 from testbed.attacks.base import AttackerView
 from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 from tracks.pose import Pose
 
 

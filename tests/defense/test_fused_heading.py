@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from testbed.defense.fused_heading import FusedHeading, line_relative_heading
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 
 
 def lines(slope_left, slope_right, prob=0.9, c0=1.75):

@@ -9,8 +9,8 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.no_defense import NoDefense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tests.defense.fake_map import FakeStraightMap
 from tracks.pose import Pose
 

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.perception.detection import LaneDetection
+from testbed.lane_detection import LaneDetection
 
 LW = 3.5  # lane width from the map
 

@@ -21,8 +21,8 @@ from testbed.defense.roc import (
     roc_sweep,
 )
 from testbed.defense.savior import SaviorDefense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tests.defense.fake_map import FakeStraightMap
 from tracks.pose import Pose
 

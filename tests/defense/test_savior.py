@@ -6,8 +6,8 @@ import pytest
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel
 from testbed.defense.config import DefenseConfig
 from testbed.defense.savior import SaviorDefense
+from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from testbed.perception.detection import LaneDetection
 from tests.defense.fake_map import FakeStraightMap
 from tracks.pose import Pose
 

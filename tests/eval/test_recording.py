@@ -12,8 +12,8 @@ import pytest
 from mcap.reader import make_reader
 
 from testbed.eval.recording import CHANNELS, Recording, ego_lane_lines
+from testbed.lane_detection import LaneDetection
 from testbed.loop import TickRecord
-from testbed.perception.detection import LaneDetection
 from tracks.pose import Pose
 from tracks.presets import load_track
 from vehicles.camera_rig import CameraRig

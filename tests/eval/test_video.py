@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from testbed.eval.video import FrameSignals, VideoWriter
-from testbed.perception.detection import CameraFrame, LaneDetection
+from testbed.lane_detection import CameraFrame, LaneDetection
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.lane_detection import CameraFrame
 from testbed.perception.classical import ClassicalLaneDetector, ego_pair
-from testbed.perception.detection import CameraFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

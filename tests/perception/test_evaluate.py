@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
+from testbed.lane_detection import LaneDetection, LaneDetector
 from testbed.perception.dataset import load_frames, write_shard
-from testbed.perception.detection import LaneDetection, LaneDetector
 from testbed.perception.evaluate import evaluate, write_report
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle

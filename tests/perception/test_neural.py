@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.perception.detection import CameraFrame
+from testbed.lane_detection import CameraFrame
 from testbed.perception.neural import (
     ANCHOR_WEIGHTS,
     DEFAULT_WEIGHTS,

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from testbed.perception.detection import CameraFrame
+from testbed.lane_detection import CameraFrame
 from testbed.perception.labels import ego_lines
 from testbed.perception.oracle import OracleLaneDetector
 from testbed.perception.registry import make_detector

@@ -3,8 +3,8 @@ import json
 import numpy as np
 import torch
 
+from testbed.lane_detection import CameraFrame
 from testbed.perception.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
-from testbed.perception.detection import CameraFrame
 from testbed.perception.neural import LaneNet, NeuralLaneDetector, load_model
 from testbed.perception.train import TrainConfig, load_tensors, mirror, to_tensors, train
 
