@@ -14,11 +14,14 @@ from dataclasses import dataclass
 
 from testbed.attacks.base import Attack, AttackerView
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
+from testbed.control.lateral import LqrLateralController
+from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.estimate import LocalizationEstimate
+from testbed.localization.stack import Localization
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
@@ -75,34 +78,57 @@ def safe_dev(smap: SemanticMap, pose: Pose, lane: int | None) -> float | None:
         return None
 
 
-class ControlLoop:
-    """Wires chassis, localization, detector, defense, planner and controllers at the control rate."""
+@dataclass(frozen=True)
+class SensorPorts:
+    """Where the loop's pose and images come from: the localization (stepped every tick) and a camera that
+    captures a frame at (t, true pose), or None where the detector reads no image."""
 
-    def __init__(self, *, chassis: ChassisPort, localization, smap: SemanticMap, lane: int, planner: LanePlanner,
-                 lateral, longitudinal, defense: Defense, detector: LaneDetector | None,
-                 camera: Callable[[float, Pose], CameraFrame] | None, attack: Attack | None = None,
-                 rates: LoopRates = LoopRates(), on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None,
-                 existence_threshold: float = 0.5, planned_stop: tuple[float, float] | None = None) -> None:
-        """`planned_stop` = (time, deceleration) of an in-lane stop that is part of the plan, not a response."""
+    localization: Localization
+    camera: Callable[[float, Pose | None], CameraFrame] | None = None
+
+
+@dataclass(frozen=True)
+class PerceptionPorts:
+    """The lane detector (None: no lane detections), the existence probability a line needs to count, and a
+    hook that sees every frame with its detection (video, recording)."""
+
+    detector: LaneDetector | None = None
+    existence_threshold: float = 0.5
+    on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None
+
+
+@dataclass(frozen=True)
+class DrivingPorts:
+    """Planning and control: the map and the lane driven, the planner, the lateral and longitudinal
+    controllers, and an in-lane stop that is part of the plan ((time, deceleration), not a response)."""
+
+    smap: SemanticMap
+    lane: int
+    planner: LanePlanner
+    lateral: LqrLateralController
+    longitudinal: SpeedController
+    planned_stop: tuple[float, float] | None = None
+
+
+class ControlLoop:
+    """Wires chassis, sensors, perception, defense and driving at the control rate (DESIGN.md tick order)."""
+
+    def __init__(self, chassis: ChassisPort, sensors: SensorPorts, perception: PerceptionPorts, defense: Defense,
+                 driving: DrivingPorts, *, attack: Attack | None = None, rates: LoopRates = LoopRates()) -> None:
         self.chassis = chassis
-        self.localization = localization
-        self.smap = smap
-        self.lane = lane
-        self.planner = planner
-        self.lateral = lateral
-        self.longitudinal = longitudinal
+        self.sensors = sensors
+        self.perception = perception
         self.defense = defense
-        self.detector = detector
-        self.camera = camera
+        self.driving = driving
         self.attack = attack
         self.rates = rates
-        self.on_frame = on_frame
+        self.smap = driving.smap
+        self.lane = driving.lane
         self.dt = 1.0 / rates.control_hz
         self.ticks = 0
-        self.ld_dev = LdDeviation(existence_threshold)
+        self.ld_dev = LdDeviation(perception.existence_threshold)
         self.last_ld_dev: float | None = None
         self.stopping = False
-        self.planned_stop = planned_stop
         self.last_state: ChassisState | None = None
         self.last_estimate: LocalizationEstimate | None = None
         self.last_control_pose: Pose | None = None
@@ -126,27 +152,29 @@ class ControlLoop:
         t = state.t
         view = self._attacker_view(state) if self.attack is not None else None
         spoof = (lambda fix: self.attack.spoof_gnss(fix, view)) if view is not None else None
-        est = self.localization.step(t, state, spoof)
+        localization = self.sensors.localization
+        est = localization.step(t, state, spoof)
         if view is not None:
             est = self.attack.tamper_msf(est, view)
         self.last_estimate = est
-        gnss = getattr(self.localization, "last_gnss", None)
+        gnss = localization.last_gnss
         if gnss is not None:
             self.defense.on_gnss(gnss.t, gnss.xy, gnss.cov)
-        fresh = self.detector is not None and self.ticks % self.rates.camera_every == 0
+        fresh = self.perception.detector is not None and self.ticks % self.rates.camera_every == 0
         if fresh:
             self._on_camera_tick(t, state, est, view)
         pose = self.defense.pose_for_control(est, self.smap)
         self.last_control_pose = pose
         decel = self.defense.stop_decel
-        if decel is None and self.planned_stop is not None and t >= self.planned_stop[0]:
-            decel = self.planned_stop[1]
+        driving = self.driving
+        if decel is None and driving.planned_stop is not None and t >= driving.planned_stop[0]:
+            decel = driving.planned_stop[1]
         if decel is not None and not self.stopping:
             self.stopping = True
-            self.planner.start_stop(t, state.speed, decel)
-        plan = self.planner.plan(pose, state.speed, t)
-        steer = self.lateral.update(plan, state.speed, yaw_rate=state.yaw_rate)
-        accel = self.longitudinal.update(plan, state.speed, self.dt)
+            driving.planner.start_stop(t, state.speed, decel)
+        plan = driving.planner.plan(pose, state.speed, t)
+        steer = driving.lateral.update(plan, state.speed, yaw_rate=state.yaw_rate)
+        accel = driving.longitudinal.update(plan, state.speed, self.dt)
         self.chassis.send(ChassisCommand(steer=steer, accel=accel))
         self.defense.on_command(t, steer, accel, state.speed)
         self.chassis.advance(self.dt)
@@ -154,16 +182,17 @@ class ControlLoop:
         return self._record(state, est.pose, steer, accel, fresh)
 
     def _on_camera_tick(self, t: float, state: ChassisState, est, view: AttackerView | None) -> None:
-        frame = self.camera(t, state.true_pose) if self.camera is not None else CameraFrame(t, None, state.true_pose)
-        ld = self.detector.detect(frame)
+        camera = self.sensors.camera
+        frame = camera(t, state.true_pose) if camera is not None else CameraFrame(t, None, state.true_pose)
+        ld = self.perception.detector.detect(frame)
         if view is not None:
             ld = self.attack.tamper_ld(ld, view)
         width = self._lane_width(est.pose)
         if width is not None:
             self.last_ld_dev = self.ld_dev.update(ld, width)
         self.defense.on_lane_detection(ld, est, self.smap)
-        if self.on_frame is not None:
-            self.on_frame(frame, ld)
+        if self.perception.on_frame is not None:
+            self.perception.on_frame(frame, ld)
 
     def _lane_width(self, pose: Pose) -> float | None:
         try:

@@ -55,7 +55,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     timer.wrap(sim.streamer, "update", "tile streaming")
     if sim.detector is not None:
         timer.wrap(sim.detector, "detect", "lane detection")
-    for obj, name in ((sim.loop.planner, "plan"), (sim.loop.lateral, "update"), (sim.loop.longitudinal, "update")):
+    driving = sim.loop.driving
+    for obj, name in ((driving.planner, "plan"), (driving.lateral, "update"), (driving.longitudinal, "update")):
         timer.wrap(obj, name, "control")
     timer.wrap(sim.localization, "step", "localization")
     cpu0 = time.process_time()

@@ -38,7 +38,7 @@ from testbed.eval.video import FrameSignals, VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
-from testbed.loop import ControlLoop, LoopRates, TickRecord
+from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts, TickRecord
 from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
@@ -136,14 +136,16 @@ class SimRun:
             self.defense_config, BicycleCoefficients(wheelbase=self.params.wheelbase))
         dt = 1.0 / rates.control_hz
         self.loop = ControlLoop(
-            chassis=self.chassis, localization=self.localization, smap=self.smap, lane=self.lane,
-            planner=LanePlanner(self.smap, self.lane, sc.speed),
-            lateral=LqrLateralController.from_vehicle(self.params, dt),
-            longitudinal=SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel),
-            defense=self.defense, detector=self.detector, camera=self._capture if self.camera else None,
-            attack=self.attack, rates=rates, on_frame=self._keep_frame if (video or record) else None,
-            existence_threshold=self.defense_config.existence_threshold,
-            planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
+            self.chassis,
+            SensorPorts(self.localization, self._capture if self.camera else None),
+            PerceptionPorts(self.detector, self.defense_config.existence_threshold,
+                            self._keep_frame if (video or record) else None),
+            self.defense,
+            DrivingPorts(self.smap, self.lane, LanePlanner(self.smap, self.lane, sc.speed),
+                         LqrLateralController.from_vehicle(self.params, dt),
+                         SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel),
+                         planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None),
+            attack=self.attack, rates=rates,
         )
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -97,6 +97,16 @@ class LocalizationConfig:
         if not 0.0 < cfg.msf.gate_prob < 1.0:
             raise ValueError(f"localization.msf.gate_prob must be in (0, 1), got {cfg.msf.gate_prob}")
         return cfg
+
+
+class Localization(Protocol):
+    """A localization source the loop steps at the control rate: the estimate at t, and the GNSS fix it
+    fused on that step (None if none was due, or it fuses no GNSS)."""
+
+    last_gnss: GnssFix | None
+
+    def step(self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None) -> LocalizationEstimate:
+        ...
 
 
 class LocalizationStack:
