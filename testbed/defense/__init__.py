@@ -1,10 +1,9 @@
 """LD3 detection and response, the NaiveAR and SAVIOR baselines. No PyBullet, no torch."""
 
+from testbed.defense.attack_detection import Cusum, Ld3Detector, cusum_alarm_index
 from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.bicycle import BicycleCoefficients, fit_bicycle_coefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.cusum import Cusum, cusum_alarm_index
-from testbed.defense.detector import Ld3Detector
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.no_defense import NoDefense

@@ -4,12 +4,11 @@ alarms, attack response for good after that. LD3 and NaiveAR share it and differ
 from __future__ import annotations
 
 import logging
-from abc import abstractmethod
 
-from testbed.defense.base import Defense, DefenseStatus, Mode
+from testbed.defense.attack_detection import LaneConsistencyMonitor
+from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog
-from testbed.defense.monitor import LaneConsistencyMonitor
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
@@ -17,7 +16,7 @@ from tracks.map_api import SemanticMap
 logger = logging.getLogger(__name__)
 
 
-class Ld3AlarmedDefense(Defense):
+class Ld3AlarmedDefense(LatchingDefense):
     """LD3 detection; once alarmed, mode "ar" and a stop at `response_decel`."""
 
     def __init__(self, config: DefenseConfig) -> None:
@@ -27,21 +26,8 @@ class Ld3AlarmedDefense(Defense):
         self.detection_time: float | None = None
 
     @property
-    @abstractmethod
-    def response_decel(self) -> float:
-        """Deceleration of the attack-response stop (m/s², > 0)."""
-
-    @property
     def alarm_threshold(self) -> float | None:
         return self.config.tau
-
-    @property
-    def mode(self) -> Mode:
-        return "normal" if self.detection_time is None else "ar"
-
-    @property
-    def stop_decel(self) -> float | None:
-        return None if self.detection_time is None else self.response_decel
 
     def _detect(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection update while normal; True on the update that raises the alarm."""

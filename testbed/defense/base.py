@@ -74,3 +74,23 @@ class Defense(ABC):
     def alarm_threshold(self) -> float | None:
         """The threshold its `status().cusum` statistic alarms above (None: no such statistic)."""
         return None
+
+
+class LatchingDefense(Defense):
+    """The mode and stop logic LD3, NaiveAR and SAVIOR share: normal until `detection_time` is set, then
+    attack response for good, stopping in lane at `response_decel`."""
+
+    detection_time: float | None = None
+
+    @property
+    @abstractmethod
+    def response_decel(self) -> float:
+        """Deceleration of the attack-response stop (m/s², > 0)."""
+
+    @property
+    def mode(self) -> Mode:
+        return "normal" if self.detection_time is None else "ar"
+
+    @property
+    def stop_decel(self) -> float | None:
+        return None if self.detection_time is None else self.response_decel

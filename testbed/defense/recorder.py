@@ -24,10 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from testbed.defense.attack_detection import LaneConsistencyMonitor, Ld3Detector
 from testbed.defense.base import DefenseStatus
-from testbed.defense.detector import Ld3Detector
 from testbed.defense.faults import FaultLog
-from testbed.defense.monitor import LaneConsistencyMonitor
 from testbed.defense.no_defense import NoDefense
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate

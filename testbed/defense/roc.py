@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from testbed.defense.attack_detection import Cusum
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.cusum import Cusum
 from testbed.defense.savior import SaviorDefense
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.pose import Pose

@@ -19,10 +19,10 @@ import math
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from testbed.defense.base import Defense, DefenseStatus, Mode
+from testbed.defense.attack_detection import Cusum
+from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel, fit_bicycle_coefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.cusum import Cusum
 from testbed.defense.faults import FaultLog
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -38,7 +38,7 @@ _H_SPEED = np.array([[0.0, 0.0, 0.0, 1.0]])
 _INITIAL_SPEED_VAR = 1.0
 
 
-class SaviorDefense(Defense):
+class SaviorDefense(LatchingDefense):
     """Bicycle-model EKF + CUSUM on GNSS residuals."""
 
     name = "savior"
@@ -62,12 +62,8 @@ class SaviorDefense(Defense):
         return self.config.savior_tau
 
     @property
-    def mode(self) -> Mode:
-        return "normal" if self.detection_time is None else "ar"
-
-    @property
-    def stop_decel(self) -> float | None:
-        return None if self.detection_time is None else self.config.ar_decel
+    def response_decel(self) -> float:
+        return self.config.ar_decel
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         """SAVIOR ignores the lane lines; the first finite MSF estimate initialises its EKF."""

@@ -2,8 +2,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from testbed.defense.cusum import Cusum, cusum_alarm_index
-from testbed.defense.detector import Ld3Detector
+from testbed.defense.attack_detection import Cusum, Ld3Detector, cusum_alarm_index
 
 
 def test_alarm_index_hand_computed():

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from testbed.defense.attack_detection import cusum_alarm_index
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel
 from testbed.defense.config import DefenseConfig
-from testbed.defense.cusum import cusum_alarm_index
 from testbed.defense.recorder import DetectionRecorder, load_detection_log
 from testbed.defense.roc import (
     ResidualSeries,

@@ -1,22 +1,78 @@
-"""LD3 attack detection on a vehicle (paper Alg. 1): per lane detection, D_MSF = map lane deviation of the
-latest MSF pose, D_LD by Alg. 3 with the map's lane width, CUSUM on D_MSF - D_LD.
+"""LD3 attack detection (paper Alg. 1): per lane detection, D_MSF = map lane deviation of the latest MSF
+pose, D_LD by Alg. 3 with the map's lane width, and a one-sided CUSUM on D_MSF − D_LD:
+S_i = max(0, S_{i-1} + |r_i| − b), alarm when S_i > τ (lines 6–10).
 
 Detection is disabled while the MSF pose is inside an intersection (no lane markings) and resumes after
 it with S reset and Alg. 3's memory cleared. A detection with a non-finite pose, an off-map query, or no
-D_LD yet is skipped and logged.
+D_LD yet is skipped and logged. `Ld3Detector` and `cusum_alarm_index` run the same test on logged
+(D_MSF, D_LD) traces, e.g. to sweep b and τ for ROC curves.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
-from testbed.defense.detector import Ld3Detector
 from testbed.defense.faults import FaultLog
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
+
+
+class Cusum:
+    """One-sided CUSUM over residual magnitudes; latches at the first alarm (Alg. 1 `break`)."""
+
+    def __init__(self, b: float, tau: float) -> None:
+        self.b = b
+        self.tau = tau
+        self.statistic = 0.0
+        self.alarmed = False
+
+    def update(self, residual: float) -> bool:
+        """Feed one residual; True once S > τ. After the alarm S is frozen at its alarm value."""
+        if not self.alarmed:
+            self.statistic = max(0.0, self.statistic + abs(residual) - self.b)
+            self.alarmed = self.statistic > self.tau
+        return self.alarmed
+
+    def reset(self) -> None:
+        """S back to 0 and the alarm cleared (after a zone where detection is disabled)."""
+        self.statistic = 0.0
+        self.alarmed = False
+
+
+def cusum_alarm_index(residuals: Iterable[float], b: float, tau: float) -> int | None:
+    """Index of the first residual at which CUSUM(b, τ) alarms, or None: for offline (b, τ) sweeps."""
+    s = 0.0
+    for i, r in enumerate(residuals):
+        s = max(0.0, s + abs(r) - b)
+        if s > tau:
+            return i
+    return None
+
+
+class Ld3Detector:
+    """Consistency check between the MSF and LD lateral deviations; latches at the first alarm."""
+
+    def __init__(self, b: float = 0.6, tau: float = 0.1) -> None:
+        self.cusum = Cusum(b, tau)
+
+    def update(self, d_msf: float, d_ld: float) -> bool:
+        """Feed one pair of deviations (m); True once under attack."""
+        return self.cusum.update(d_msf - d_ld)
+
+    @property
+    def statistic(self) -> float:
+        return self.cusum.statistic
+
+    @property
+    def alarmed(self) -> bool:
+        return self.cusum.alarmed
+
+    def reset(self) -> None:
+        self.cusum.reset()
 
 
 class LaneConsistencyMonitor:
