@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from tracks.pose import Pose
+from tracks.texture import tile_frame, tile_texture
 from vehicles.camera_rig import CameraRig
 
 OPEN_GROUND_RGB = (84, 107, 66)
@@ -110,7 +111,7 @@ class GroundCanvas:
 
     def _tile_segments(self, i: int) -> list[tuple[np.ndarray, np.ndarray, slice]]:
         """Per mesh segment: texture corners (4, 2) in texture pixels, world corners (4, 2), texture rows."""
-        f = self.track.tile_frame(i)
+        f = tile_frame(self.track, i)
         n = max(1, math.ceil((f.s1 - f.s0) / SEGMENT_SPACING_M))
         s = np.linspace(f.s0, f.s1, n + 1)
         out = []
@@ -128,7 +129,7 @@ class GroundCanvas:
         if i not in self._textures:
             # TinyRenderer truncates the lit colour to an integer: the -0.5 offset turns cv2's rounding into that.
             light = np.column_stack([np.diag(self.gain), [-0.5] * 3])
-            self._textures[i] = cv2.transform(self.track.tile_texture(i), light)
+            self._textures[i] = cv2.transform(tile_texture(self.track, i), light)
         return self._textures[i]
 
     def _paint(self, i: int) -> None:

@@ -19,7 +19,9 @@ import numpy as np
 import pybullet as pb
 
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
+from tracks.obstacles import road_obstacles
 from tracks.pose import Pose
+from tracks.texture import tile_mesh, tile_texture
 from vehicles.params import VehicleParams
 from vehicles.pybullet_vehicle import PyBulletVehicle
 
@@ -81,7 +83,7 @@ class PhysicsWorld:
                 pb.removeBody(body, physicsClientId=self.client)
         for i in sorted(wanted - self._tile_bodies.keys()):
             by_kind: dict[str, list] = {}
-            for box in self.track.obstacles(i):
+            for box in road_obstacles(self.track, i):
                 by_kind.setdefault(box.kind, []).append(box)
             self._tile_bodies[i] = [self._add_compound(kind, boxes) for kind, boxes in sorted(by_kind.items())]
 
@@ -171,8 +173,8 @@ class TileStreamer:
     def _load_tile(self, i: int) -> list[int]:
         if self.canvas is not None:
             return self._add_obstacle_visuals(i)
-        verts, uvs, idx = self.track.tile_mesh(i, spacing=MESH_SPACING_M)
-        img = self.track.tile_texture(i)
+        verts, uvs, idx = tile_mesh(self.track, i, spacing=MESH_SPACING_M)
+        img = tile_texture(self.track, i)
         path = Path(self._tmp.name) / f"tile{i}.png"
         cv2.imwrite(str(path), np.ascontiguousarray(img[:, :, ::-1]))
         tex = pb.loadTexture(str(path), physicsClientId=self.client)
@@ -192,7 +194,7 @@ class TileStreamer:
         """One body per kind of roadside obstacle on tile i (TinyRenderer's cost grows with body count).
         Curbs are low enough to be seen as their painted strip in the road texture; they get no 3-D body here."""
         by_kind: dict[str, list] = {}
-        for box in self.track.obstacles(i):
+        for box in road_obstacles(self.track, i):
             if box.kind not in PAINTED_KINDS:
                 by_kind.setdefault(box.kind, []).append(box)
         bodies = []

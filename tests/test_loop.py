@@ -24,6 +24,7 @@ from testbed.localization.stack import GroundTruthLocalization
 from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts
 from testbed.perception.oracle import OracleLaneDetector
 from tracks.presets import load_track
+from tracks.semantic_map import TrackMap
 from vehicles.params import get_vehicle
 
 
@@ -84,7 +85,7 @@ class PassiveAttack(Attack):
 def traced_loop(request):
     log: list[str] = []
     track = load_track("urban-straight@1")
-    smap = track.map
+    smap = TrackMap(track)
     params = get_vehicle("sedan")
     start = track.start_pose(s=20.0)
     plant = KinematicBicyclePlant(wheelbase=params.wheelbase, pose=start, speed=10.0)

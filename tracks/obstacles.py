@@ -22,7 +22,9 @@ _SAGITTA = 0.02  # m, the largest gap allowed between a chunk box and the curved
 _OVERLAP = 0.02  # m added to each chunk's half length so neighbours close up on curves
 
 
-def build(track: Track, tile: int | None = None) -> list[CollisionBox]:
+def road_obstacles(track: Track, tile: int | None = None) -> list[CollisionBox]:
+    """Static collision boxes (curbs, barriers, guardrails, divider, trees) of the track, chunked within tiles
+    (all tiles, or tile `tile`)."""
     tiles = range(track.n_tiles) if tile is None else [tile]
     boxes: list[CollisionBox] = []
     for side, edge, outer in (

@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 
+from tracks.obstacles import road_obstacles
 from tracks.road import Track
 
 BODY_STYLE = {
@@ -104,7 +105,7 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
                 tiles = range(
                     int(s0 // track.tile_length), min(track.n_tiles, math.ceil(s1 / track.tile_length))
                 )
-                trees = [box for i in tiles for box in track.obstacles(i) if box.kind == body.kind]
+                trees = [box for i in tiles for box in road_obstacles(track, i) if box.kind == body.kind]
                 ax.scatter(
                     [b.center[0] for b in trees], [b.center[1] for b in trees], s=6, color="#2e7d32", zorder=4
                 )

@@ -1,5 +1,7 @@
 """A track: one road of same-direction lanes on a reference line, with markings, edges, intersections,
-its collision bodies, a LiDAR feature-quality profile and its streamed, procedurally painted tiles.
+a LiDAR feature-quality profile and the painters of its tiles. A track is data: its semantic map
+(`tracks.semantic_map.TrackMap`), tiles (`tracks.texture`) and collision bodies (`tracks.obstacles`) are
+built from it.
 
 The reference line runs along the centre of the ego lane (so s is the ego lane's own arc length); lanes
 are indexed 0 = rightmost; lateral offsets t are + left.
@@ -7,24 +9,17 @@ are indexed 0 = rightmost; lateral offsets t are + left.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracks import obstacles as obstacle_builder
-from tracks import texture
 from tracks.geometry import ReferenceLine
 from tracks.lane import Lane
-from tracks.layout import Boundary, CollisionBox, Edge, MarkingRun
+from tracks.layout import Boundary, Edge, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter
 from tracks.pose import Pose
 from tracks.texture import Painter
-
-if TYPE_CHECKING:
-    from tracks.semantic_map import TrackMap
 
 SEDAN_WIDTH = 1.90  # m; the vehicle width the presets' lane straddle deviations are quoted for
 
@@ -106,13 +101,6 @@ class Track:
     def in_intersection(self, s: float) -> bool:
         return any(a <= s < b for a, b in self.intersections)
 
-    @functools.cached_property
-    def map(self) -> TrackMap:
-        """The semantic map of this track (tracks.map_api.SemanticMap)."""
-        from tracks.semantic_map import TrackMap
-
-        return TrackMap(self)
-
     def lane_straddle_dev(self, lane: int | None = None, vehicle_width: float = SEDAN_WIDTH) -> float:
         """(lane width - vehicle width) / 2 for `lane` (default: the ego lane)."""
         return 0.5 * (self.lanes[self.ego_lane if lane is None else lane].width - vehicle_width)
@@ -146,25 +134,10 @@ class Track:
         """LiDAR map-matching feature richness at s: 1 rich, near 0 feature-poor (smooth, seeded)."""
         return float(np.interp(s, self._lidar_s, self._lidar_q))
 
-    def obstacles(self, tile: int | None = None) -> list[CollisionBox]:
-        """Static collision boxes (curbs, barriers, guardrails, divider, trees), chunked within tiles."""
-        return obstacle_builder.build(self, tile)
-
     # ---- tiles -------------------------------------------------------------------------------
     @property
     def n_tiles(self) -> int:
         return math.ceil(self.length / self.tile_length - 1e-9)
-
-    def tile_frame(self, i: int) -> texture.TileFrame:
-        return texture.tile_frame(self, i)
-
-    def tile_texture(self, i: int, rng: np.random.Generator | None = None) -> np.ndarray:
-        """Paint tile i (H×W×3 uint8 RGB); the default rng is seeded by (track seed, i): repeatable."""
-        return texture.paint_tile(self, i, np.random.default_rng([self.seed, i]) if rng is None else rng)
-
-    def tile_mesh(self, i: int, spacing: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """World-frame surface mesh of tile i: vertices (N,3), uvs (N,2), triangle indices (M,)."""
-        return texture.tile_mesh(self, i, spacing)
 
     def tiles_near(self, x: float, y: float, radius: float) -> list[int]:
         """Indices of tiles with any part within about `radius` m (along the road) of (x, y)."""

@@ -83,7 +83,10 @@ def tile_frame(track: Track, i: int) -> TileFrame:
     return TileFrame(i, s0, s1, t_min, t_max, height, width, track)
 
 
-def paint_tile(track: Track, i: int, rng: np.random.Generator) -> np.ndarray:
+def tile_texture(track: Track, i: int, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Paint tile i (H×W×3 uint8 RGB) with the track's painters; the default rng is seeded by (track seed, i):
+    repeatable."""
+    rng = np.random.default_rng([track.seed, i]) if rng is None else rng
     frame = tile_frame(track, i)
     img = np.zeros((frame.height, frame.width, 3), dtype=np.uint8)
     for painter in track.painters:

@@ -44,6 +44,7 @@ from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -92,7 +93,7 @@ class SimRun:
                                 f"({self.params.max_speed} m/s)")
         seeds = np.random.SeedSequence(sc.seed).spawn(4)
         rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
-        self.smap = self.track.map
+        self.smap = TrackMap(self.track)
         self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
         if not 0 <= self.lane < len(self.track.lanes):
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")

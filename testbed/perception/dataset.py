@@ -17,6 +17,7 @@ import json
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -29,7 +30,7 @@ from tracks.layout import Boundary, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
-from tracks.texture import TileFrame
+from tracks.texture import TileFrame, tile_texture
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -130,7 +131,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
     ]
     base_rig = CameraRig(get_vehicle(vehicle).camera)
     streamer = TileStreamer(track, condition.lighting, ahead_m=70.0, behind_m=5.0)
-    visibility = PaintVisibility(track, streamer.canvas.texture if streamer.canvas is not None else track.tile_texture)
+    texture = streamer.canvas.texture if streamer.canvas is not None else partial(tile_texture, track)
+    visibility = PaintVisibility(track, texture)
     try:
         lane = track.lanes[int(rng.integers(len(track.lanes)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))

@@ -21,6 +21,8 @@ import numpy as np
 from tracks.map_api import OffMapError
 from tracks.paint import marking_coverage
 from tracks.pose import Pose
+from tracks.semantic_map import TrackMap
+from tracks.texture import tile_frame
 
 X_MAX = 40.0  # m: the fitted range ahead of the reference point
 X_VIEW_NEAR, X_VIEW_FAR = 5.0, 25.0  # m: where a line must be painted to count as present
@@ -50,7 +52,7 @@ class PaintVisibility:
         last = min(track.n_tiles - 1, math.floor(s_hi / track.tile_length))
         laid = seen = 0
         for i in range(first, last + 1):
-            frame = track.tile_frame(i)
+            frame = tile_frame(track, i)
             if i not in self._coverage:
                 self._coverage[i] = marking_coverage(frame)
             rows = frame.rows_between(max(s_lo, frame.s0), min(s_hi, frame.s1))
@@ -123,7 +125,7 @@ def ego_lines(track, pose: Pose, visibility: PaintVisibility | None = None) -> E
     `OffMapError` when the pose is on no lane of the track."""
     if not pose.is_finite():
         raise OffMapError(f"pose {pose} is not finite")
-    coord = track.map.project(pose)
+    coord = TrackMap(track).project(pose)
     lane = coord.lane
     s0, _ = track.reference.project(pose.x, pose.y)
     return EgoLines(

@@ -16,6 +16,7 @@ from testbed.lane_detection import LaneDetection
 from testbed.loop import TickRecord
 from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -126,7 +127,7 @@ def test_message_contents_decode(recorded):
     assert by_topic["/attack"][-1] == {"t": 2.99, "stage": "aggressive", "offset": pytest.approx(0.3 * 2.99)}
     assert by_topic["/can"][1] == {"t": 0.1, "id": 0x101, "data": "0a000000",
                                    "signals": {"SteerAngle": 1.5, "Mode": "AUTO"}}
-    smap = track.map
+    smap = TrackMap(track)
 
     def dev(msg) -> float:
         p, q = msg["pose"]["position"], msg["pose"]["orientation"]

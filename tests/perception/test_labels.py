@@ -1,5 +1,6 @@
 import itertools
 import math
+from functools import partial
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ from tests.perception.conftest import ARC_R, LANE_W, pose_on
 from tracks.map_api import OffMapError
 from tracks.paint import AsphaltPainter, MarkingPainter, ShadowPainter, WearPainter, marking_coverage
 from tracks.pose import Pose
+from tracks.texture import tile_texture
 
 
 @pytest.mark.parametrize(("lane", "offset", "yaw_deg"), [(0, 0.0, 0.0), (0, 0.4, 3.0), (1, -1.2, -5.0)])
@@ -66,7 +68,7 @@ class _Fade:
 
 def _visibility(track, *painters):
     track.painters = [AsphaltPainter(), MarkingPainter(), *painters]
-    return PaintVisibility(track, track.tile_texture)
+    return PaintVisibility(track, partial(tile_texture, track))
 
 
 def test_repaved_paint_is_a_missing_line_and_half_faded_paint_is_not(track):

@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+from tracks.obstacles import road_obstacles
 from tracks.presets import list_presets, load_track
 
 STRADDLE = {"slr": (3.56, 0.83), "urban-straight": (3.90, 1.00), "urban-curvy": (3.40, 0.75)}
@@ -68,8 +69,8 @@ def test_urban_curvy_has_the_divider_left_and_curb_right():
     track = load_track("urban-curvy")
     assert track.left.kind == "divider" and track.right.kind == "curb"
     left_line = track.boundaries[-1].t
-    div = [b for b in track.obstacles(10) if b.kind == "divider"]
-    curbs = [b for b in track.obstacles(10) if b.kind == "curb"]
+    div = [b for b in road_obstacles(track, 10) if b.kind == "divider"]
+    curbs = [b for b in road_obstacles(track, 10) if b.kind == "curb"]
     assert div and curbs
     for box in div:
         _s, t = track.reference.project(box.center[0], box.center[1])

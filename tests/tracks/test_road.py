@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+from tracks.obstacles import road_obstacles
 from tracks.presets import load_track
 
 
@@ -29,14 +30,14 @@ def test_intersections_widen_the_surface_and_have_no_markings_or_curbs():
     assert all(bd.kind_at(mid) == "none" for bd in track.boundaries)
     assert track.boundaries[1].kind_at(a - 5.0) == "dashed_white"
     tile = int(mid // track.tile_length)
-    for box in track.obstacles(tile):
+    for box in road_obstacles(track, tile):
         s, _ = track.reference.project(box.center[0], box.center[1])
         assert not a < s < b
 
 
 def test_obstacle_chunks_follow_the_curve_within_tiles():
     track = load_track("urban-curvy")
-    curbs = [b for b in track.obstacles() if b.kind == "curb"]
+    curbs = [b for b in road_obstacles(track) if b.kind == "curb"]
     t_curb = track.boundaries[0].t - 0.10 - 0.15
     for box in curbs[::7]:
         s, t = track.reference.project(box.center[0], box.center[1])
@@ -49,7 +50,7 @@ def test_obstacle_chunks_follow_the_curve_within_tiles():
 
 def test_urban_straight_trees_sit_beyond_the_curb():
     track = load_track("urban-straight")
-    trees = [b for b in track.obstacles() if b.kind == "tree"]
+    trees = [b for b in road_obstacles(track) if b.kind == "tree"]
     assert len(trees) > 100
     near = [track.reference.project(b.center[0], b.center[1])[1] + b.half_extents[1] for b in trees]
     np.testing.assert_allclose(near, track.boundaries[0].t - 0.85, atol=1e-6)

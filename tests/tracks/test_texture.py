@@ -3,7 +3,7 @@ import pytest
 
 from tracks.paint import PatchPainter, ShadowPainter, WearPainter, marking_coverage
 from tracks.presets import load_track
-from tracks.texture import MAX_TEXTURE_SIDE
+from tracks.texture import MAX_TEXTURE_SIDE, tile_frame, tile_mesh, tile_texture
 
 
 @pytest.fixture(scope="module")
@@ -12,24 +12,24 @@ def curvy():
 
 
 def test_textures_are_deterministic_per_seed_and_tile(curvy):
-    a = curvy.tile_texture(12)
+    a = tile_texture(curvy, 12)
     assert a.dtype == np.uint8 and a.ndim == 3 and a.shape[2] == 3
-    np.testing.assert_array_equal(a, load_track("urban-curvy@2").tile_texture(12))
-    assert not np.array_equal(a, curvy.tile_texture(13)[: a.shape[0], : a.shape[1]])
+    np.testing.assert_array_equal(a, tile_texture(load_track("urban-curvy@2"), 12))
+    assert not np.array_equal(a, tile_texture(curvy, 13)[: a.shape[0], : a.shape[1]])
 
 
 def test_texture_sizes_are_bounded_and_resolution_default():
     for name in ("highway", "parking-lot"):
-        f = load_track(name).tile_frame(0)
+        f = tile_frame(load_track(name), 0)
         assert f.height <= MAX_TEXTURE_SIDE and f.width <= MAX_TEXTURE_SIDE
-    f = load_track("highway").tile_frame(3)
+    f = tile_frame(load_track("highway"), 3)
     assert f.px_per_m_s == pytest.approx(25.0) and f.px_per_m_t == pytest.approx(25.0, rel=0.01)
 
 
 def test_markings_are_bright_on_the_lines_and_dark_between(curvy):
     track = load_track("slr")
-    frame = track.tile_frame(5)
-    img = track.tile_texture(5)
+    frame = tile_frame(track, 5)
+    img = tile_texture(track, 5)
     grey = img.mean(axis=2)
     row = frame.height // 2
     col_line = round(frame.pixel(0.0, track.boundaries[0].t)[1] - 0.5)
@@ -39,7 +39,7 @@ def test_markings_are_bright_on_the_lines_and_dark_between(curvy):
 
 def test_dashes_are_three_metres_on_nine_off():
     track = load_track("highway")
-    frame = track.tile_frame(10)
+    frame = tile_frame(track, 10)
     cov = marking_coverage(frame)
     col = round(frame.pixel(0.0, track.boundaries[1].t)[1] - 0.5)
     on = cov[:, col] > 0.5
@@ -52,12 +52,12 @@ def test_dashes_are_three_metres_on_nine_off():
 
 def test_patch_changes_pixels_only_inside_it():
     track = load_track("urban-straight")
-    before = track.tile_texture(4)
+    before = tile_texture(track, 4)
     track.add_painter(
         PatchPainter(s_center=90.0, t_center=0.5, length=4.0, width=2.0, angle=0.0, darkness=0.8)
     )
-    after = track.tile_texture(4)
-    frame = track.tile_frame(4)
+    after = tile_texture(track, 4)
+    frame = tile_frame(track, 4)
     s = frame.s_of_rows()[:, None]
     t = frame.t_of_cols()[None, :]
     inside = (np.abs(s - 90.0) < 1.95) & (np.abs(t - 0.5) < 0.95)
@@ -70,24 +70,24 @@ def test_patch_changes_pixels_only_inside_it():
 
 def test_wear_fades_markings_and_shadows_darken(curvy):
     track = load_track("slr")
-    clean = track.tile_texture(3).astype(float)
-    cov = marking_coverage(track.tile_frame(3)) > 0.9
+    clean = tile_texture(track, 3).astype(float)
+    cov = marking_coverage(tile_frame(track, 3)) > 0.9
     track.add_painter(WearPainter(0.8))
-    worn = track.tile_texture(3).astype(float)
+    worn = tile_texture(track, 3).astype(float)
     assert worn[cov].mean() < clean[cov].mean() - 40
     np.testing.assert_array_equal(
-        worn[~(marking_coverage(track.tile_frame(3)) > 0)],
-        clean[~(marking_coverage(track.tile_frame(3)) > 0)],
+        worn[~(marking_coverage(tile_frame(track, 3)) > 0)],
+        clean[~(marking_coverage(tile_frame(track, 3)) > 0)],
     )
     track.add_painter(ShadowPainter(darkness=0.6, per_100m=10.0))
-    shaded = np.mean([track.tile_texture(i).mean() for i in range(3, 8)])
-    assert shaded < np.mean([load_track("slr").tile_texture(i).mean() for i in range(3, 8)]) - 3
+    shaded = np.mean([tile_texture(track, i).mean() for i in range(3, 8)])
+    assert shaded < np.mean([tile_texture(load_track("slr"), i).mean() for i in range(3, 8)]) - 3
 
 
 def test_mesh_uvs_map_world_points_to_their_texture_pixels(curvy):
     i = 20
-    vertices, uvs, indices = curvy.tile_mesh(i)
-    frame = curvy.tile_frame(i)
+    vertices, uvs, indices = tile_mesh(curvy, i)
+    frame = tile_frame(curvy, i)
     assert vertices.shape[1] == 3 and np.all(vertices[:, 2] == 0.0)
     assert indices.ndim == 1 and len(indices) % 3 == 0 and indices.max() < len(vertices)
     for k in (0, 37, len(vertices) - 1):

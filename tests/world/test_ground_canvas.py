@@ -11,6 +11,7 @@ from testbed.ground import OPEN_GROUND_RGB, GroundCanvas
 from testbed.world import TileStreamer
 from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.texture import tile_frame, tile_texture
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -69,9 +70,9 @@ def test_canvas_holds_exactly_the_wanted_tiles_while_it_recentres():
     L = track.tile_length
     assert (canvas_rgb(10.5 * L, 0.0) == OPEN_GROUND_RGB).all()  # dropped when the window moved on
     held = canvas_rgb(12.5 * L, 0.0)
-    f = track.tile_frame(12)
+    f = tile_frame(track, 12)
     row, col = (math.floor(v) for v in f.pixel(12.5 * L, 0.0))
-    lit = np.clip(track.tile_texture(12)[row, col] * canvas.gain, 0, 255)
+    lit = np.clip(tile_texture(track, 12)[row, col] * canvas.gain, 0, 255)
     assert np.abs(held - lit).max() <= 25  # the texel there (neighbours differ by the grain)
     assert not (held == OPEN_GROUND_RGB).all()
 
