@@ -19,126 +19,69 @@ asks for in an emergency in-lane stop, so it is not NaiveAR's deceleration.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, Literal
 
-HEADINGS = ("msf", "lane", "ld", "fused")
+from pydantic import Field, model_validator
+
+from testbed.params import Params, validate_params
+
+Heading = Literal["msf", "lane", "ld", "fused"]
 """Heading of the fused pose: the MSF yaw, the lane heading, or the lane heading corrected by the
 detected lines' slope at x = 0 (clamped to ±heading_clamp), or the mean of the MSF's and the lines' weighed
 by the fusion's uncertainties (testbed.defense.fused_heading)."""
-P_SOURCES = ("constant", "reported")
+PSource = Literal["constant", "reported"]
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
-_CHOICES: dict[str, tuple[str, ...]] = {"heading": HEADINGS, "p_source": P_SOURCES}
-
-# (check, message) per field; every check takes the already type-checked value.
-_RULES: dict[str, tuple[Any, str]] = {
-    "heading": (lambda v: v in HEADINGS, f"must be one of {HEADINGS}"),
-    "heading_clamp": (lambda v: 0.0 < v <= 0.5, "must lie in (0, 0.5] rad"),
-    "p_source": (lambda v: v in P_SOURCES, f"must be one of {P_SOURCES}"),
-    "r_power": (lambda v: 0.5 <= v <= 4.0, "must lie in [0.5, 4]"),
-    "b": (lambda v: v >= 0.0, "must be >= 0"),
-    "tau": (lambda v: v >= 0.0, "must be >= 0"),
-    "window": (lambda v: v >= 1, "must be an integer >= 1"),
-    "lam": (lambda v: 0.0 <= v <= 1.0, "must lie in [0, 1]"),
-    "p_msf": (lambda v: v > 0.0, "must be > 0"),
-    "p_ld": (lambda v: v > 0.0, "must be > 0"),
-    "kf_q": (lambda v: v >= 0.0, "must be >= 0"),
-    "kf_p0": (lambda v: v > 0.0, "must be > 0"),
-    "ar_decel": (lambda v: v > 0.0, "must be > 0"),
-    "max_decel": (lambda v: v > 0.0, "must be > 0"),
-    "existence_threshold": (lambda v: 0.0 <= v <= 1.0, "must lie in [0, 1]"),
-    "savior_b": (lambda v: v >= 0.0, "must be >= 0"),
-    "savior_tau": (lambda v: v >= 0.0, "must be >= 0"),
-    "savior_speed_std": (lambda v: v > 0.0, "must be > 0"),
-    "savior_accel_std": (lambda v: v > 0.0, "must be > 0"),
-    "savior_yaw_rate_std": (lambda v: v > 0.0, "must be > 0"),
-}
+HEADINGS: tuple[str, ...] = Heading.__args__
+P_SOURCES: tuple[str, ...] = PSource.__args__
 
 
-@dataclass(frozen=True)
-class DefenseConfig:
+class DefenseConfig(Params):
     """LD3 detection (b, tau), safety-driven fusion (window, lam, p_*, kf_*), response decelerations,
     LD line validity, and the SAVIOR baseline's CUSUM and EKF noise. SI units."""
 
-    b: float = 0.6
-    """CUSUM weight on |D_MSF - D_LD| (m)."""
-    tau: float = 0.1
-    """CUSUM alarm threshold (m)."""
-    window: int = 5
-    """Alg. 4 deviation-history window w (lane detections); the paper mode's is 20 (1 s at 20 Hz)."""
-    lam: float = 0.8
-    """Alg. 4 weight λ of the deviation-history uncertainty against the sources' own."""
-    p_msf: float = 0.1
-    """P^MSF: MSF's own lateral uncertainty fed to Alg. 4 (m²)."""
-    p_ld: float = 0.1
-    """P^LD: LD's own lateral uncertainty fed to Alg. 4 (m²)."""
-    r_power: float = 1.0
-    """Exponent k on Alg. 4's history term: R = λ f^k + (1 − λ) P (the paper: k = 1)."""
-    p_source: str = "constant"
-    """Where P^MSF and P^LD come from (`P_SOURCES`)."""
-    heading: str = "fused"
-    """Heading of the fused pose in attack response (`HEADINGS`); the paper mode is "msf"."""
-    heading_clamp: float = 0.02
-    """Largest |heading relative to the lane| the "ld" and "fused" headings take from the detected lines (rad)."""
-    kf_q: float = 0.05
-    """Process noise of the 1-D fusion Kalman filter, added on each predict (m²)."""
-    kf_p0: float = 1.0
-    """Initial variance of the 1-D fusion Kalman filter at AR onset (m²); its state starts at d = 0."""
-    ar_decel: float = 4.0
-    """LD3 (and SAVIOR) attack-response deceleration (m/s²)."""
-    max_decel: float = 4.5
-    """NaiveAR's maximum deceleration (m/s²): Apollo's planner lower bound (module docstring)."""
-    existence_threshold: float = 0.5
-    """A detected lane line with existence probability below this is not valid."""
-    savior_b: float = 1.0
-    """SAVIOR CUSUM weight on the GNSS residual (m)."""
-    savior_tau: float = 3.0
-    """SAVIOR CUSUM threshold (m)."""
-    savior_speed_std: float = 0.1
-    """SAVIOR EKF: wheel-speed measurement noise (m/s)."""
-    savior_accel_std: float = 0.5
-    """SAVIOR EKF: longitudinal process noise (m/s²)."""
-    savior_yaw_rate_std: float = 0.05
-    """SAVIOR EKF: yaw-rate process noise (rad/s)."""
+    b: float = Field(0.6, ge=0.0, description="CUSUM weight on |D_MSF - D_LD| (m)")
+    tau: float = Field(0.1, ge=0.0, description="CUSUM alarm threshold (m)")
+    window: int = Field(5, ge=1, description="Alg. 4 deviation-history window w (lane detections); the paper "
+                                             "mode's is 20 (1 s at 20 Hz)")
+    lam: float = Field(0.8, ge=0.0, le=1.0, description="Alg. 4 weight λ of the deviation-history uncertainty "
+                                                         "against the sources' own")
+    p_msf: float = Field(0.1, gt=0.0, description="P^MSF: the MSF's own lateral uncertainty fed to Alg. 4 (m²)")
+    p_ld: float = Field(0.1, gt=0.0, description="P^LD: LD's own lateral uncertainty fed to Alg. 4 (m²)")
+    r_power: float = Field(1.0, ge=0.5, le=4.0, description="exponent k on Alg. 4's history term: "
+                                                           "R = λ f^k + (1 − λ) P (the paper: k = 1)")
+    p_source: PSource = Field("constant", description="where P^MSF and P^LD come from: constant p_msf / p_ld, "
+                                                      "or the MSF's and the detector's reported variances")
+    heading: Heading = Field("fused", description="heading of the fused pose in attack response; the paper "
+                                                  "mode's is msf")
+    heading_clamp: float = Field(0.02, gt=0.0, le=0.5, description="largest |heading relative to the lane| the "
+                                 "ld and fused headings take from the detected lines (rad)")
+    kf_q: float = Field(0.05, ge=0.0, description="process noise of the 1-D fusion Kalman filter per predict (m²)")
+    kf_p0: float = Field(1.0, gt=0.0, description="initial variance of the 1-D fusion Kalman filter at AR onset "
+                                                 "(m²); its state starts at d = 0")
+    ar_decel: float = Field(4.0, gt=0.0, description="LD3 (and SAVIOR) attack-response deceleration (m/s²)")
+    max_decel: float = Field(4.5, gt=0.0, description="NaiveAR's maximum deceleration (m/s²): Apollo's planner "
+                                                     "lower bound")
+    existence_threshold: float = Field(0.5, ge=0.0, le=1.0, description="a detected lane line with existence "
+                                       "probability below this is not valid")
+    savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
+    savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
+    savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
+    savior_accel_std: float = Field(0.5, gt=0.0, description="SAVIOR EKF: longitudinal process noise (m/s²)")
+    savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
+
+    @model_validator(mode="after")
+    def _clamp_needs_a_clamped_heading(self) -> DefenseConfig:
+        if "heading_clamp" in self.model_fields_set and self.heading not in ("ld", "fused"):
+            raise ValueError(f"heading_clamp acts only with heading = 'ld' or 'fused', not {self.heading!r}: "
+                             f"drop it or set the heading")
+        return self
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> DefenseConfig:
-        """Build from a TOML table; unknown keys and bad values raise ValueError naming the key."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown [defense] keys {unknown}; allowed: {sorted(known)}")
-        values: dict[str, Any] = {}
-        for key, raw in d.items():
-            value = _coerce(key, raw)
-            check, message = _RULES[key]
-            if not check(value):
-                raise ValueError(f"[defense] {key} = {raw!r} {message}")
-            values[key] = value
-        config = cls(**values)
-        if "heading_clamp" in values and config.heading not in ("ld", "fused"):
-            raise ValueError(f"[defense] heading_clamp acts only with heading = 'ld' or 'fused', not "
-                             f"{config.heading!r}: drop it or set the heading")
-        return config
+        """Build from a TOML table; unknown keys and bad values raise ParamsError (a ValueError) naming the key."""
+        return validate_params(cls, d, "defense")
 
 
 PAPER_MODE: dict[str, Any] = {"heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}
 """The `[defense]` overrides that give LD3 as the paper specifies it: Alg. 2 with the MSF yaw, Alg. 4 with
 constant P and f to the first power, over a 1-s window."""
-
-
-def _coerce(key: str, raw: Any) -> float | int | str:
-    if key in _CHOICES:
-        if not isinstance(raw, str):
-            raise ValueError(f"[defense] {key} must be one of {_CHOICES[key]}, got {raw!r}")
-        return raw
-    if isinstance(raw, bool):
-        raise ValueError(f"[defense] {key} must be a number, got a boolean")
-    if key == "window":
-        if not isinstance(raw, int):
-            raise ValueError(f"[defense] window must be an integer, got {raw!r}")
-        return raw
-    if not isinstance(raw, int | float) or not math.isfinite(raw):
-        raise ValueError(f"[defense] {key} must be a finite number, got {raw!r}")
-    return float(raw)

@@ -259,7 +259,7 @@ class SimRun:
         faults = self.chassis.latched_faults()
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
-        defense_params = dataclasses.asdict(self.defense_config)
+        defense_params = self.defense_config.model_dump()
         return {
             **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
