@@ -6,14 +6,13 @@ from __future__ import annotations
 from testbed.direct_chassis import DirectChassis
 from testbed.eval.runner import physics_world_for
 from testbed.eval.scenario import Scenario
-from tracks.presets import load_track
-from vehicles.params import get_vehicle
+from testbed.presets import build_track, vehicle
 
 
 def scenario_plant(sc: Scenario) -> DirectChassis:
     """The PyBullet car in the physics world `ld3 run` builds for `sc` (its `world` is the PhysicsWorld)."""
-    track = load_track(sc.track)
-    params = get_vehicle(sc.vehicle)
+    track = build_track(sc.track)
+    params = vehicle(sc.vehicle)
     lane = sc.lane if sc.lane is not None else track.ego_lane
     start = track.start_pose(lane, sc.start_s)
     return DirectChassis(physics_world_for(sc, track, params, start), hold_s=0.0)

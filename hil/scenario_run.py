@@ -34,9 +34,8 @@ from hil.secoc_key import link_key
 from hil.timing import ClockMode
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
 from testbed.eval.scenario import Scenario
+from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
-from tracks.presets import load_track
-from vehicles.params import get_vehicle
 
 ECU_PLANT = "hil.plants:pybullet_plant"
 
@@ -67,8 +66,8 @@ class LinkConfig:
 
 def scenario_odometry(sc: Scenario) -> KinematicOdometry:
     """Odometry from the scenario's start pose with its vehicle's wheelbase and reference point."""
-    track = load_track(sc.track)
-    params = get_vehicle(sc.vehicle)
+    track = build_track(sc.track)
+    params = vehicle(sc.vehicle)
     lane = sc.lane if sc.lane is not None else track.ego_lane
     geometry = OdometryGeometry(wheelbase=params.wheelbase, ref_ahead=-params.rear_axle_x)
     return KinematicOdometry(track.start_pose(lane, sc.start_s), geometry)

@@ -84,13 +84,27 @@ def cmd_components(args: argparse.Namespace) -> int:
     from testbed.attacks.registry import ATTACKS
     from testbed.defense.registry import DEFENSES
     from testbed.eval.campaigns import CAMPAIGNS
+    from testbed.eval.scenario_reference import reference_markdown
     from testbed.localization.registry import LOCALIZATIONS
     from testbed.perception.registry import DETECTORS
+    from testbed.presets import TRACKS, VEHICLES
 
-    for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, CAMPAIGNS):
+    for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, TRACKS, VEHICLES, CAMPAIGNS):
         group = f" (plugins: entry-point group {registry.group})" if registry.group else ""
         print(f"## {registry.family}s{group}\n\n{registry.markdown()}\n")
-    print("Attack parameters: " + "; ".join(f"{c.name}: {', '.join(c.params)}" for c in ATTACKS))
+    print(reference_markdown())
+    return 0
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from testbed.eval.scenario_reference import json_schema
+
+    text = json.dumps(json_schema(), indent=2) + "\n"
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        args.out.write_text(text)
+        print(f"wrote {args.out}")
     return 0
 
 
@@ -197,6 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("components", help="every registered defense, lane detector, localization, attack and "
                                           "campaign, with what it needs (markdown)")
     p.set_defaults(func=cmd_components)
+
+    p = sub.add_parser("schema", help="the JSON Schema of the scenario TOML, from the registries (for editors and CI)")
+    p.add_argument("--out", type=Path, help="write it here instead of stdout")
+    p.set_defaults(func=cmd_schema)
 
     p = sub.add_parser("demo", help="run the default attacked scenario with and without LD3 and write a report")
     p.add_argument("--out", type=Path, default=Path("runs/demo"))

@@ -27,20 +27,27 @@ class Params(BaseModel):
 P = TypeVar("P", bound=BaseModel)
 
 
+_PLAIN = {"float_type": "must be a number", "int_type": "must be an integer", "finite_number": "must be finite",
+          "string_type": "must be a string", "bool_type": "must be true or false"}
+
+
 def validate_params(model: type[P], table: Mapping[str, Any], where: str) -> P:
-    """`model` built from `table`, or ParamsError: `[where] key = value: what is wrong; known keys: ...`."""
+    """`model` built from `table`, or ParamsError: `[where] 'key' ...: what is wrong` (unknown keys name
+    the known ones)."""
     try:
         return model.model_validate(dict(table))
     except ValidationError as exc:
         err = exc.errors()[0]
-        key = ".".join(str(p) for p in err["loc"]) or "(table)"
+        key = ".".join(str(p) for p in err["loc"])
         if err["type"] == "extra_forbidden":
             known = ", ".join(model.model_fields) or "none"
-            raise ParamsError(f"[{where}] unknown key {key!r}; known: {known}") from None
+            raise ParamsError(f"[{where}] unknown parameter {key!r}; known: {known}") from None
         if err["type"] == "missing":
-            raise ParamsError(f"[{where}] {key} is required") from None
-        shown = f" = {err['input']!r}" if err["loc"] else ""
-        raise ParamsError(f"[{where}] {key}{shown}: {err['msg']}") from None
+            raise ParamsError(f"[{where}] missing required parameter {key!r}") from None
+        if not key:
+            raise ParamsError(f"[{where}] {err['msg'].removeprefix('Value error, ')}") from None
+        what = _PLAIN.get(err["type"], err["msg"].lower().removeprefix("input should be ").join(("should be ", "")))
+        raise ParamsError(f"[{where}] {key!r} {what}, got {err['input']!r}") from None
 
 
 def params_from_signature(name: str, function: Callable[..., Any], skip: tuple[str, ...] = (),

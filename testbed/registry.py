@@ -13,11 +13,13 @@ component that could not act.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 from importlib.metadata import entry_points
 from typing import Any, Generic, Protocol, TypeVar
+
+from testbed.params import Params, validate_params
 
 
 class Capability(StrEnum):
@@ -38,23 +40,31 @@ FIXES: dict[Capability, str] = {
 }
 
 
+class NoParams(Params):
+    """The parameters of a component that has none."""
+
+
 class UnknownComponent(ValueError):
     """A name that no built-in component and no installed plugin of the family has."""
 
 
 @dataclass(frozen=True)
 class Component:
-    """A named component: how to build it (a family-specific factory), one line of help, what it needs,
-    and its parameters where the family has them (attacks)."""
+    """A named component: how to build it (a family-specific factory), one line of help, what it needs and
+    provides, its own parameters (`params`, a `Params` model of its scenario table: attacks and detectors),
+    and for defenses, the keys of the shared `[defense]` table it `reads`."""
 
     name: str
     factory: Callable[..., Any]
     help: str
     needs: frozenset[Capability] = frozenset()
     provides: frozenset[Capability] = frozenset()
-    params: tuple[str, ...] = ()
-    required: tuple[str, ...] = ()
-    text_params: tuple[str, ...] = ()
+    params: type[Params] = NoParams
+    reads: frozenset[str] = frozenset()
+
+    def settings(self, table: Mapping[str, Any], where: str) -> Params:
+        """This component's parameters from `table` (validated; ParamsError names the key)."""
+        return validate_params(self.params, table, where)
 
 
 class Entry(Protocol):

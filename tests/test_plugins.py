@@ -23,6 +23,7 @@ PLUGIN = textwrap.dedent('''
     from testbed.defense.config import DefenseConfig
     from testbed.defense.ld3 import Ld3Defense
     from testbed.localization.estimate import LocalizationEstimate
+    from testbed.params import params_from_signature
     from testbed.perception.oracle import OracleLaneDetector
     from testbed.registry import Capability, Component
 
@@ -62,7 +63,7 @@ PLUGIN = textwrap.dedent('''
     DETECTOR = Component("noisy-oracle", lambda track, rig, rng: OracleLaneDetector(track, rng, noise_std=0.02),
                          "the oracle with 2 cm of noise", provides=frozenset({Capability.LANE_DETECTOR}))
     ATTACK = Component("constant-offset", lambda p, rng, defense: ConstantOffset(**p), "a 0.5 m MSF offset",
-                       params=("start",))
+                       params=params_from_signature("constant-offset", ConstantOffset.__init__))
 ''')
 ENTRY_POINTS = textwrap.dedent('''
     [ld3.defenses]

@@ -288,15 +288,19 @@ def list_presets() -> list[tuple[str, str]]:
     return [(name, build(0).description) for name, build in PRESETS.items()]
 
 
+def parse_track_spec(spec: str) -> tuple[str, int]:
+    """(name, seed) of `NAME` or `NAME@SEED` (seed a non-negative integer, default 0); ValueError otherwise."""
+    name, at, seed_text = spec.partition("@")
+    if not at:
+        return name, 0
+    if not seed_text.isdigit():
+        raise ValueError(f"bad seed {seed_text!r} in {spec!r}: expected a non-negative integer")
+    return name, int(seed_text)
+
+
 def load_track(spec: str) -> Track:
-    """Build the track `NAME` or `NAME@SEED` (seed a non-negative integer, default 0)."""
-    name, _, seed_text = spec.partition("@")
+    """Build the preset track `NAME` or `NAME@SEED`."""
+    name, seed = parse_track_spec(spec)
     if name not in PRESETS:
         raise ValueError(f"unknown track {name!r}; known: {', '.join(PRESETS)}")
-    if seed_text == "" and "@" not in spec:
-        seed = 0
-    elif seed_text.isdigit():
-        seed = int(seed_text)
-    else:
-        raise ValueError(f"bad seed {seed_text!r} in {spec!r}: expected a non-negative integer")
     return PRESETS[name](seed)

@@ -18,39 +18,23 @@ from testbed.attacks.registry import ATTACKS
 from testbed.registry import Component
 
 
-def _coerce(component: Component, key: str, value: Any) -> Any:
-    kind = component.name
-    if key in component.text_params:
-        if not isinstance(value, str) or not value:
-            raise ValueError(f"attack {kind!r}: parameter {key!r} must be a non-empty string, got {value!r}")
-        return value
-    if isinstance(value, bool):
-        raise ValueError(f"attack {kind!r}: parameter {key!r} must be a number, got {value!r}")
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"attack {kind!r}: parameter {key!r} must be a number, got {value!r}") from None
-
-
 def build_attack(
     kind: str, params: Mapping[str, Any], rng: np.random.Generator | None = None, defense: Any = None
 ) -> Attack:
-    """Build the attack `kind` from its parameters (validated: unknown, missing, bad values).
+    """Build the attack `kind` from its parameters (validated by its `params` model: unknown, missing, bad
+    values raise ParamsError, a ValueError).
 
     `rng` (the scenario's attack stream) seeds FusionRipper's observation noise; `defense` is anything
     with CUSUM `b` and `tau` attributes (DefenseConfig or CusumKnowledge), what the stealthy attacker knows.
     """
     component = ATTACKS.get(kind)
-    unknown = sorted(set(params) - set(component.params))
-    if unknown:
-        raise ValueError(
-            f"attack {kind!r}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(component.params)}"
-        )
-    missing = [k for k in component.required if k not in params]
-    if missing:
-        raise ValueError(f"attack {kind!r}: missing required parameter(s) {', '.join(missing)}")
-    p = {k: _coerce(component, k, v) for k, v in params.items()}
-    return component.factory(p, rng, defense)
+    settings = component.settings(params, f"attack {kind}")
+    return component.factory(settings.model_dump(exclude_unset=True), rng, defense)
+
+
+def _is_text(component: Component, key: str) -> bool:
+    field = component.params.model_fields.get(key)
+    return field is not None and field.annotation is str
 
 
 def attack_spec_to_dict(spec: str) -> dict[str, Any]:
@@ -73,7 +57,7 @@ def attack_spec_to_dict(spec: str) -> dict[str, Any]:
         key, value = key.strip(), value.strip()
         if key == "kind" or key in table:
             raise ValueError(f"attack spec {spec!r}: parameter {key!r} given twice")
-        table[key] = value if key in component.text_params else _number_or_text(value)
+        table[key] = value if _is_text(component, key) else _number_or_text(value)
     return table
 
 

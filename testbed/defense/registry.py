@@ -1,7 +1,8 @@
 """The defense registry: built-in defenses and the `ld3.defenses` entry points.
 
 A defense component's factory is `factory(config: DefenseConfig, bicycle: BicycleCoefficients | None)`,
-returning a `Defense`; `bicycle` carries the vehicle's wheelbase for model-based defenses.
+returning a `Defense`; `bicycle` carries the vehicle's wheelbase for model-based defenses. `reads` names
+the `[defense]` keys the defense uses; a scenario that sets any other is refused.
 """
 
 from __future__ import annotations
@@ -15,16 +16,22 @@ from testbed.defense.no_defense import NoDefense
 from testbed.defense.savior import SaviorDefense
 from testbed.registry import Capability, Component, Registry
 
+_DETECTION = frozenset({"b", "tau", "existence_threshold"})
+_LD3 = _DETECTION | {"window", "lam", "p_msf", "p_ld", "r_power", "p_source", "heading", "heading_clamp", "kf_q",
+                     "kf_p0", "ar_decel"}
+_SAVIOR = frozenset({"savior_b", "savior_tau", "savior_speed_std", "savior_accel_std", "savior_yaw_rate_std",
+                     "ar_decel"})
+
 DEFENSES: Registry[Component] = Registry("defense", Component, "ld3.defenses")
 DEFENSES.add(Component("ld3", lambda config, bicycle: Ld3Defense(config),
                        "LD3: CUSUM on MSF/LD deviation, in-lane stop on the safety-driven fusion",
-                       needs=frozenset({Capability.LANE_DETECTOR})))
+                       needs=frozenset({Capability.LANE_DETECTOR}), reads=_LD3))
 DEFENSES.add(Component("ld3-naive-ar", lambda config, bicycle: NaiveArDefense(config),
                        "LD3's detection, a maximum-deceleration stop steered on the MSF",
-                       needs=frozenset({Capability.LANE_DETECTOR})))
+                       needs=frozenset({Capability.LANE_DETECTOR}), reads=_DETECTION | {"max_decel"}))
 DEFENSES.add(Component("savior", lambda config, bicycle: SaviorDefense(config, bicycle),
                        "SAVIOR: bicycle-model EKF and CUSUM on the GNSS residuals",
-                       needs=frozenset({Capability.LANE_DETECTOR, Capability.GNSS})))
+                       needs=frozenset({Capability.LANE_DETECTOR, Capability.GNSS}), reads=_SAVIOR))
 DEFENSES.add(Component("none", lambda config, bicycle: NoDefense(), "no defense: the car steers on the MSF"))
 
 

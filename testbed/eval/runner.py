@@ -39,14 +39,13 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts, TickRecord
-from testbed.perception.registry import DETECTORS
+from testbed.perception.registry import DETECTORS, make_detector
+from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
-from tracks.presets import load_track
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
-from vehicles.params import get_vehicle
 
 STOP_SPEED = 0.05
 END_MARGIN_M = 30.0
@@ -81,8 +80,8 @@ class SimRun:
         own objects, or a passive detection recorder); the summary records their own names."""
         self.sc = sc
         try:
-            self.track = load_track(sc.track)
-            self.params = get_vehicle(sc.vehicle)
+            self.track = build_track(sc.track)
+            self.params = vehicle(sc.vehicle)
             self.condition = get_condition(sc.condition)
             self.defense_config = DefenseConfig.from_dict(sc.defense_params)
         except ValueError as exc:
@@ -126,8 +125,8 @@ class SimRun:
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
         self.localization = LOCALIZATIONS.get(sc.localization).factory(self._localization_config, rng_loc,
                                                                         self._lidar_quality, start)
-        self.detector = detector if detector is not None else DETECTORS.get(sc.detector).factory(
-            self.track, self.rig, rng_detector)
+        self.detector = detector if detector is not None else make_detector(
+            sc.detector, track=self.track, rig=self.rig, rng=rng_detector, params=sc.detector_params)
         self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
         if (self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
@@ -158,6 +157,12 @@ class SimRun:
         self._still_since: float | None = None
         self.wall_time = 0.0
         self.done = False
+
+    def _detector_params(self) -> dict[str, Any]:
+        """The scenario's detector's parameters with their defaults filled in (none for an injected detector)."""
+        if self.detector_name != self.sc.detector:
+            return {}
+        return DETECTORS.get(self.sc.detector).settings(self.sc.detector_params, "detector").model_dump()
 
     def _localization_config(self) -> LocalizationConfig:
         """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
@@ -261,7 +266,8 @@ class SimRun:
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         defense_params = self.defense_config.model_dump()
         return {
-            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params},
+            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params,
+                                                 "detector_params": self._detector_params()},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": defense_params,

@@ -12,10 +12,13 @@ from pathlib import Path
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
+from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.perception.registry import DETECTORS
+from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
+from tracks.presets import parse_track_spec
 
 
 class ScenarioError(ValueError):
@@ -34,6 +37,7 @@ class Scenario:
     lane: int | None = None
     start_s: float = 20.0
     detector: str = "oracle"
+    detector_params: dict[str, Any] = field(default_factory=dict)
     localization: str = "truth"
     defense: str = "none"
     defense_params: dict[str, Any] = field(default_factory=dict)
@@ -54,14 +58,43 @@ def _check(cond: bool, msg: str) -> None:
         raise ScenarioError(msg)
 
 
+ALWAYS_READ = frozenset({"existence_threshold"})
+"""`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
+
+
 def validate(sc: Scenario) -> Scenario:
+    """`sc` when its values, component names and every component's parameters are valid; else ScenarioError."""
     _check(sc.speed > 0, f"speed must be > 0 m/s, got {sc.speed}")
     _check(sc.duration > 0, f"duration must be > 0 s, got {sc.duration}")
     _check(sc.seed >= 0, f"seed must be >= 0, got {sc.seed}")
-    for registry, name in ((LOCALIZATIONS, sc.localization), (DETECTORS, sc.detector), (DEFENSES, sc.defense)):
+    try:
+        track, _ = parse_track_spec(sc.track)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    for registry, name in ((TRACKS, track), (VEHICLES, sc.vehicle), (LOCALIZATIONS, sc.localization),
+                           (DETECTORS, sc.detector), (DEFENSES, sc.defense)):
         _check(isinstance(name, str) and name in registry,
                f"{registry.family} must be one of {', '.join(registry.names())}, got {name!r}")
+    defense = DEFENSES.get(sc.defense)
+    unread = sorted(set(sc.defense_params) - defense.reads - ALWAYS_READ)
+    _check(not unread, f"[defense] {', '.join(unread)}: not read by defense {sc.defense!r}, so it would change "
+                       f"nothing; remove it" + (f" (it reads {', '.join(sorted(defense.reads))})" if defense.reads
+                                                else " (it reads no [defense] keys)"))
+    try:
+        DefenseConfig.from_dict(sc.defense_params)
+        DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
+        if sc.attack:
+            attack_from_table(sc.attack)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
     return sc
+
+
+def attack_from_table(table: dict[str, Any]) -> None:
+    """Validate an [attack] table: a known `kind` and that attack's parameters (ParamsError otherwise)."""
+    kind = table.get("kind")
+    _check(isinstance(kind, str), f"[attack] needs a 'kind', one of {', '.join(ATTACKS.names())}")
+    ATTACKS.get(kind).settings({k: v for k, v in table.items() if k != "kind"}, f"attack {kind}")
 
 
 def check_needs(sc: Scenario) -> frozenset[Capability]:
@@ -81,23 +114,30 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
     return provided
 
 
-_TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params"}
+_TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params", "detector_params"}
+
+
+def _kind_and_params(value: Any, default_kind: str) -> tuple[Any, dict[str, Any]]:
+    """A component key given as a name, or as a table with `kind` and that component's parameters."""
+    if isinstance(value, dict):
+        params = dict(value)
+        return params.pop("kind", default_kind), params
+    return value, {}
 
 
 def scenario_from_dict(data: dict[str, Any], name: str) -> Scenario:
-    """Build a scenario from a parsed TOML document; `[defense]` may be a table with `kind` and parameters."""
+    """Build a scenario from a parsed TOML document; `[defense]` and `[detector]` may be tables with `kind`
+    and parameters."""
     data = dict(data)
-    defense = data.pop("defense", "none")
-    params: dict[str, Any] = {}
-    if isinstance(defense, dict):
-        params = dict(defense)
-        defense = params.pop("kind", "ld3")
+    defense, params = _kind_and_params(data.pop("defense", "none"), "ld3")
+    detector, detector_params = _kind_and_params(data.pop("detector", "oracle"), "oracle")
     unknown = set(data) - _TOP_KEYS
     _check(not unknown, f"scenario {name}: unknown keys {sorted(unknown)}")
     _check("track" in data, f"scenario {name}: 'track' is required")
     data.setdefault("name", name)
     try:
-        sc = Scenario(defense=defense, defense_params=params, **data)
+        sc = Scenario(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
+                      **data)
     except TypeError as exc:
         raise ScenarioError(f"scenario {name}: {exc}") from None
     for key, typ in (("speed", (int, float)), ("duration", (int, float)), ("seed", int), ("track", str)):
@@ -115,9 +155,11 @@ def _toml_value(raw: str) -> Any:
 
 def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
-    name), `attack.start=12` (the [attack] table), or a top-level key such as `speed=10`."""
+    name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table), or a
+    top-level key such as `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
+    detector, detector_params = sc.detector, dict(sc.detector_params)
     attack = dict(sc.attack) if sc.attack else None
     for item in settings:
         key, eq, raw = item.partition("=")
@@ -126,21 +168,28 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
         value = _toml_value(raw.strip())
         section, dot, name = key.partition(".")
         if not dot:
-            _check(key in _TOP_KEYS and key not in ("defense", "attack"),
-                   f"--set {item!r}: unknown scenario key {key!r}; known: {sorted(_TOP_KEYS - {'defense', 'attack'})}")
+            plain = sorted(_TOP_KEYS - {"defense", "attack", "detector"})
+            _check(key in plain, f"--set {item!r}: unknown scenario key {key!r}; known: {plain}")
             top[key] = value
         elif section == "defense":
             if name == "kind":
                 defense = value
             else:
                 params[name] = value
+        elif section == "detector":
+            if name == "kind":
+                detector = value
+            else:
+                detector_params[name] = value
         elif section == "attack":
             _check(attack is not None, f"--set {item!r}: the scenario has no attack; add one with --attack KIND")
             attack[name] = value
         else:
-            raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, attack.KEY or KEY")
+            raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
+                                f"attack.KEY or KEY")
     try:
-        changed = dataclasses.replace(sc, defense=defense, defense_params=params, attack=attack, **top)
+        changed = dataclasses.replace(sc, defense=defense, defense_params=params, detector=detector,
+                                      detector_params=detector_params, attack=attack, **top)
     except TypeError as exc:
         raise ScenarioError(f"--set: {exc}") from None
     return validate(changed)

@@ -1,25 +1,51 @@
 """The lane-detector registry: built-in detectors and the `ld3.detectors` entry points.
 
-A detector component's factory is `factory(track, rig, rng)` (the run's track, camera rig and detector
-random stream), returning a `LaneDetector` (or None for `none`). What it `provides` says whether lane
-detections reach the defense and whether it reads rendered camera frames (then the run renders them).
+A detector component's factory is `factory(track, rig, rng, **params)` (the run's track, camera rig and
+detector random stream, and the `[detector]` parameters its `params` model validated), returning a
+`LaneDetector` (or None for `none`). What it `provides` says whether lane detections reach the defense and
+whether it reads rendered camera frames (then the run renders them).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
 import numpy as np
+from pydantic import Field, field_validator
 
 from testbed.lane_detection import LaneDetector
+from testbed.params import Params
 from testbed.registry import Capability, Component, Registry
 
 _LD = frozenset({Capability.LANE_DETECTOR})
 _CAMERA = frozenset({Capability.LANE_DETECTOR, Capability.CAMERA_IMAGE})
 
 
-def _neural(track, rig, rng: np.random.Generator) -> LaneDetector:
-    from testbed.perception.neural import NeuralLaneDetector
+class NeuralParams(Params):
+    """Parameters of the neural detector."""
 
-    return NeuralLaneDetector()
+    weights: str | None = Field(None, description="checkpoint path (default: the shipped weights)")
+
+    @field_validator("weights")
+    @classmethod
+    def _exists(cls, value: str | None) -> str | None:
+        if value is not None and not Path(value).expanduser().is_file():
+            raise ValueError(f"no checkpoint at {value}: train one with `ld3 ld train` or drop detector.weights")
+        return value
+
+
+class OracleParams(Params):
+    """Parameters of the oracle detector."""
+
+    noise_std: float = Field(0.0, ge=0.0, description="std of the noise added to each line's offset c0 (m)")
+    dropout: float = Field(0.0, ge=0.0, le=1.0, description="probability that a present line is dropped")
+
+
+def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+    from testbed.perception.neural import NeuralLaneDetector, load_model
+
+    return NeuralLaneDetector(load_model(Path(weights).expanduser() if weights is not None else None))
 
 
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
@@ -28,20 +54,26 @@ def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
     return ClassicalLaneDetector(rig)
 
 
-def _oracle(track, rig, rng: np.random.Generator) -> LaneDetector:
+def _oracle(track, rig, rng: np.random.Generator, noise_std: float = 0.0, dropout: float = 0.0) -> LaneDetector:
     from testbed.perception.oracle import OracleLaneDetector
 
-    return OracleLaneDetector(track, rng)
+    return OracleLaneDetector(track, rng, noise_std, dropout)
 
 
 DETECTORS: Registry[Component] = Registry("lane detector", Component, "ld3.detectors")
-DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA))
+DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA,
+                        params=NeuralParams))
 DETECTORS.add(Component("classical", _classical, "inverse perspective mapping and a sliding-window fit on the camera",
                         provides=_CAMERA))
-DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD))
+DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD,
+                        params=OracleParams))
 DETECTORS.add(Component("none", lambda track, rig, rng: None, "no lane detector"))
 
 
-def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = None) -> LaneDetector | None:
-    """The detector of the registered component `name` (None for `none`; UnknownComponent if unknown)."""
-    return DETECTORS.get(name).factory(track, rig, rng if rng is not None else np.random.default_rng(0))
+def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = None,
+                  params: dict[str, Any] | None = None) -> LaneDetector | None:
+    """The detector of the registered component `name` with its `[detector]` parameters (None for `none`;
+    UnknownComponent if unknown, ParamsError for bad parameters)."""
+    component = DETECTORS.get(name)
+    settings = component.settings(params or {}, f"detector {name}").model_dump(exclude_unset=True)
+    return component.factory(track, rig, rng if rng is not None else np.random.default_rng(0), **settings)

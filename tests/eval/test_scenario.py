@@ -71,3 +71,47 @@ def test_set_overrides_defense_attack_and_top_level_keys():
 def test_set_refuses_what_it_cannot_apply(item, message):
     with pytest.raises(ScenarioError, match=message):
         apply_settings(load_scenario("slr"), [item])
+
+
+@pytest.mark.parametrize(("defense", "params", "message"), [
+    ("savior", {"b": 0.45}, r"\[defense\] b: not read by defense 'savior'.*savior_b"),
+    ("none", {"heading": "msf"}, r"not read by defense 'none'.*reads no \[defense\] keys"),
+    ("ld3-naive-ar", {"window": 20}, r"window: not read by defense 'ld3-naive-ar'"),
+])
+def test_defense_parameters_the_defense_does_not_read_are_refused(defense, params, message):
+    sc = load_scenario("local")
+    with pytest.raises(ScenarioError, match=message):
+        sc.with_overrides(defense=defense, localization="msf", defense_params=params)
+
+
+def test_defense_parameters_it_reads_and_the_loops_existence_threshold_are_accepted():
+    sc = load_scenario("local")
+    assert sc.with_overrides(defense="savior", localization="msf", defense_params={"savior_b": 2.0}).defense == "savior"
+    assert sc.with_overrides(defense_params={"existence_threshold": 0.6}).defense == "none"
+
+
+def test_detector_table_and_set_carry_the_detectors_parameters(tmp_path):
+    f = tmp_path / "d.toml"
+    f.write_text('track = "local"\n[detector]\nkind = "oracle"\nnoise_std = 0.05\n')
+    sc = load_scenario(str(f))
+    assert (sc.detector, sc.detector_params) == ("oracle", {"noise_std": 0.05})
+    sc = apply_settings(sc, ["detector.dropout=0.1"])
+    assert sc.detector_params == {"noise_std": 0.05, "dropout": 0.1}
+
+
+@pytest.mark.parametrize(("item", "message"), [
+    ("detector.noise_std=-1", r"\[detector oracle\] 'noise_std' should be greater than or equal to 0"),
+    ("detector.gain=2", r"\[detector oracle\] unknown parameter 'gain'; known: noise_std, dropout"),
+    ("attack.d=far", r"\[attack fusionripper\] 'd' must be a number"),
+    ("track=moon", r"track preset must be one of slr, .*got 'moon'"),
+    ("vehicle=tank", r"vehicle must be one of sedan, dev-chassis, got 'tank'"),
+])
+def test_component_parameters_are_validated_when_the_scenario_is(item, message):
+    sc = load_scenario("local").with_overrides(localization="msf", attack={"kind": "fusionripper"})
+    with pytest.raises(ScenarioError, match=message):
+        apply_settings(sc, [item])
+
+
+def test_neural_weights_must_exist(tmp_path):
+    with pytest.raises(ScenarioError, match=r"no checkpoint at .*missing\.pt: train one with `ld3 ld train`"):
+        apply_settings(load_scenario("local"), ["detector.kind=neural", f"detector.weights={tmp_path}/missing.pt"])
