@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import can
 
+from testbed.errors import UserError
+
 INTERFACES = ("virtual", "slcan", "socketcan")
 DEFAULT_VIRTUAL_CHANNEL = "ld3-chassis"
 DEFAULT_BITRATE = 500_000
@@ -33,10 +35,10 @@ class BusConfig:
             return can.Bus(interface="virtual", channel=self.channel or DEFAULT_VIRTUAL_CHANNEL)
         if self.interface == "slcan":
             if not self.channel:
-                raise ValueError("slcan needs --channel: the serial device or pty path of the adapter")
+                raise UserError("slcan needs --channel: the serial device or pty path of the adapter")
             return can.Bus(interface="slcan", channel=self.channel, bitrate=self.bitrate, sleep_after_open=0)
         if self.interface == "socketcan":
             if not self.channel:
-                raise ValueError("socketcan needs --channel: the CAN network interface, e.g. can0")
+                raise UserError("socketcan needs --channel: the CAN network interface, e.g. can0")
             return can.Bus(interface="socketcan", channel=self.channel)
-        raise ValueError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")
+        raise UserError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")

@@ -35,6 +35,7 @@ from hil.secoc_key import link_key
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
 from testbed.chassis import ChassisPort
+from testbed.errors import UserError
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
@@ -56,11 +57,11 @@ def resolve_plant(spec: str) -> PlantFactory:
         spec = "hil.plants:pybullet_plant"
     module_name, _, attribute = spec.partition(":")
     if not attribute:
-        raise ValueError(f"plant must be 'kinematic', 'pybullet' or 'package.module:factory', got {spec!r}")
+        raise UserError(f"plant must be 'kinematic', 'pybullet' or 'package.module:factory', got {spec!r}")
     try:
         return getattr(importlib.import_module(module_name), attribute)
     except (ImportError, AttributeError) as exc:
-        raise ValueError(f"cannot load plant {spec!r}: {exc}") from None
+        raise UserError(f"cannot load plant {spec!r}: {exc}") from None
 
 
 # ---------------------------------------------------------------------- ecu
@@ -93,7 +94,7 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
     try:
         kwargs = dict(item.split("=", 1) for item in args.plant_arg)
     except ValueError:
-        raise ValueError(f"--plant-arg takes KEY=VALUE, got {args.plant_arg}") from None
+        raise UserError(f"--plant-arg takes KEY=VALUE, got {args.plant_arg}") from None
     if args.scenario:
         from hil.plants import plant_args_for, pybullet_plant
         from testbed.eval.scenario import load_scenario
@@ -145,7 +146,7 @@ def parse_ids(text: str | None, default: frozenset[int]) -> frozenset[int] | Non
     try:
         return frozenset(int(part, 0) for part in text.split(","))
     except ValueError:
-        raise ValueError(f"--ids takes 'all' or comma-separated frame IDs such as 0x130,0x131, got {text!r}") from None
+        raise UserError(f"--ids takes 'all' or comma-separated frame IDs such as 0x130,0x131, got {text!r}") from None
 
 
 def replay_main(log_path: Path, interface: str = "virtual", channel: str | None = None, *, ids: str | None = None,
@@ -156,7 +157,7 @@ def replay_main(log_path: Path, interface: str = "virtual", channel: str | None 
         raise FileNotFoundError(f"CAN log not found: {log_path}")
     chosen = parse_ids(ids, load_profile(profile).command_ids)
     if not yes and not is_simulated_bus(interface, channel):
-        raise ValueError(f"refusing to replay onto {interface}:{channel} (a hardware bus can move a vehicle); "
+        raise UserError(f"refusing to replay onto {interface}:{channel} (a hardware bus can move a vehicle); "
                          "add --yes to confirm")
     try:
         bus = BusConfig(interface, channel).open()
@@ -177,10 +178,10 @@ def cmd_hil(args: argparse.Namespace) -> int:
     """`ld3 hil SCENARIO ...` runs the scenario over CAN; `ld3 hil replay LOG ...` replays a log."""
     if args.scenario == REPLAY:
         if args.log is None:
-            raise ValueError("hil replay needs the log file: ld3 hil replay LOG.asc")
+            raise UserError("hil replay needs the log file: ld3 hil replay LOG.asc")
         return replay_main(args.log, args.interface, args.channel, ids=args.ids, yes=args.yes, profile=args.profile)
     if args.log is not None:
-        raise ValueError(f"unexpected argument {str(args.log)!r} after the scenario")
+        raise UserError(f"unexpected argument {str(args.log)!r} after the scenario")
     from hil.scenario_run import LinkConfig, run_hil_scenario
     from testbed.cli import scenario_from_args
 
@@ -194,7 +195,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         from hil.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
 
         if args.interface != "virtual":
-            raise ValueError("--drill needs the in-process ECU emulator (--interface virtual)")
+            raise UserError("--drill needs the in-process ECU emulator (--interface virtual)")
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),

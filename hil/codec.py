@@ -28,6 +28,7 @@ from hil.integrity import (
 )
 from hil.profile import PROFILES_DIR, ChassisProfile, Integrity, default_profile
 from hil.secoc import BitField, SecocEndpoint, SecocVerdict, SecuredLayout
+from testbed.errors import UserError
 
 DBC_PATH = PROFILES_DIR / "ld3-dev" / "chassis.dbc"
 REJECT_REASONS = ("format", "checksum", "range", "counter", "freshness", "mac")
@@ -59,7 +60,7 @@ def _secoc_endpoint(profile: ChassisProfile, key: bytes | None) -> SecocEndpoint
     if spec is None:
         return None
     if key is None:
-        raise ValueError(f"profile {profile.name} authenticates frames: the codec needs its key "
+        raise UserError(f"profile {profile.name} authenticates frames: the codec needs its key "
                          "(hil.secoc_key.link_key)")
     layouts = {}
     for name, signals in spec.messages.items():

@@ -30,6 +30,7 @@ from hil.codec import ChassisCodec
 from hil.report_map import FaultLevel
 from hil.scenario_run import HilLink, LinkConfig, run_hil_scenario
 from testbed.chassis import ChassisCommand
+from testbed.errors import UserError
 from testbed.eval.scenario import Scenario
 
 EXPECTED = {
@@ -93,7 +94,7 @@ def _intruder_send(link: HilLink, frame: can.Message) -> None:
 def _action(kind: str, link: HilLink) -> Callable[[], None]:
     ecu, bridge, profile = link.ecu, link.bridge, link.profile
     if ecu is None:
-        raise ValueError("fault drills need the in-process ECU emulator (--interface virtual)")
+        raise UserError("fault drills need the in-process ECU emulator (--interface virtual)")
     codec = ChassisCodec(profile, link.key)
     if kind == "report_timeout":
         return lambda: setattr(ecu, "bus", DropFrames(ecu.bus, profile.report_ids))
@@ -116,18 +117,18 @@ def _action(kind: str, link: HilLink) -> Callable[[], None]:
     if kind == "nan_command":
         send = bridge.send
         return lambda: setattr(bridge, "send", lambda cmd: send(ChassisCommand(cmd.steer, math.nan)))
-    raise ValueError(f"unknown fault drill {kind!r}; choose one of {', '.join(EXPECTED)}")
+    raise UserError(f"unknown fault drill {kind!r}; choose one of {', '.join(EXPECTED)}")
 
 
 def parse_drill(text: str) -> tuple[str, float]:
     """"KIND" or "KIND@T" (T in s, default 1.5) -> (kind, at)."""
     kind, _, at = text.partition("@")
     if kind not in EXPECTED:
-        raise ValueError(f"unknown fault drill {kind!r}; choose one of {', '.join(EXPECTED)}")
+        raise UserError(f"unknown fault drill {kind!r}; choose one of {', '.join(EXPECTED)}")
     try:
         return kind, float(at) if at else 1.5
     except ValueError:
-        raise ValueError(f"--drill takes KIND@SECONDS, got {text!r}") from None
+        raise UserError(f"--drill takes KIND@SECONDS, got {text!r}") from None
 
 
 def drill_installer(kind: str, at: float) -> Callable[[HilLink], None]:

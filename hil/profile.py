@@ -22,6 +22,7 @@ from cantools.database.can import Database
 from cantools.database.can import Message as DbcMessage
 
 from hil.secoc import key_from_hex
+from testbed.errors import UserError
 
 PROFILES_DIR = Path(__file__).resolve().parent / "profiles"
 DEFAULT_PROFILE = "ld3-dev"
@@ -39,7 +40,7 @@ GEARS = ("no_request", "park", "reverse", "neutral", "drive")
 MODES = ("standby", "self_driving", "remote", "manual")
 
 
-class ProfileError(ValueError):
+class ProfileError(UserError):
     """A chassis profile that cannot be used; the message names the profile and the field."""
 
 

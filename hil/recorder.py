@@ -8,6 +8,8 @@ from pathlib import Path
 
 import can
 
+from testbed.errors import UserError
+
 LOG_SUFFIXES = (".asc", ".blf")
 
 
@@ -16,7 +18,7 @@ class FrameRecorder(can.Listener):
 
     def __init__(self, path: Path) -> None:
         if path.suffix not in LOG_SUFFIXES:
-            raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {path}")
+            raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {path}")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.frames = 0

@@ -32,6 +32,7 @@ from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
 from hil.timing import ClockMode
+from testbed.errors import UserError
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
 from testbed.eval.scenario import Scenario
 from testbed.presets import build_track, vehicle
@@ -53,9 +54,9 @@ class LinkConfig:
 
     def __post_init__(self) -> None:
         if self.interface not in INTERFACES:
-            raise ValueError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")
+            raise UserError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")
         if self.interface == "socketcan" and not self.channel:
-            raise ValueError("socketcan needs --channel: the CAN network interface, e.g. can0")
+            raise UserError("socketcan needs --channel: the CAN network interface, e.g. can0")
 
     @property
     def clock_mode(self) -> ClockMode:
@@ -146,7 +147,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
     before engaging (fault drills install their injections there)."""
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
-        raise ValueError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
+        raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
         prepare_out_dir(out_dir)
         log_path = log_path or out_dir / "can.asc"

@@ -16,6 +16,8 @@ from enum import Enum
 from cryptography.hazmat.primitives.ciphers import algorithms
 from cryptography.hazmat.primitives.cmac import CMAC
 
+from testbed.errors import UserError
+
 FRAME_LENGTH = 8
 KEY_BYTES = 16
 FRESHNESS_BYTES = 8
@@ -28,7 +30,7 @@ def key_from_hex(text: str) -> bytes:
     except ValueError:
         key = b""
     if len(key) != KEY_BYTES:
-        raise ValueError(f"expected {2 * KEY_BYTES} hex digits (a 128-bit AES key)")
+        raise UserError(f"expected {2 * KEY_BYTES} hex digits (a 128-bit AES key)")
     return key
 
 

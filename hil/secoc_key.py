@@ -9,9 +9,10 @@ import os
 from hil.bus_config import is_simulated_bus
 from hil.profile import ChassisProfile
 from hil.secoc import key_from_hex
+from testbed.errors import UserError
 
 
-class SecocKeyError(ValueError):
+class SecocKeyError(UserError):
     """No usable key for a secured profile on this bus; the message names the fix."""
 
 

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pybullet as pb
 
+from testbed.errors import UserError
 from testbed.ground import OPEN_GROUND_RGB, Lighting
 from testbed.lane_detection import CameraFrame
 from testbed.world import TileStreamer
@@ -81,7 +82,7 @@ def get_condition(name: str) -> Condition:
     try:
         return CONDITIONS[name]
     except KeyError:
-        raise ValueError(f"unknown condition {name!r}; choose one of {', '.join(CONDITIONS)}") from None
+        raise UserError(f"unknown condition {name!r}; choose one of {', '.join(CONDITIONS)}") from None
 
 
 class ImageEffects:

@@ -13,15 +13,13 @@ from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from testbed.errors import UserError
+
 EXIT_USAGE = 2
 PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcommands here; testbed imports none
 
 
 DEMO_PATCH = "drp-patch:at=62,offset=-1,width=2,length=30,darkness=0.7,angle=-0.05"
-
-
-class UserError(Exception):
-    """An error the user can fix; printed as one line."""
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:
@@ -268,10 +266,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _user_errors() -> tuple[type[BaseException], ...]:
-    from testbed.eval.scenario import ScenarioError
-
-    return (UserError, ScenarioError, ValueError, FileNotFoundError, PermissionError)
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, PermissionError, IsADirectoryError,
+                                                NotADirectoryError)
+"""What the user can fix: printed as one line, exit 2. Anything else is a bug (internal error, exit 70)."""
+EXIT_INTERNAL = 70
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -282,12 +280,16 @@ def main(argv: list[str] | None = None) -> int:
         return func(args)
     try:
         return func(args)
-    except _user_errors() as exc:
+    except USER_ERRORS as exc:
         print(f"ld3: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("ld3: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        print(f"ld3: internal error (a bug, not your input): {type(exc).__name__}: {exc}; rerun with --debug for "
+              f"the traceback", file=sys.stderr)
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ from gymnasium import spaces
 
 from testbed.api import Simulation, scenario
 from testbed.attacks.base import Attack, AttackerView, left_normal
+from testbed.errors import UserError
 from testbed.localization.sensors import GnssFix
 
 
@@ -56,7 +57,7 @@ class LateralAttackEnv(gymnasium.Env):
     def __init__(self, scenario_name: str = "local", *, defense: str = "ld3", detector: str = "oracle",
                  max_offset: float = 3.0, ticks_per_step: int = 10, **overrides: Any) -> None:
         if max_offset <= 0 or ticks_per_step < 1:
-            raise ValueError(f"need max_offset > 0 and ticks_per_step >= 1, got {max_offset}, {ticks_per_step}")
+            raise UserError(f"need max_offset > 0 and ticks_per_step >= 1, got {max_offset}, {ticks_per_step}")
         self.base = scenario(scenario_name, defense=defense, detector=detector, localization="msf", **overrides)
         self.max_offset = max_offset
         self.ticks_per_step = ticks_per_step

@@ -12,8 +12,10 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
+from testbed.errors import UserError
 
-class ParamsError(ValueError):
+
+class ParamsError(UserError):
     """Parameters that do not validate; the message is one line naming the table and the key."""
 
 

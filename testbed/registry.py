@@ -19,6 +19,7 @@ from enum import StrEnum
 from importlib.metadata import entry_points
 from typing import Any, Generic, Protocol, TypeVar
 
+from testbed.errors import UserError
 from testbed.params import Params, validate_params
 
 
@@ -44,7 +45,7 @@ class NoParams(Params):
     """The parameters of a component that has none."""
 
 
-class UnknownComponent(ValueError):
+class UnknownComponent(UserError):
     """A name that no built-in component and no installed plugin of the family has."""
 
 

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import pybullet as pb
 
+from testbed.errors import UserError
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
 from tracks.obstacles import road_obstacles
 from tracks.pose import Pose
@@ -133,7 +134,7 @@ class TileStreamer:
     def __init__(self, track, lighting: Lighting, ahead_m: float = 100.0, behind_m: float = 10.0,
                  ground: str = "canvas", texture_budget: int = 40) -> None:
         if ground not in GROUND_MODES:
-            raise ValueError(f"unknown ground mode {ground!r}; choose one of {', '.join(GROUND_MODES)}")
+            raise UserError(f"unknown ground mode {ground!r}; choose one of {', '.join(GROUND_MODES)}")
         self.track = track
         self.ahead = ahead_m
         self.behind = behind_m

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix
@@ -49,7 +50,7 @@ class Attack(ABC):
 
     def __init__(self, start_time: float) -> None:
         if not (math.isfinite(start_time) and start_time >= 0):
-            raise ValueError(f"attack start must be a time >= 0 s, got {start_time}")
+            raise UserError(f"attack start must be a time >= 0 s, got {start_time}")
         self.start_time = start_time
 
     def spoof_gnss(self, fix: GnssFix, view: AttackerView) -> GnssFix:

@@ -16,6 +16,7 @@ import math
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView
+from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 
 IDLE, ACTIVE, OVER, PAINTED = "idle", "active", "over", "painted"
@@ -23,7 +24,7 @@ IDLE, ACTIVE, OVER, PAINTED = "idle", "active", "over", "painted"
 
 def _check(cond: bool, msg: str) -> None:
     if not cond:
-        raise ValueError(msg)
+        raise UserError(msg)
 
 
 class DrpTrace(Attack):

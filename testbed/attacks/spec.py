@@ -15,6 +15,7 @@ import numpy as np
 
 from testbed.attacks.base import Attack
 from testbed.attacks.registry import ATTACKS
+from testbed.errors import UserError
 from testbed.registry import Component
 
 
@@ -43,7 +44,7 @@ def attack_spec_to_dict(spec: str) -> dict[str, Any]:
     kind, _, rest = text.partition(":")
     kind = kind.strip()
     if not kind:
-        raise ValueError(f"empty attack spec {spec!r}; expected KIND[:key=value,...]")
+        raise UserError(f"empty attack spec {spec!r}; expected KIND[:key=value,...]")
     component = ATTACKS.get(kind)
     table: dict[str, Any] = {"kind": kind}
     args = [a.strip() for a in rest.split(",")] if rest.strip() else []
@@ -53,10 +54,10 @@ def attack_spec_to_dict(spec: str) -> dict[str, Any]:
             if kind == "trace" and i == 0 and arg:
                 key, value = "trace", arg
             else:
-                raise ValueError(f"attack spec {spec!r}: argument {arg!r} is not key=value")
+                raise UserError(f"attack spec {spec!r}: argument {arg!r} is not key=value")
         key, value = key.strip(), value.strip()
         if key == "kind" or key in table:
-            raise ValueError(f"attack spec {spec!r}: parameter {key!r} given twice")
+            raise UserError(f"attack spec {spec!r}: parameter {key!r} given twice")
         table[key] = value if _is_text(component, key) else _number_or_text(value)
     return table
 
@@ -78,8 +79,8 @@ def attack_from_dict(
 ) -> Attack:
     """Build an attack from a scenario's [attack] table: `kind` plus the parameters of that kind."""
     if not isinstance(table, Mapping) or "kind" not in table:
-        raise ValueError(f"attack table needs a 'kind' (one of {', '.join(ATTACKS.names())}), got {table!r}")
+        raise UserError(f"attack table needs a 'kind' (one of {', '.join(ATTACKS.names())}), got {table!r}")
     kind = table["kind"]
     if not isinstance(kind, str):
-        raise ValueError(f"attack kind must be a string, got {kind!r}")
+        raise UserError(f"attack kind must be a string, got {kind!r}")
     return build_attack(kind, {k: v for k, v in table.items() if k != "kind"}, rng, defense)

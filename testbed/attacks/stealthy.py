@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
 
 IDLE, STEALTHY = "idle", "stealthy"
@@ -34,9 +35,9 @@ class CusumKnowledge:
         for name in ("b", "tau", "ld_noise_std", "rate_hz"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"stealthy {name} must be a number >= 0, got {v}")
+                raise UserError(f"stealthy {name} must be a number >= 0, got {v}")
         if self.rate_hz <= 0:
-            raise ValueError(f"stealthy rate_hz must be > 0, got {self.rate_hz}")
+            raise UserError(f"stealthy rate_hz must be > 0, got {self.rate_hz}")
 
 
 class StealthyAttack(Attack):
@@ -53,10 +54,10 @@ class StealthyAttack(Attack):
     ) -> None:
         super().__init__(start)
         if direction not in ("left", "right"):
-            raise ValueError(f"stealthy direction must be 'left' or 'right', got {direction!r}")
+            raise UserError(f"stealthy direction must be 'left' or 'right', got {direction!r}")
         self.margin = 3.0 * knowledge.ld_noise_std if margin is None else margin
         if not (math.isfinite(self.margin) and self.margin >= 0):
-            raise ValueError(f"stealthy margin must be a distance >= 0 m, got {margin}")
+            raise UserError(f"stealthy margin must be a distance >= 0 m, got {margin}")
         self.knowledge, self.direction = knowledge, direction
         self.sign = 1.0 if direction == "left" else -1.0
         self.s_hat = 0.0

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
 
 IDLE, INJECTING = "idle", "injecting"
@@ -34,11 +35,11 @@ class Trace:
     def load(cls, path: Path) -> Trace:
         """Read a CSV with header `t,dev` (s, m); raises ValueError naming the file and line on bad input."""
         if not path.is_file():
-            raise ValueError(f"trace file not found: {path}")
+            raise UserError(f"trace file not found: {path}")
         with path.open(newline="") as fh:
             rows = list(csv.reader(fh))
         if not rows or [c.strip() for c in rows[0]] != ["t", "dev"]:
-            raise ValueError(f"{path}: malformed trace CSV, the first line must be the header 't,dev'")
+            raise UserError(f"{path}: malformed trace CSV, the first line must be the header 't,dev'")
         ts: list[float] = []
         devs: list[float] = []
         for lineno, row in enumerate(rows[1:], start=2):
@@ -49,19 +50,19 @@ class Trace:
                     raise ValueError
                 t, dev = float(row[0]), float(row[1])
             except ValueError:
-                raise ValueError(
+                raise UserError(
                     f"{path}:{lineno}: malformed trace CSV row {row!r}, expected two numbers t,dev"
                 ) from None
             if not (math.isfinite(t) and math.isfinite(dev)):
-                raise ValueError(f"{path}:{lineno}: trace values must be finite, got {row!r}")
+                raise UserError(f"{path}:{lineno}: trace values must be finite, got {row!r}")
             if ts and t <= ts[-1]:
-                raise ValueError(f"{path}:{lineno}: trace times must increase strictly ({t} after {ts[-1]})")
+                raise UserError(f"{path}:{lineno}: trace times must increase strictly ({t} after {ts[-1]})")
             ts.append(t)
             devs.append(dev)
         if len(ts) < 2:
-            raise ValueError(f"{path}: a trace needs at least two rows, got {len(ts)}")
+            raise UserError(f"{path}: a trace needs at least two rows, got {len(ts)}")
         if ts[0] < 0:
-            raise ValueError(f"{path}: trace times start at 0 (time since attack start), got {ts[0]}")
+            raise UserError(f"{path}: trace times start at 0 (time since attack start), got {ts[0]}")
         return cls(np.array(ts), np.array(devs), str(path))
 
     @classmethod
@@ -74,7 +75,7 @@ class Trace:
                 for p in (resources.files("testbed.attacks") / "traces").iterdir()
                 if p.name.endswith(".csv")
             )
-            raise ValueError(f"unknown trace {name!r}; shipped traces: {shipped} (or give a path to a .csv)")
+            raise UserError(f"unknown trace {name!r}; shipped traces: {shipped} (or give a path to a .csv)")
         with resources.as_file(ref) as path:
             trace = cls.load(Path(path))
         trace.source = name
@@ -89,7 +90,7 @@ class TraceInjection(Attack):
     def __init__(self, trace: Trace, start: float = 10.0, scale: float = 1.0) -> None:
         super().__init__(start)
         if not math.isfinite(scale):
-            raise ValueError(f"trace scale must be finite, got {scale}")
+            raise UserError(f"trace scale must be finite, got {scale}")
         self.trace, self.scale = trace, scale
         self.offset = 0.0
         self.stage = IDLE

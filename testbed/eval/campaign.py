@@ -37,6 +37,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from testbed.errors import UserError
 from testbed.eval.scenario import Scenario
 
 try:
@@ -193,7 +194,7 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progr
     """Run every campaign run not yet done with `execute`, each within `timeout` seconds (default
     `run_timeout` per run); returns (run, summary) for all runs that are done."""
     if timeout is not None and not timeout > 0:
-        raise ValueError(f"timeout must be > 0 s, got {timeout}")
+        raise UserError(f"timeout must be > 0 s, got {timeout}")
     out.mkdir(parents=True, exist_ok=True)
     with _folder_lock(out):
         redone = _sweep(runs, out)

@@ -17,6 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
@@ -357,7 +358,7 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
     if select is not None:
         runs = [r for r in runs if fnmatch.fnmatchcase(r.run_id, select)]
         if not runs:
-            raise ValueError(f"--runs {select!r} matches no run of campaign {name!r}")
+            raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
     if settings:
         runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
     done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout)

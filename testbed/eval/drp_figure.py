@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.errors import UserError
 from testbed.eval.scenario import load_scenario
 from testbed.eval.video import draw_detection
 from testbed.lane_detection import LaneDetection
@@ -56,7 +57,7 @@ def drp_before_after(out: Path, attack: dict[str, Any], track: str = "urban-stra
     """Render the clean and the patched road `ahead` m before the patch of the `drp-patch` attack table `attack`
     (as `attack_spec_to_dict` gives it); write `out` (PNG)."""
     if attack.get("kind") != "drp-patch" or "at" not in attack:
-        raise ValueError(f"the patch figure needs a drp-patch attack with its place `at`, got {attack!r}")
+        raise UserError(f"the patch figure needs a drp-patch attack with its place `at`, got {attack!r}")
     s = float(attack["at"]) - ahead
     clean, patched = _view(track, detector, None, s), _view(track, detector, attack, s)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))

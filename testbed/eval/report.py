@@ -16,6 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from testbed.errors import UserError
 from testbed.eval.outputs import read_trajectory
 
 
@@ -95,14 +96,14 @@ def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
     for run_dir in run_dirs:
         summary_path = run_dir / "summary.json"
         if not summary_path.is_file() or not (run_dir / "trajectory.csv").is_file():
-            raise ValueError(f"{run_dir} is not a finished run (no summary.json and trajectory.csv)")
+            raise UserError(f"{run_dir} is not a finished run (no summary.json and trajectory.csv)")
         try:
             summary = json.loads(summary_path.read_text())
         except json.JSONDecodeError as exc:
-            raise ValueError(f"{summary_path} is not readable JSON: {exc}") from None
+            raise UserError(f"{summary_path} is not readable JSON: {exc}") from None
         rows.append(ReportRow(str(run_dir), run_dir, summary))
     if not rows:
-        raise ValueError("name at least one run folder to compare")
+        raise UserError("name at least one run folder to compare")
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_report(out_dir, f"{len(rows)} runs compared", rows, _differing_defense_params(rows))
 

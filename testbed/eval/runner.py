@@ -79,13 +79,10 @@ class SimRun:
         surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
         own objects, or a passive detection recorder); the summary records their own names."""
         self.sc = sc
-        try:
-            self.track = build_track(sc.track)
-            self.params = vehicle(sc.vehicle)
-            self.condition = get_condition(sc.condition)
-            self.defense_config = DefenseConfig.from_dict(sc.defense_params)
-        except ValueError as exc:
-            raise ScenarioError(str(exc)) from None
+        self.track = build_track(sc.track)
+        self.params = vehicle(sc.vehicle)
+        self.condition = get_condition(sc.condition)
+        self.defense_config = DefenseConfig.from_dict(sc.defense_params)
         provided = check_needs(sc)
         if sc.speed > self.params.max_speed:
             raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach "
@@ -168,10 +165,7 @@ class SimRun:
         """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
         table = dict(self.sc.rates.get("localization", {}))
         table["msf"] = {"lever": -self.params.rear_axle_x, **table.get("msf", {})}
-        try:
-            return LocalizationConfig.from_dict(table)
-        except ValueError as exc:
-            raise ScenarioError(str(exc)) from None
+        return LocalizationConfig.from_dict(table)
 
     def _keep_frame(self, frame: CameraFrame, ld: LaneDetection) -> None:
         """A camera frame and its detection, held until the tick's record exists (video and recording)."""

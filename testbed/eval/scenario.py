@@ -14,6 +14,7 @@ from typing import Any
 from testbed.attacks.registry import ATTACKS
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
+from testbed.errors import UserError
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
@@ -21,7 +22,7 @@ from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
 from tracks.presets import parse_track_spec
 
 
-class ScenarioError(ValueError):
+class ScenarioError(UserError):
     """A scenario that cannot be loaded or run; the message is one line for the user."""
 
 

@@ -26,6 +26,7 @@ from testbed.localization.sensors import (
     LidarLocator,
     LidarModel,
 )
+from testbed.params import ParamsError
 from tracks.pose import Pose
 
 GnssSpoofer = Callable[[GnssFix], GnssFix]
@@ -33,11 +34,11 @@ GnssSpoofer = Callable[[GnssFix], GnssFix]
 
 def _section(cls: type, values: Any, name: str) -> Any:
     if not isinstance(values, Mapping):
-        raise ValueError(f"localization.{name} must be a table, got {values!r}")
+        raise ParamsError(f"localization.{name} must be a table, got {values!r}")
     known = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(values) - set(known))
     if unknown:
-        raise ValueError(f"unknown localization.{name} parameter(s) {unknown}; known: {sorted(known)}")
+        raise ParamsError(f"unknown localization.{name} parameter(s) {unknown}; known: {sorted(known)}")
     kwargs: dict[str, Any] = {}
     for key, raw in values.items():
         default = getattr(cls(), key)
@@ -48,13 +49,13 @@ def _section(cls: type, values: Any, name: str) -> Any:
                 and all(_is_num(v) for v in raw)
                 and 0 <= raw[0] <= raw[1]
             ):
-                raise ValueError(
+                raise ParamsError(
                     f"localization.{name}.{key} must be a pair [low, high] with 0 <= low <= high"
                 )
             kwargs[key] = (float(raw[0]), float(raw[1]))
         else:
             if not _is_num(raw) or raw < 0:
-                raise ValueError(f"localization.{name}.{key} must be a number >= 0, got {raw!r}")
+                raise ParamsError(f"localization.{name}.{key} must be a number >= 0, got {raw!r}")
             kwargs[key] = float(raw)
     return cls(**kwargs)
 
@@ -81,21 +82,21 @@ class LocalizationConfig:
         rates = ("gnss_hz", "lidar_hz", "imu_hz")
         unknown = sorted(set(d) - set(sections) - set(rates))
         if unknown:
-            raise ValueError(
+            raise ParamsError(
                 f"unknown localization parameter(s) {unknown}; known: {sorted([*rates, *sections])}"
             )
         kwargs: dict[str, Any] = {}
         for key in rates:
             if key in d:
                 if not _is_num(d[key]) or d[key] <= 0:
-                    raise ValueError(f"localization.{key} must be a number > 0, got {d[key]!r}")
+                    raise ParamsError(f"localization.{key} must be a number > 0, got {d[key]!r}")
                 kwargs[key] = float(d[key])
         for key, model in sections.items():
             if key in d:
                 kwargs[key] = _section(model, d[key], key)
         cfg = cls(**kwargs)
         if not 0.0 < cfg.msf.gate_prob < 1.0:
-            raise ValueError(f"localization.msf.gate_prob must be in (0, 1), got {cfg.msf.gate_prob}")
+            raise ParamsError(f"localization.msf.gate_prob must be in (0, 1), got {cfg.msf.gate_prob}")
         return cfg
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.labels import X_MAX, LineTruth, ego_lines
 from tracks.map_api import OffMapError
@@ -25,7 +26,7 @@ class OracleLaneDetector(LaneDetector):
 
     def __init__(self, track, rng: np.random.Generator, noise_std: float = 0.0, dropout: float = 0.0) -> None:
         if noise_std < 0.0 or not 0.0 <= dropout <= 1.0:
-            raise ValueError(f"need noise_std >= 0 and dropout in [0, 1], got {noise_std}, {dropout}")
+            raise UserError(f"need noise_std >= 0 and dropout in [0, 1], got {noise_std}, {dropout}")
         self.track = track
         self.rng = rng
         self.noise_std = noise_std

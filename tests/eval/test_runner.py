@@ -116,3 +116,25 @@ def test_compare_tables_any_runs_and_names_what_differs(tmp_path):
     assert report.count("| reach_destination |") == 2 and (tmp_path / "cmp" / "deviations.png").stat().st_size > 5000
     with pytest.raises(ValueError, match="not a finished run"):
         compare_runs([tmp_path / "nowhere"], tmp_path / "cmp")
+
+
+def test_an_internal_error_is_reported_as_a_bug_not_as_a_user_error(monkeypatch, capsys):
+    """A plain ValueError from inside the testbed is a bug: exit 70 naming --debug, never the exit 2 of a
+    user error; a UserError stays a one-line exit 2."""
+    from testbed import cli
+    from testbed.errors import UserError
+
+    def broken(args):
+        raise ValueError("math domain error")
+
+    def refused(args):
+        raise UserError("speed must be > 0 m/s")
+
+    for func, code, text in ((broken, 70, "internal error (a bug, not your input): ValueError: math domain error"),
+                             (refused, 2, "ld3: error: speed must be > 0 m/s")):
+        monkeypatch.setattr(cli, "cmd_components", func)
+        assert cli.main(["components"]) == code
+        assert text in capsys.readouterr().err
+    with pytest.raises(ValueError, match="math domain"):
+        monkeypatch.setattr(cli, "cmd_components", broken)
+        cli.main(["--debug", "components"])
