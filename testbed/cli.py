@@ -125,14 +125,14 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def cmd_tracks(args: argparse.Namespace) -> int:
+    from testbed.presets import TRACKS, build_track
     from tracks.plot import save_track_png
-    from tracks.presets import list_presets, load_track
 
     if args.tracks_cmd == "list":
-        for name, desc in list_presets():
-            print(f"{name:16s} {desc}")
+        for component in TRACKS:
+            print(f"{component.name:16s} {component.help}")
         return 0
-    track = load_track(args.name)
+    track = build_track(args.name)
     out = args.out or Path(f"{args.name.replace('@', '-')}.png")
     save_track_png(track, out)
     print(f"wrote {out}")

@@ -124,12 +124,12 @@ def _best(points: list[RocPoint], b0: float, tau0: float) -> RocPoint:
 
 
 def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
-    from vehicles.params import get_vehicle
+    from testbed.presets import vehicle
 
     fit_runs = [r for r, _ in done if r.tags["role"] == "fit"]
     if not fit_runs:
         return "No fit drive finished; SAVIOR cannot be fitted yet."
-    wheelbase = get_vehicle(fit_runs[0].scenario.vehicle).wheelbase
+    wheelbase = vehicle(fit_runs[0].scenario.vehicle).wheelbase
     coefficients = fit_savior(out, fit_runs, wheelbase)
     series = _series(out, done, coefficients)
     if not series:
