@@ -75,7 +75,7 @@ def validate(sc: Scenario) -> Scenario:
     for registry, name in ((TRACKS, track), (VEHICLES, sc.vehicle), (LOCALIZATIONS, sc.localization),
                            (DETECTORS, sc.detector), (DEFENSES, sc.defense)):
         _check(isinstance(name, str) and name in registry,
-               f"{registry.family} must be one of {', '.join(registry.names())}, got {name!r}")
+               f"unknown {registry.family} {name!r}; known: {', '.join(registry.names())}")
     defense = DEFENSES.get(sc.defense)
     unread = sorted(set(sc.defense_params) - defense.reads - ALWAYS_READ)
     _check(not unread, f"[defense] {', '.join(unread)}: not read by defense {sc.defense!r}, so it would change "

@@ -55,12 +55,19 @@ def test_no_fusion_plot_without_attack_response(tmp_path):
     assert not (tmp_path / "ar_fusion.png").exists() and (tmp_path / "birdseye.png").exists()
 
 
-@pytest.mark.parametrize("defense", ["ld3", "ld3-naive-ar"])
-def test_reported_p_source_is_refused_with_a_detector_that_reports_no_variance(defense):
+def test_reported_p_source_is_refused_with_a_detector_that_reports_no_variance():
     from testbed.eval.runner import SimRun
     from testbed.eval.scenario import ScenarioError
 
-    sc = load_scenario("slr").with_overrides(duration=1.0, defense=defense, detector="classical",
+    sc = load_scenario("slr").with_overrides(duration=1.0, defense="ld3", detector="classical",
                                              defense_params={"p_source": "reported"})
     with pytest.raises(ScenarioError, match=r"reports its c0 variance.*use detector oracle"):
         SimRun(sc)
+
+
+def test_p_source_is_refused_for_a_defense_without_the_fusion():
+    from testbed.eval.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError, match=r"p_source: not read by defense 'ld3-naive-ar'"):
+        load_scenario("slr").with_overrides(defense="ld3-naive-ar", detector="classical",
+                                            defense_params={"p_source": "reported"})

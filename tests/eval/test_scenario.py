@@ -103,8 +103,8 @@ def test_detector_table_and_set_carry_the_detectors_parameters(tmp_path):
     ("detector.noise_std=-1", r"\[detector oracle\] 'noise_std' should be greater than or equal to 0"),
     ("detector.gain=2", r"\[detector oracle\] unknown parameter 'gain'; known: noise_std, dropout"),
     ("attack.d=far", r"\[attack fusionripper\] 'd' must be a number"),
-    ("track=moon", r"track preset must be one of slr, .*got 'moon'"),
-    ("vehicle=tank", r"vehicle must be one of sedan, dev-chassis, got 'tank'"),
+    ("track=moon", r"unknown track preset 'moon'; known: slr, urban-straight"),
+    ("vehicle=tank", r"unknown vehicle 'tank'; known: sedan, dev-chassis"),
 ])
 def test_component_parameters_are_validated_when_the_scenario_is(item, message):
     sc = load_scenario("local").with_overrides(localization="msf", attack={"kind": "fusionripper"})
