@@ -19,6 +19,7 @@ from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.estimate import LocalizationEstimate
+from testbed.perception.tracker import LaneTracker
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
@@ -82,8 +83,10 @@ class ControlLoop:
                  lateral, longitudinal, defense: Defense, detector: LaneDetector | None,
                  camera: Callable[[float, Pose], CameraFrame] | None, attack: Attack | None = None,
                  rates: LoopRates = LoopRates(), on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None,
-                 existence_threshold: float = 0.5, planned_stop: tuple[float, float] | None = None) -> None:
-        """`planned_stop` = (time, deceleration) of an in-lane stop that is part of the plan, not a response."""
+                 existence_threshold: float = 0.5, planned_stop: tuple[float, float] | None = None,
+                 tracker: LaneTracker | None = None) -> None:
+        """`planned_stop` = (time, deceleration) of an in-lane stop that is part of the plan, not a response.
+        `tracker` tracks the detected lines (after an LD-side attacker's tamper) with the chassis odometry."""
         self.chassis = chassis
         self.localization = localization
         self.smap = smap
@@ -97,6 +100,7 @@ class ControlLoop:
         self.attack = attack
         self.rates = rates
         self.on_frame = on_frame
+        self.tracker = tracker
         self.dt = 1.0 / rates.control_hz
         self.ticks = 0
         self.ld_dev = LdDeviation(existence_threshold)
@@ -158,6 +162,8 @@ class ControlLoop:
         ld = self.detector.detect(frame)
         if view is not None:
             ld = self.attack.tamper_ld(ld, view)
+        if self.tracker is not None:
+            ld = self.tracker.update(ld, state.speed, state.yaw_rate)
         width = self._lane_width(est.pose)
         if width is not None:
             self.last_ld_dev = self.ld_dev.update(ld, width)

@@ -40,6 +40,7 @@ from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, LoopRates, TickRecord
 from testbed.perception.registry import DETECTORS
+from testbed.perception.tracker import LaneTracker
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
@@ -72,12 +73,13 @@ class SimRun:
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
-                 attack: Attack | None = None) -> None:
+                 attack: Attack | None = None, tracking: bool | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
         `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
         surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
-        own objects, or a passive detection recorder); the summary records their own names."""
+        own objects, or a passive detection recorder); the summary records their own names. `tracking` puts a
+        `LaneTracker` after the detector (default: for detectors that read the camera)."""
         self.sc = sc
         try:
             self.track = load_track(sc.track)
@@ -128,6 +130,11 @@ class SimRun:
         self.detector = detector if detector is not None else DETECTORS.get(sc.detector).factory(
             self.track, self.rig, rng_detector)
         self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
+        if tracking is None:
+            tracking = self.detector is not None and self.detector.reads_camera
+        if tracking and self.detector is None:
+            raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
+        self.tracker = LaneTracker() if tracking else None
         if (self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
             raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
@@ -143,7 +150,7 @@ class SimRun:
             defense=self.defense, detector=self.detector, camera=self._capture if self.camera else None,
             attack=self.attack, rates=rates, on_frame=self._keep_frame if (video or record) else None,
             existence_threshold=self.defense_config.existence_threshold,
-            planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
+            planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None, tracker=self.tracker,
         )
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width
@@ -262,7 +269,7 @@ class SimRun:
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": defense_params,
-            "condition": sc.condition, "detector": self.detector_name,
+            "condition": sc.condition, "detector": self.detector_name, "tracking": self.tracker is not None,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
@@ -320,12 +327,12 @@ def prepare_out_dir(out_dir: Path) -> None:
 
 
 def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
-                 progress: bool = False, render: bool | None = None) -> RunResult:
+                 progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
     """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4,
     run.mcap)."""
     if out_dir is not None:
         prepare_out_dir(out_dir)
-    sim = SimRun(sc, render=render, video=video, record=record)
+    sim = SimRun(sc, render=render, video=video, record=record, tracking=tracking)
     try:
         result = sim.run(progress=progress)
         if out_dir is not None:
