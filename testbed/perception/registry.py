@@ -22,6 +22,12 @@ def _neural(track, rig, rng: np.random.Generator) -> LaneDetector:
     return NeuralLaneDetector()
 
 
+def _neural_onnx(track, rig, rng: np.random.Generator) -> LaneDetector:
+    from testbed.perception.onnx_runtime import OnnxLaneDetector
+
+    return OnnxLaneDetector()
+
+
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
     from testbed.perception.classical import ClassicalLaneDetector
 
@@ -36,6 +42,8 @@ def _oracle(track, rig, rng: np.random.Generator) -> LaneDetector:
 
 DETECTORS: Registry[Component] = Registry("lane detector", Component, "ld3.detectors")
 DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA))
+DETECTORS.add(Component("neural-onnx", _neural_onnx, "LaneNet exported to ONNX, run with onnxruntime (the onnx extra)",
+                        provides=_CAMERA))
 DETECTORS.add(Component("classical", _classical, "inverse perspective mapping and a sliding-window fit on the camera",
                         provides=_CAMERA))
 DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD))
