@@ -11,6 +11,8 @@ A preset too short for the duration is driven slower, so that it lasts the durat
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,19 +117,33 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
             "raw": np.abs(raw - phys), "tracked": np.abs(tracked - phys)}
 
 
-def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
-                    progress: bool = False) -> list[dict]:
-    """Drive every cell (one torch thread) in order, with a progress bar."""
+def _one_thread() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
+                    workers: int = 1, progress: bool = False) -> list[dict]:
+    """Drive every cell (one torch thread each; `workers` processes at once), results in cell order."""
     todo = cells(presets, conditions)
-    out = []
-    bar = tqdm(todo, desc="closed loop", unit="drive", disable=not progress)
-    for cell in bar:
-        bar.set_postfix_str(f"{cell.preset} {cell.condition}")
-        out.append(drive(cell, detector, duration))
-    return out
+    bar = tqdm(total=len(todo), desc="closed loop", unit="drive", disable=not progress)
+    if workers <= 1:
+        _one_thread()
+        out = []
+        for cell in todo:
+            bar.set_postfix_str(f"{cell.preset} {cell.condition}")
+            out.append(drive(cell, detector, duration))
+            bar.update(1)
+        return out
+    results: dict[Cell, dict] = {}
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_one_thread) as pool:
+        futures = {pool.submit(drive, cell, detector, duration): cell for cell in todo}
+        for future in as_completed(futures):
+            results[futures[future]] = future.result()
+            bar.update(1)
+    return [results[cell] for cell in todo]
 
 
 def _f(v: float | None) -> str:

@@ -55,6 +55,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--presets", nargs="+", metavar="PRESET", help="track presets (default: all)")
     p.add_argument("--conditions", nargs="+", metavar="CONDITION", help="camera conditions (default: all)")
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds per drive")
+    p.add_argument("--workers", type=int, default=1, help="drives run at once, each in its own process")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
@@ -120,7 +121,7 @@ def _closed_loop(args: argparse.Namespace) -> int:
     if args.detector == "none":
         raise ValueError("closed-loop needs a lane detector: --detector neural, classical or oracle")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
-                              args.duration, progress=True)
+                              args.duration, workers=args.workers, progress=True)
     paths = write_report(results, args.out)
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))

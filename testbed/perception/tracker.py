@@ -1,20 +1,21 @@
-"""Lane tracker: a Kalman filter over both ego lines' cubics, predicted with the car's own odometry.
+"""Lane tracker: a Kalman filter over the two ego lines' cubics, predicted with the car's own odometry.
 
-State: the left and right lines' coefficients (c0, c1, c2, c3) in the vehicle frame, i.e. each line's
-offset, heading, half curvature and a sixth of the curvature rate. Between frames the car advances
+State: the left and right lines' offsets c0 and their shared c1, c2, c3 (heading, half curvature, a sixth of
+the curvature rate; the lines of a lane are parallel), in the vehicle frame. Between frames the car advances
 dx = v·dt and turns dψ = r·dt (wheel speed and yaw rate from the chassis, trapezoid over the interval; never
 GNSS or the MSF), so each line becomes y'(x) = y(x + dx) − dψ·x − dx·dψ/2: the lateral motion relative to the
-lane comes from the tracked heading, not from smoothing toward the past. Process noise: ego motion the
-odometry misses (lateral slip, yaw-rate error) and the road's curvature changes are common to both lines,
-lane-width changes are per line; the common part correlates the lines, so one seen line carries the other.
-Each present detected line updates the filter with noise `measurement_std` (c0's variance replaced by the
-detector's `left_var` / `right_var` when reported) divided by its existence probability. A line whose
-offset innovation exceeds `gate` standard deviations is left out; both lines jumping together is the
-car moving (accepted at once), one line off for `confirm_frames` frames in a row is a real change
-(accepted then). Lines are re-associated when the car crosses one (left becomes right, and the next line
-over is predicted one lane width further). A line not seen for `max_coast` seconds is no longer output;
-an output line carries its last detected existence probability, and the filter's c0 variance where the
-detector reports its own.
+lane comes from the tracked heading, not from smoothing toward the past. Process noise: lateral motion the
+odometry misses (slip) moves both offsets together, yaw-rate error and road curvature changes act on the
+shared terms, lane-width changes on each offset alone; so one seen line carries the other.
+A present detected line updates the filter with noise `measurement_std` divided by its existence
+probability, c0's variance (and the others in proportion) replaced by the detector's `left_var` /
+`right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
+a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
+innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
+(accepted at once), one line off for `confirm_frames` frames in a row is a real change (accepted then).
+Lines are re-associated when the car crosses one (left becomes right, and the next line over is predicted
+one lane width further). A line not seen for `max_coast` seconds is no longer output; an output line carries
+its last detected existence probability, and the filter's c0 variance where the detector reports its own.
 """
 
 from __future__ import annotations
@@ -30,24 +31,24 @@ from testbed.lane_detection import LaneDetection
 LEFT, RIGHT = 0, 1
 N = 4  # coefficients per line
 NOMINAL_LANE_WIDTH = 3.5  # m: where an unseen line is first placed, with `unseen_std` around it
-_C0 = (0, N)  # state indices of the lines' offsets
 
 
 @dataclass(frozen=True)
 class TrackerParams:
     """Noise model and gating of `LaneTracker` (SI units; process noises per √s or per √m travelled)."""
 
-    measurement_std: tuple[float, float, float, float] = (0.10, 0.02, 1e-3, 3e-5)
-    """Std of a detected line's c0..c3 at existence probability 1 (c0 replaced by the reported variance)."""
-    lateral_std: float = 0.10
+    measurement_std: tuple[float, float, float, float] = (0.20, 0.02, 1e-3, 3e-5)
+    """Std of a detected line's c0..c3 at existence probability 1, before the reported or residual variance
+    replaces c0's."""
+    lateral_std: float = 0.03
     """m/√s: lateral motion of the car the odometry does not see (slip), common to both lines."""
-    yaw_rate_std: float = 0.01
+    yaw_rate_std: float = 0.003
     """rad/s: yaw-rate error, common to both lines' heading."""
-    curvature_std: float = 1e-4
+    curvature_std: float = 1e-5
     """1/m per √m: random walk of c2 (road curvature changes), common to both lines."""
     curvature_rate_std: float = 1e-5
     """1/m² per √m: random walk of c3, common to both lines."""
-    width_std: float = 0.01
+    width_std: float = 0.005
     """m per √m: random walk of each line's own offset (lane width changes)."""
     unseen_std: float = 1.0
     """m: c0 std of a line placed from the other one, never seen yet."""
@@ -59,6 +60,10 @@ class TrackerParams:
     """s a line is output after it was last seen."""
     min_existence: float = 0.05
     """A detected line with a lower existence probability does not update the filter."""
+    adapt_rate: float = 0.02
+    min_offset_std: float = 0.03
+    """m: floor of the adapted c0 noise std."""
+    """Per frame weight of the newest squared residual in a line's running residual variance (0: no adaption)."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -70,6 +75,7 @@ class TrackerParams:
             (self.confirm_frames >= 1, "confirm_frames must be >= 1"),
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
+            (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -84,34 +90,40 @@ def shift_matrix(dx: float) -> np.ndarray:
                      [0.0, 0.0, 0.0, 1.0]])
 
 
-def _both(v: np.ndarray) -> np.ndarray:
-    """A per-line (4,) direction applied to both lines: (8,)."""
-    return np.concatenate([v, v])
-
-
-def _line(side: int, v: np.ndarray) -> np.ndarray:
-    out = np.zeros(2 * N)
-    out[side * N : (side + 1) * N] = v
-    return out
-
-
-_E = np.eye(N)
-_SELECT = [np.eye(2 * N)[side * N : (side + 1) * N] for side in (LEFT, RIGHT)]
-_SWAP_LEFT = np.block([[2 * _E, -_E], [_E, np.zeros((N, N))]])
+DIM = 5  # state: left offset, right offset, then the shared c1, c2, c3
+_OFFSET = (0, 1)
+_SHARED = slice(2, DIM)
+_E = np.eye(DIM)
+_COMMON_OFFSET = _E[0] + _E[1]
+_SELECT = [np.vstack([_E[side], _E[2:]]) for side in (LEFT, RIGHT)]
+"""H of one line: its cubic (c0 its own offset, c1..c3 shared) from the state."""
+_SWAP_LEFT = np.block([[np.array([[2.0, -1.0], [1.0, 0.0]]), np.zeros((2, 3))], [np.zeros((3, 2)), np.eye(3)]])
 """The car crossed its left line: the new right line is the old left, the new left one lane width further."""
-_SWAP_RIGHT = np.block([[np.zeros((N, N)), _E], [-_E, 2 * _E]])
+_SWAP_RIGHT = np.block([[np.array([[0.0, 1.0], [-1.0, 2.0]]), np.zeros((2, 3))], [np.zeros((3, 2)), np.eye(3)]])
 """The car crossed its right line."""
+
+
+def transition(dx: float) -> np.ndarray:
+    """(5, 5) state transition for `dx` metres of travel: both lines shifted along x (`shift_matrix`)."""
+    f = np.zeros((DIM, DIM))
+    sm = shift_matrix(dx)
+    f[np.ix_([0, 2, 3, 4], [0, 2, 3, 4])] = sm
+    f[np.ix_([1, 2, 3, 4], [1, 2, 3, 4])] = sm
+    return f
 
 
 @dataclass
 class LineMemory:
     """What the tracker remembers of one line beside its state: when it was last seen (s), its last existence
-    probability, its consecutive outlier frames, and whether its detector reported a variance."""
+    probability, its consecutive outlier frames, whether its detector reported a variance, and its residual
+    noise."""
 
     last_seen: float | None = None
     existence: float = 0.0
     outliers: int = 0
     reported: bool = False
+    residual_var: float | None = None
+    """Running mean of the squared c0 residual after each update (m²): how far the line sits from the rest."""
 
 
 class LaneTracker:
@@ -119,7 +131,7 @@ class LaneTracker:
 
     def __init__(self, params: TrackerParams | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
-        self.kf = KalmanFilter(dim_x=2 * N, dim_z=N)
+        self.kf = KalmanFilter(dim_x=DIM, dim_z=N)
         self.reset()
 
     def reset(self) -> None:
@@ -135,14 +147,9 @@ class LaneTracker:
     # ---- model -----------------------------------------------------------------------------------------
     def _process_noise(self, dt: float, dx: float) -> np.ndarray:
         p = self.params
-        q = np.zeros((2 * N, 2 * N))
-        for var, unit in ((p.lateral_std**2 * dt, 0), ((p.yaw_rate_std * dt) ** 2, 1),
-                          (p.curvature_std**2 * dx, 2), (p.curvature_rate_std**2 * dx, 3)):
-            g = _both(_E[unit])
-            q += var * np.outer(g, g)
-        for side in (LEFT, RIGHT):
-            g = _line(side, _E[0])
-            q += p.width_std**2 * dx * np.outer(g, g)
+        q = p.lateral_std**2 * dt * np.outer(_COMMON_OFFSET, _COMMON_OFFSET)
+        q += np.diag([p.width_std**2 * dx, p.width_std**2 * dx, (p.yaw_rate_std * dt) ** 2,
+                      p.curvature_std**2 * dx, p.curvature_rate_std**2 * dx])
         return q
 
     def _measurement(self, ld: LaneDetection, side: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -156,42 +163,38 @@ class LaneTracker:
         z[: len(c)] = c
         if not np.isfinite(z).all():
             return None
-        std = np.asarray(self.params.measurement_std, dtype=float)
-        r = std**2
+        r = np.asarray(self.params.measurement_std, dtype=float) ** 2
+        adapted = self.lines[side].residual_var
         if var is not None and math.isfinite(var) and var > 0:
             r = r * (var / r[0])
+        elif adapted is not None:
+            r = r * (max(adapted, self.params.min_offset_std**2) / r[0])
         return z, np.diag(r / min(prob, 1.0))
 
     def _start(self, meas: list[tuple[np.ndarray, np.ndarray] | None]) -> None:
         p = self.params
         seen = [m for m in meas if m is not None]
-        x = np.zeros(2 * N)
-        big = np.diag(np.asarray(p.measurement_std) ** 2 * 100.0)
-        blocks = [big.copy(), big.copy()]
+        x = np.zeros(DIM)
+        x[_SHARED] = np.mean([m[0][1:] for m in seen], axis=0)
+        var = np.zeros(DIM)
+        var[_SHARED] = np.mean([np.diag(m[1])[1:] for m in seen], axis=0) / len(seen)
         for side in (LEFT, RIGHT):
             m = meas[side]
             if m is not None:
-                x[side * N : (side + 1) * N] = m[0]
-                blocks[side] = m[1].copy()
+                x[side], var[side] = m[0][0], m[1][0, 0]
             else:
-                other = seen[0][0]
-                sign = 1.0 if side == LEFT else -1.0
-                x[side * N : (side + 1) * N] = other + sign * NOMINAL_LANE_WIDTH * _E[0]
-                blocks[side][0, 0] = p.unseen_std**2
+                x[side] = seen[0][0][0] + (1.0 if side == LEFT else -1.0) * NOMINAL_LANE_WIDTH
+                var[side] = p.unseen_std**2
         self.kf.x = x[:, None]
-        self.kf.P = np.block([[blocks[0], np.zeros((N, N))], [np.zeros((N, N)), blocks[1]]])
+        self.kf.P = np.diag(var)
         self.started = True
 
     def _predict(self, dt: float, speed: float, yaw_rate: float) -> None:
         v0, r0 = self.odometry
         dx = 0.5 * (v0 + speed) * dt
         dpsi = 0.5 * (r0 + yaw_rate) * dt
-        f = np.kron(np.eye(2), shift_matrix(dx))
-        u = _both(np.array([-dx * dpsi / 2.0, -dpsi, 0.0, 0.0]))[:, None]
-        self.kf.predict(u=u, B=np.eye(2 * N), F=f, Q=self._process_noise(dt, abs(dx)))
-
-    def _offset(self, side: int) -> float:
-        return float(self.kf.x[side * N, 0])
+        u = np.array([-dx * dpsi / 2.0, -dx * dpsi / 2.0, -dpsi, 0.0, 0.0])[:, None]
+        self.kf.predict(u=u, B=np.eye(DIM), F=transition(dx), Q=self._process_noise(dt, abs(dx)))
 
     def _swap(self, direction: int) -> None:
         """Re-associate after the car crossed its left (+1) or right (−1) line."""
@@ -200,7 +203,7 @@ class LaneTracker:
         kept = 1 - new
         self.kf.x = t @ self.kf.x
         self.kf.P = t @ self.kf.P @ t.T
-        self.kf.P[new * N, new * N] += self.params.unseen_std**2
+        self.kf.P[new, new] += self.params.unseen_std**2
         self.lines[kept], self.lines[new] = self.lines[new], LineMemory()
         self.swaps += direction
 
@@ -210,12 +213,12 @@ class LaneTracker:
         x = self.kf.x[:, 0]
         if any(m is not None for m in meas):
             costs = {}
-            for direction, t in ((0, np.eye(2 * N)), (1, _SWAP_LEFT), (-1, _SWAP_RIGHT)):
+            for direction, t in ((0, _E), (1, _SWAP_LEFT), (-1, _SWAP_RIGHT)):
                 h = t @ x
-                costs[direction] = sum(abs(m[0][0] - h[side * N]) for side, m in enumerate(meas) if m is not None)
+                costs[direction] = sum(abs(m[0][0] - h[side]) for side, m in enumerate(meas) if m is not None)
             best = min(costs, key=costs.get)
         else:
-            best = 1 if x[_C0[LEFT]] < 0.0 else (-1 if x[_C0[RIGHT]] > 0.0 else 0)
+            best = 1 if x[LEFT] < 0.0 else (-1 if x[RIGHT] > 0.0 else 0)
         if best:
             self._swap(best)
 
@@ -227,16 +230,15 @@ class LaneTracker:
         nu, s = [0.0, 0.0], [1.0, 1.0]
         for side, m in enumerate(meas):
             if m is not None:
-                i = side * N
-                nu[side] = m[0][0] - x[i]
-                s[side] = cov[i, i] + m[1][0, 0]
+                nu[side] = m[0][0] - x[side]
+                s[side] = cov[side, side] + m[1][0, 0]
         z = [nu[k] / math.sqrt(s[k]) if meas[k] is not None else 0.0 for k in (LEFT, RIGHT)]
         out = [abs(v) > p.gate for v in z]
         both = meas[LEFT] is not None and meas[RIGHT] is not None
         if both and out[LEFT] and out[RIGHT]:
-            diff_var = s[LEFT] + s[RIGHT] - 2 * cov[_C0[LEFT], _C0[RIGHT]]
+            diff_var = s[LEFT] + s[RIGHT] - 2 * cov[LEFT, RIGHT]
             if abs(nu[LEFT] - nu[RIGHT]) <= p.gate * math.sqrt(max(diff_var, 1e-12)):
-                self._open(_both(_E[0]), 0.5 * (nu[LEFT] + nu[RIGHT]))  # the car moved: both lines jump
+                self._open(_COMMON_OFFSET, 0.5 * (nu[LEFT] + nu[RIGHT]))  # the car moved: both lines jump
                 for line in self.lines:
                     line.outliers = 0
                 return meas
@@ -251,8 +253,9 @@ class LaneTracker:
             line.outliers += 1
             if line.outliers >= p.confirm_frames:
                 other_agrees = meas[1 - side] is not None and not out[1 - side]
-                self._open(_line(side, _E[0]) if other_agrees else _both(_E[0]), nu[side])
+                self._open(_E[side] if other_agrees else _COMMON_OFFSET, nu[side])
                 line.outliers = 0
+                line.residual_var = None
             else:
                 gated[side] = None
         return gated
@@ -271,6 +274,11 @@ class LaneTracker:
         for k, side in enumerate(rows):
             r[k * N : (k + 1) * N, k * N : (k + 1) * N] = meas[side][1]
         self.kf.update(z, R=r, H=h)
+        a = self.params.adapt_rate
+        for side in rows:
+            line = self.lines[side]
+            spread = (meas[side][0][0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
+            line.residual_var = spread if line.residual_var is None else (1 - a) * line.residual_var + a * spread
 
     # ---- interface -------------------------------------------------------------------------------------
     def update(self, ld: LaneDetection, speed: float, yaw_rate: float) -> LaneDetection:
@@ -289,9 +297,10 @@ class LaneTracker:
         self.t, self.odometry = ld.timestamp, (speed, yaw_rate)
         for side in (LEFT, RIGHT):
             if meas[side] is not None:
-                self.lines[side] = LineMemory(ld.timestamp, ld.left_prob if side == LEFT else ld.right_prob,
-                                              self.lines[side].outliers,
-                                              (ld.left_var if side == LEFT else ld.right_var) is not None)
+                line = self.lines[side]
+                line.last_seen = ld.timestamp
+                line.existence = ld.left_prob if side == LEFT else ld.right_prob
+                line.reported = (ld.left_var if side == LEFT else ld.right_var) is not None
         if meas[LEFT] is not None or meas[RIGHT] is not None:
             self.x_range = ld.x_range
         return self._output(ld.timestamp)
@@ -303,8 +312,8 @@ class LaneTracker:
         for side in (LEFT, RIGHT):
             line = self.lines[side]
             if self.started and line.last_seen is not None and t - line.last_seen <= self.params.max_coast:
-                lines[side] = self.kf.x[side * N : (side + 1) * N, 0].copy()
+                lines[side] = _SELECT[side] @ self.kf.x[:, 0]
                 probs[side] = float(line.existence)
-                var[side] = float(self.kf.P[side * N, side * N]) if line.reported else None
+                var[side] = float(self.kf.P[side, side]) if line.reported else None
         return LaneDetection(t, lines[LEFT], lines[RIGHT], probs[LEFT], probs[RIGHT], self.x_range,
                              var[LEFT], var[RIGHT])

@@ -141,7 +141,7 @@ def test_existence_and_reported_variance_weight_the_update():
         return tracker.update(off, scene.speed, scene.yaw_rate).left[0] - ld.left[0]
 
     assert moved(0.6, None) < moved(1.0, None)
-    assert moved(1.0, 0.2**2) < moved(1.0, None) < moved(1.0, 0.02**2)
+    assert moved(1.0, 0.2**2) < moved(1.0, None) < moved(1.0, 0.01**2)
 
 
 def test_the_output_keeps_the_detection_contract():
