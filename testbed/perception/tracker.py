@@ -255,7 +255,6 @@ class LaneTracker:
                 other_agrees = meas[1 - side] is not None and not out[1 - side]
                 self._open(_E[side] if other_agrees else _COMMON_OFFSET, nu[side])
                 line.outliers = 0
-                line.residual_var = None
             else:
                 gated[side] = None
         return gated

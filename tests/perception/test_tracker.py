@@ -93,6 +93,26 @@ def test_a_one_frame_glitch_on_one_line_is_rejected():
     assert d_ld(glitch) == pytest.approx(d_ld(ld) + 0.9)  # what LD3 would have used without the tracker
 
 
+def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
+    """The right line is seen 0.4 m further right for 10 frames (a dark patch along it), the left one is fine:
+    the tracked right line takes the shift only once it persists (`confirm_frames`) and drops it as late."""
+    params = TrackerParams()
+    shifted = range(40, 50)
+
+    def detect(k: int, s: Scene) -> LaneDetection:
+        ld = s.detect()
+        if k not in shifted:
+            return ld
+        return LaneDetection(ld.timestamp, ld.left, ld.right - np.array([0.4, 0, 0, 0]), 1.0, 1.0, ld.x_range)
+
+    _, out = track(Scene(lateral=-0.3), 70, detect)
+    true_right = [fed.right[0] + (0.4 if k in shifted else 0.0) for k, (_, _, fed) in enumerate(out)]
+    off = [k for k, (tracked, _, _) in enumerate(out) if abs(tracked.right[0] - true_right[k]) > 0.2]
+    assert off[0] == shifted.start + params.confirm_frames - 1
+    assert off[-1] == shifted.stop + params.confirm_frames - 2
+    assert len(off) == len(shifted)
+
+
 def test_a_dashed_lines_gaps_are_bridged():
     """The left line is seen 0.3 s, unseen 0.3 s (a dashed line's gaps); the car sits nearer the left line."""
     rng = np.random.default_rng(5)
