@@ -22,6 +22,7 @@ from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.stack import Localization
+from testbed.perception.tracker import LaneTracker
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
@@ -89,12 +90,14 @@ class SensorPorts:
 
 @dataclass(frozen=True)
 class PerceptionPorts:
-    """The lane detector (None: no lane detections), the existence probability a line needs to count, and a
-    hook that sees every frame with its detection (video, recording)."""
+    """The lane detector (None: no lane detections), the existence probability a line needs to count, a hook
+    that sees every frame with its detection (video, recording), and the tracker of the detected lines (run
+    after an LD-side attacker's tamper, predicted with the chassis odometry)."""
 
     detector: LaneDetector | None = None
     existence_threshold: float = 0.5
     on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None
+    tracker: LaneTracker | None = None
 
 
 @dataclass(frozen=True)
@@ -187,6 +190,8 @@ class ControlLoop:
         ld = self.perception.detector.detect(frame)
         if view is not None:
             ld = self.attack.tamper_ld(ld, view)
+        if self.perception.tracker is not None:
+            ld = self.perception.tracker.update(ld, state.speed, state.yaw_rate)
         width = self._lane_width(est.pose)
         if width is not None:
             self.last_ld_dev = self.ld_dev.update(ld, width)

@@ -116,8 +116,9 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
 
 
 def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dict[str, Any]:
-    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one torch thread, over
-    frames freshly rendered from held-out seeds in every condition, each detected `repeats` times."""
+    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one thread (torch, and
+    onnxruntime where installed), over frames freshly rendered from held-out seeds in every condition, each
+    detected `repeats` times."""
     import numpy as np
 
     from testbed.camera import CONDITIONS
@@ -133,9 +134,15 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
            for k, (preset, cond) in enumerate(zip(("urban-straight", "highway", "urban-curvy", "local", "slr",
                                                     "urban-straight"), CONDITIONS, strict=True))]
     images = [image for ep in eps for image, _ in render_episode(ep, frames_per_episode)]
-    detectors = {"neural": NeuralLaneDetector(threads=1),
-                 "classical": ClassicalLaneDetector(CameraRig(get_vehicle("sedan").camera))}
+    detectors = {"neural": NeuralLaneDetector(threads=1)}
     out: dict[str, Any] = {"frames": len(images), "repeats": repeats, "torch_threads": torch.get_num_threads()}
+    try:
+        from testbed.perception.onnx_runtime import OnnxLaneDetector
+
+        detectors["neural-onnx"] = OnnxLaneDetector(threads=1)
+    except RuntimeError as exc:  # onnxruntime not installed
+        out["neural-onnx"] = str(exc)
+    detectors["classical"] = ClassicalLaneDetector(CameraRig(get_vehicle("sedan").camera))
     for name, det in detectors.items():
         for image in images[:10]:
             det.detect(CameraFrame(0.0, image))  # warm-up

@@ -39,7 +39,8 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts, TickRecord
-from testbed.perception.registry import DETECTORS, make_detector
+from testbed.perception.registry import DETECTORS, make_detector, tracks_lines
+from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
 from testbed.world import PhysicsWorld, TileStreamer
@@ -72,12 +73,14 @@ class SimRun:
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
-                 attack: Attack | None = None) -> None:
+                 attack: Attack | None = None, tracking: bool | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
         `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
         surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
-        own objects, or a passive detection recorder); the summary records their own names."""
+        own objects, or a passive detection recorder); the summary records their own names. `tracking` puts a
+        `LaneTracker` after the detector (default: the scenario's `detector.tracking`, or for an injected
+        detector, whether it reads the camera)."""
         self.sc = sc
         self.track = build_track(sc.track)
         self.params = vehicle(sc.vehicle)
@@ -125,6 +128,12 @@ class SimRun:
         self.detector = detector if detector is not None else make_detector(
             sc.detector, track=self.track, rig=self.rig, rng=rng_detector, params=sc.detector_params)
         self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
+        if tracking is None:
+            tracking = (tracks_lines(sc.detector, sc.detector_params) if detector is None
+                        else detector.reads_camera)
+        if tracking and self.detector is None:
+            raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
+        self.tracker = LaneTracker() if tracking else None
         if (self.defense_config.p_source == "reported" and self.detector is not None
                 and not self.detector.reports_variance):
             raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
@@ -136,7 +145,7 @@ class SimRun:
             self.chassis,
             SensorPorts(self.localization, self._capture if self.camera else None),
             PerceptionPorts(self.detector, self.defense_config.existence_threshold,
-                            self._keep_frame if (video or record) else None),
+                            self._keep_frame if (video or record) else None, self.tracker),
             self.defense,
             DrivingPorts(self.smap, self.lane, LanePlanner(self.smap, self.lane, sc.speed),
                          LqrLateralController.from_vehicle(self.params, dt),
@@ -265,7 +274,7 @@ class SimRun:
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": defense_params,
-            "condition": sc.condition, "detector": self.detector_name,
+            "condition": sc.condition, "detector": self.detector_name, "tracking": self.tracker is not None,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
@@ -323,12 +332,12 @@ def prepare_out_dir(out_dir: Path) -> None:
 
 
 def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
-                 progress: bool = False, render: bool | None = None) -> RunResult:
+                 progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
     """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4,
     run.mcap)."""
     if out_dir is not None:
         prepare_out_dir(out_dir)
-    sim = SimRun(sc, render=render, video=video, record=record)
+    sim = SimRun(sc, render=render, video=video, record=record, tracking=tracking)
     try:
         result = sim.run(progress=progress)
         if out_dir is not None:

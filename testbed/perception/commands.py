@@ -1,4 +1,5 @@
-"""`ld3 ld dataset|train|eval`: lane-detector tooling subcommands (argparse), registered by testbed/cli.py."""
+"""`ld3 ld dataset|train|eval|export-onnx|closed-loop`: lane-detector tooling subcommands (argparse), registered by
+testbed/cli.py."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from pathlib import Path
 
 
 def add_ld_parser(subparsers) -> argparse.ArgumentParser:
-    """Register `ld` with its `dataset`, `train` and `eval` subcommands; each sets `func(args) -> int`."""
+    """Register `ld` with its `dataset`, `train`, `eval`, `export-onnx` and `closed-loop` subcommands; each sets
+    `func(args) -> int`."""
     ld = subparsers.add_parser("ld", help="lane detector: render datasets, train, evaluate")
     sub = ld.add_subparsers(dest="ld_command", required=True)
 
@@ -39,6 +41,23 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("out/ld_eval"))
     p.add_argument("--limit", type=int)
     p.set_defaults(func=_eval)
+
+    p = sub.add_parser("export-onnx", help="export LaneNet to an ONNX file (run by detector neural-onnx)")
+    p.add_argument("--weights", type=Path, help="checkpoint (default: the shipped weights)")
+    p.add_argument("--out", type=Path, default=Path("lanenet.onnx"))
+    p.set_defaults(func=_export_onnx)
+
+    from testbed.perception.registry import DETECTORS
+
+    p = sub.add_parser("closed-loop", help="drive held-out tracks of every preset in every condition and table "
+                                           "|D_LD - phys_dev| with and without lane tracking")
+    p.add_argument("--detector", default="neural", choices=DETECTORS.names())
+    p.add_argument("--presets", nargs="+", metavar="PRESET", help="track presets (default: all)")
+    p.add_argument("--conditions", nargs="+", metavar="CONDITION", help="camera conditions (default: all)")
+    p.add_argument("--duration", type=float, default=30.0, help="simulated seconds per drive")
+    p.add_argument("--workers", type=int, default=1, help="drives run at once, each in its own process")
+    p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
+    p.set_defaults(func=_closed_loop)
     return ld
 
 
@@ -81,5 +100,29 @@ def _eval(args: argparse.Namespace) -> int:
             grid = (frames, dets, rig)
     paths = write_report(reports, grid, args.out)
     print(markdown_table(reports))
+    print(", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+def _export_onnx(args: argparse.Namespace) -> int:
+    from testbed.perception.neural import load_model
+    from testbed.perception.onnx_runtime import export_onnx
+
+    data = export_onnx(load_model(args.weights), args.out)
+    print(f"wrote {args.out} ({len(data) / 1024:.0f} KiB)")
+    return 0
+
+
+def _closed_loop(args: argparse.Namespace) -> int:
+    from testbed.camera import CONDITIONS
+    from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
+    from tracks.presets import PRESETS
+
+    if args.detector == "none":
+        raise ValueError("closed-loop needs a lane detector: --detector neural, classical or oracle")
+    results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
+                              args.duration, workers=args.workers, progress=True)
+    paths = write_report(results, args.out)
+    print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))
     return 0

@@ -1,9 +1,9 @@
 """The lane-detector registry: built-in detectors and the `ld3.detectors` entry points.
 
 A detector component's factory is `factory(track, rig, rng, **params)` (the run's track, camera rig and
-detector random stream, and the `[detector]` parameters its `params` model validated), returning a
-`LaneDetector` (or None for `none`). What it `provides` says whether lane detections reach the defense and
-whether it reads rendered camera frames (then the run renders them).
+detector random stream, and the `[detector]` parameters its `params` model validated, less `tracking`,
+which the loop acts on), returning a `LaneDetector` (or None for `none`). What it `provides` says whether
+lane detections reach the defense and whether it reads rendered camera frames (then the run renders them).
 """
 
 from __future__ import annotations
@@ -22,8 +22,15 @@ _LD = frozenset({Capability.LANE_DETECTOR})
 _CAMERA = frozenset({Capability.LANE_DETECTOR, Capability.CAMERA_IMAGE})
 
 
-class NeuralParams(Params):
-    """Parameters of the neural detector."""
+class CameraDetectorParams(Params):
+    """Parameters of every detector that reads the camera: whether the loop tracks its lines."""
+
+    tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
+                                             "(testbed.perception.tracker), between the detector and LD3")
+
+
+class NeuralParams(CameraDetectorParams):
+    """Parameters of the neural detectors (torch and onnxruntime)."""
 
     weights: str | None = Field(None, description="checkpoint path (default: the shipped weights)")
 
@@ -48,6 +55,13 @@ def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) ->
     return NeuralLaneDetector(load_model(Path(weights).expanduser() if weights is not None else None))
 
 
+def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+    from testbed.perception.neural import load_model
+    from testbed.perception.onnx_runtime import OnnxLaneDetector
+
+    return OnnxLaneDetector(load_model(Path(weights).expanduser() if weights is not None else None))
+
+
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
     from testbed.perception.classical import ClassicalLaneDetector
 
@@ -63,8 +77,10 @@ def _oracle(track, rig, rng: np.random.Generator, noise_std: float = 0.0, dropou
 DETECTORS: Registry[Component] = Registry("lane detector", Component, "ld3.detectors")
 DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA,
                         params=NeuralParams))
+DETECTORS.add(Component("neural-onnx", _neural_onnx, "LaneNet exported to ONNX, run with onnxruntime (the onnx extra)",
+                        provides=_CAMERA, params=NeuralParams))
 DETECTORS.add(Component("classical", _classical, "inverse perspective mapping and a sliding-window fit on the camera",
-                        provides=_CAMERA))
+                        provides=_CAMERA, params=CameraDetectorParams))
 DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD,
                         params=OracleParams))
 DETECTORS.add(Component("none", lambda track, rig, rng: None, "no lane detector"))
@@ -75,5 +91,12 @@ def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = No
     """The detector of the registered component `name` with its `[detector]` parameters (None for `none`;
     UnknownComponent if unknown, ParamsError for bad parameters)."""
     component = DETECTORS.get(name)
-    settings = component.settings(params or {}, f"detector {name}").model_dump(exclude_unset=True)
+    settings = component.settings(params or {}, f"detector {name}").model_dump(exclude_unset=True,
+                                                                              exclude={"tracking"})
     return component.factory(track, rig, rng if rng is not None else np.random.default_rng(0), **settings)
+
+
+def tracks_lines(name: str, params: dict[str, Any]) -> bool:
+    """Whether the loop tracks the lines of the detector `name` with these `[detector]` parameters (the
+    `tracking` key of detectors that read the camera; never for the others)."""
+    return bool(getattr(DETECTORS.get(name).settings(params, f"detector {name}"), "tracking", False))

@@ -1,0 +1,44 @@
+import numpy as np
+import pytest
+
+from testbed.perception.closed_loop import Cell, cells, drive, error_stats, markdown_table, write_report
+
+
+def test_cells_use_distinct_held_out_layouts_and_refuse_unknown_names():
+    grid = cells(["local", "highway"], ["day", "rain"])
+    assert [(c.preset, c.condition) for c in grid] == [("local", "day"), ("local", "rain"), ("highway", "day"),
+                                                       ("highway", "rain")]
+    assert len({c.track_seed for c in grid}) == 4 and all(c.track_seed >= 9000 for c in grid)
+    with pytest.raises(ValueError, match="unknown preset 'moon'"):
+        cells(["moon"], ["day"])
+    with pytest.raises(ValueError, match="unknown condition 'fog'"):
+        cells(["local"], ["fog"])
+
+
+def test_error_stats_ignore_ticks_without_a_deviation():
+    s = error_stats(np.array([np.nan, 0.1, 0.3, 0.2]))
+    assert s["mean_m"] == pytest.approx(0.2) and s["max_m"] == pytest.approx(0.3)
+    assert error_stats(np.array([np.nan])) == {"mean_m": None, "p99_m": None, "max_m": None}
+
+
+def _result(cond: str, raw: float, tracked: float) -> dict:
+    return {"preset": "local", "condition": cond, "track": "local@9040", "speed_mps": 12.0, "sim_time_s": 30.0,
+            "frames": 600, "raw": np.full(10, raw), "tracked": np.full(10, tracked)}
+
+
+def test_tables_judge_the_tracked_errors_against_the_targets(tmp_path):
+    results = [_result("day", 0.2, 0.04), _result("rain", 0.1, 0.09)]
+    table = markdown_table(results)
+    assert "| day | 0.200 | 0.200 | 0.200 | 0.040 | 0.040 | 0.040 | yes |" in table
+    assert "| rain | 0.100 | 0.100 | 0.100 | 0.090 | 0.090 | 0.090 | no |" in table  # mean over 0.08
+    paths = write_report(results, tmp_path)
+    csv = paths["csv"].read_text().splitlines()
+    assert csv[0].startswith("preset,condition,track") and "tracked_p99_m" in csv[0] and len(csv) == 3
+
+
+@pytest.mark.slow
+def test_a_drive_scores_the_raw_and_the_tracked_detections_of_one_trajectory():
+    r = drive(Cell("urban-straight", "day", 9010), "neural", duration=3.0)
+    assert r["sim_time_s"] == pytest.approx(3.0) and r["frames"] == 60
+    assert np.isfinite(r["raw"]).sum() > 250 and np.isfinite(r["tracked"]).sum() > 250
+    assert not np.array_equal(r["raw"], r["tracked"])

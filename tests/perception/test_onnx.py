@@ -1,0 +1,42 @@
+import numpy as np
+import pytest
+import torch
+
+from testbed.lane_detection import CameraFrame
+from testbed.perception.neural import FRAME_SHAPE, INPUT_SHAPE, NeuralLaneDetector, load_model
+
+pytest.importorskip("onnxruntime")
+
+from testbed.perception.onnx_runtime import OnnxLaneDetector, OnnxLaneNet, export_onnx
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model()
+
+
+def test_the_onnx_export_matches_torch(model, tmp_path):
+    data = export_onnx(model, tmp_path / "lanenet.onnx")
+    assert (tmp_path / "lanenet.onnx").read_bytes() == data
+    net = OnnxLaneNet(data)
+    for x in np.random.default_rng(0).normal(size=(4, 1, 3, *INPUT_SHAPE)).astype(np.float32):
+        with torch.no_grad():
+            cols, exist = model(torch.from_numpy(x))
+        ort_cols, ort_exist = net(x)
+        np.testing.assert_allclose(ort_cols, cols.numpy(), atol=1e-4, rtol=0)
+        np.testing.assert_allclose(ort_exist, exist.numpy(), atol=1e-4, rtol=0)
+
+
+def test_the_onnx_detector_gives_the_torch_detection(model):
+    rng = np.random.default_rng(1)
+    image = rng.integers(0, 255, (*FRAME_SHAPE, 3), dtype=np.uint8)
+    image[100:, 150:160] = 255  # a bright stripe for the network to find
+    frame = CameraFrame(0.5, image)
+    ours, torch_ld = OnnxLaneDetector(model).detect(frame), NeuralLaneDetector(model).detect(frame)
+    assert ours.left_prob == pytest.approx(torch_ld.left_prob, abs=1e-4)
+    assert ours.right_prob == pytest.approx(torch_ld.right_prob, abs=1e-4)
+    for a, b in ((ours.left, torch_ld.left), (ours.right, torch_ld.right)):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a, b, atol=1e-4)
+    assert OnnxLaneDetector(model).detect(CameraFrame(0.0, None)).left is None

@@ -1,0 +1,195 @@
+import math
+
+import numpy as np
+import pytest
+
+from testbed.defense.ld_deviation import LdDeviation
+from testbed.lane_detection import LaneDetection
+from testbed.perception.tracker import LaneTracker, TrackerParams, shift_matrix
+from tests.perception.lane_scene import LANE_W, Scene
+
+
+def d_ld(ld: LaneDetection) -> float | None:
+    """Alg. 3's D_LD of one detection, fresh (no memory), nominal lane width."""
+    return LdDeviation(0.5).update(ld, LANE_W)
+
+
+def track(scene: Scene, frames: int, detect, tracker: LaneTracker | None = None):
+    """Run `frames` frames; `detect(k, scene)` gives frame k's detection. Returns the tracker and per frame
+    (tracked detection, true D_LD from the noiseless lines, detection fed)."""
+    tracker = tracker if tracker is not None else LaneTracker()
+    out = []
+    for k in range(frames):
+        ld = detect(k, scene)
+        tracked = tracker.update(ld, scene.speed, scene.yaw_rate)
+        out.append((tracked, d_ld(scene.detect()), ld))
+        scene.step()
+    return tracker, out
+
+
+def test_shift_matrix_moves_a_cubic_along_x():
+    c = np.array([0.3, -0.02, 0.004, -1e-5])
+    x = np.linspace(-3.0, 30.0, 12)
+    shifted = shift_matrix(2.5) @ c
+    np.testing.assert_allclose(np.polynomial.polynomial.polyval(x, shifted),
+                               np.polynomial.polynomial.polyval(x + 2.5, c), atol=1e-12)
+
+
+@pytest.mark.parametrize("curvature", [0.0, 1 / 80.0, -1 / 150.0])
+def test_clean_lines_pass_through_unchanged(curvature):
+    _, out = track(Scene(curvature, lateral=0.4), 60, lambda k, s: s.detect())
+    for tracked, truth, _ in out:
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.01)
+        assert tracked.left is not None and tracked.right is not None
+
+
+def test_noise_on_the_offsets_is_reduced():
+    rng = np.random.default_rng(3)
+    _, out = track(Scene(1 / 200.0, lateral=-0.3), 400, lambda k, s: s.detect(rng, noise=0.10))
+    raw = np.array([d_ld(ld) - truth for _, truth, ld in out[20:]])
+    tracked = np.array([d_ld(t) - truth for t, truth, _ in out[20:]])
+    assert np.sqrt(np.mean(tracked**2)) < 0.5 * np.sqrt(np.mean(raw**2))
+    assert abs(tracked.mean()) < 0.02
+
+
+@pytest.mark.parametrize("curvature", [0.0, 1 / 60.0])
+def test_coasting_predicts_with_the_odometry(curvature):
+    """Both lines unseen for 0.8 s while the car drifts across the lane at 0.6 m/s: the tracked D_LD follows
+    the drift (odometry and tracked heading), it does not hold the last seen value."""
+    scene = Scene(curvature, yaw=math.asin(0.6 / 12.0))
+    _, out = track(scene, 56, lambda k, s: s.detect(left=k < 40, right=k < 40))
+    for tracked, truth, _ in out[40:]:
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.02)
+    assert out[55][1] - out[39][1] > 0.4  # the car did move
+
+
+def test_a_lateral_step_shows_in_the_same_frame_with_both_lines():
+    rng = np.random.default_rng(1)
+    scene = Scene(1 / 300.0)
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(rng, noise=0.05))
+    scene.y += 0.6  # the car is moved 0.6 m to the left
+    tracked = tracker.update(scene.detect(rng, noise=0.05), scene.speed, scene.yaw_rate)
+    assert d_ld(tracked) == pytest.approx(d_ld(scene.detect()), abs=0.08)
+
+
+def test_a_lateral_step_shows_within_one_frame_with_one_line():
+    scene = Scene()
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(left=False))
+    scene.y -= 0.5
+    first = tracker.update(scene.detect(left=False), scene.speed, scene.yaw_rate)
+    scene.step()
+    second = tracker.update(scene.detect(left=False), scene.speed, scene.yaw_rate)
+    assert d_ld(second) == pytest.approx(d_ld(scene.detect()), abs=0.03)
+    assert d_ld(first) > d_ld(second) + 0.3  # the first frame alone is not trusted
+
+
+def test_a_one_frame_glitch_on_one_line_is_rejected():
+    scene = Scene()
+    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    ld = scene.detect()
+    glitch = LaneDetection(ld.timestamp, ld.left - np.array([0.9, 0, 0, 0]), ld.right, 1.0, 1.0, ld.x_range)
+    tracked = tracker.update(glitch, scene.speed, scene.yaw_rate)
+    assert d_ld(tracked) == pytest.approx(d_ld(ld), abs=0.03)
+    assert d_ld(glitch) == pytest.approx(d_ld(ld) + 0.9)  # what LD3 would have used without the tracker
+
+
+def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
+    """The right line is seen 0.4 m further right for 10 frames (a dark patch along it), the left one is fine:
+    the tracked right line takes the shift only once it persists (`confirm_frames`) and drops it as late."""
+    params = TrackerParams()
+    shifted = range(40, 50)
+
+    def detect(k: int, s: Scene) -> LaneDetection:
+        ld = s.detect()
+        if k not in shifted:
+            return ld
+        return LaneDetection(ld.timestamp, ld.left, ld.right - np.array([0.4, 0, 0, 0]), 1.0, 1.0, ld.x_range)
+
+    _, out = track(Scene(lateral=-0.3), 70, detect)
+    true_right = [fed.right[0] + (0.4 if k in shifted else 0.0) for k, (_, _, fed) in enumerate(out)]
+    off = [k for k, (tracked, _, _) in enumerate(out) if abs(tracked.right[0] - true_right[k]) > 0.2]
+    assert off[0] == shifted.start + params.confirm_frames - 1
+    assert off[-1] == shifted.stop + params.confirm_frames - 2
+    assert len(off) == len(shifted)
+
+
+def test_a_dashed_lines_gaps_are_bridged():
+    """The left line is seen 0.3 s, unseen 0.3 s (a dashed line's gaps); the car sits nearer the left line."""
+    rng = np.random.default_rng(5)
+    scene = Scene(1 / 120.0, lateral=0.5)
+    _, out = track(scene, 200, lambda k, s: s.detect(rng, noise=0.05, left=(k // 6) % 2 == 0))
+    for tracked, truth, _ in out[12:]:
+        assert tracked.left is not None and tracked.left_prob >= 0.5
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.06)
+
+
+def test_a_missing_line_coasts_for_a_bounded_time():
+    params = TrackerParams(max_coast=1.0)
+    scene = Scene(lateral=0.3)
+    _, out = track(scene, 120, lambda k, s: s.detect(left=not 40 <= k < 100), LaneTracker(params))
+    # frames 40.. are 0.05 s apart: the left line is output for 1.0 s after it was last seen at frame 39
+    assert all(out[k][0].left is not None for k in range(40, 60))
+    assert all(out[k][0].left is None and out[k][0].left_prob == 0.0 for k in range(60, 100))
+    assert all(out[k][0].left is not None for k in range(100, 120))
+    for tracked, truth, _ in out:
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.02)
+
+
+def test_the_lines_swap_when_the_car_changes_lane():
+    scene = Scene(yaw=math.asin(1.0 / 12.0))  # 1 m/s to the left: crosses the left line at 1.75 m
+    tracker, out = track(scene, 80, lambda k, s: s.detect())
+    assert tracker.swaps == 1
+    for tracked, truth, _ in out:
+        assert tracked.left[0] > -0.05 and tracked.right[0] < 0.05
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.03)
+
+
+def test_coasting_across_a_line_swaps_by_the_prediction():
+    scene = Scene(yaw=math.asin(1.0 / 12.0))
+    tracker, out = track(scene, 40, lambda k, s: s.detect(left=k < 30, right=k < 30))
+    assert tracker.swaps == 1  # crossed at t = 1.75 s (frame 35) with nothing seen
+    for tracked, truth, _ in out[30:]:
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.03)
+
+
+def test_existence_and_reported_variance_weight_the_update():
+    def moved(prob: float, var: float | None) -> float:
+        scene = Scene()
+        tracker, _ = track(scene, 20, lambda k, s: s.detect(right=False))
+        ld = scene.detect(right=False)
+        off = LaneDetection(ld.timestamp, ld.left + np.array([0.1, 0, 0, 0]), None, prob, 0.0, ld.x_range, var)
+        return tracker.update(off, scene.speed, scene.yaw_rate).left[0] - ld.left[0]
+
+    assert moved(0.6, None) < moved(1.0, None)
+    assert moved(1.0, 0.2**2) < moved(1.0, None) < moved(1.0, 0.01**2)
+
+
+def test_the_output_keeps_the_detection_contract():
+    scene = Scene()
+    tracker = LaneTracker()
+    assert tracker.update(LaneDetection.empty(0.0), 12.0, 0.0) == LaneDetection.empty(0.0)
+    ld = scene.detect(right=False)
+    tracked = tracker.update(ld, 12.0, 0.0)
+    assert tracked.timestamp == ld.timestamp and tracked.x_range == ld.x_range
+    assert tracked.right is None and tracked.right_prob == 0.0
+    assert tracked.left.shape == (4,) and tracked.left_prob == 1.0
+    assert tracked.left_var is None  # the detector reported none
+    reported = tracker.update(LaneDetection(0.05, ld.left, None, 1.0, 0.0, ld.x_range, 0.01), 12.0, 0.0)
+    assert 0.0 < reported.left_var < 0.01
+
+
+def test_non_finite_or_improbable_lines_do_not_update():
+    scene = Scene()
+    tracker, _ = track(scene, 20, lambda k, s: s.detect())
+    ld = scene.detect()
+    bad = LaneDetection(ld.timestamp, np.array([np.nan, 0, 0, 0]), ld.right, 1.0, 0.01, ld.x_range)
+    tracked = tracker.update(bad, scene.speed, scene.yaw_rate)
+    np.testing.assert_allclose(tracked.left[0], ld.left[0], atol=0.01)
+    np.testing.assert_allclose(tracked.right[0], ld.right[0], atol=0.01)
+
+
+@pytest.mark.parametrize("bad", [dict(measurement_std=(0.1, 0.0, 1e-3, 1e-5)), dict(gate=0.0),
+                                 dict(confirm_frames=0), dict(max_coast=-1.0), dict(lateral_std=-0.1)])
+def test_bad_parameters_are_refused(bad):
+    with pytest.raises(ValueError, match="tracker"):
+        TrackerParams(**bad)

@@ -1,0 +1,52 @@
+import pytest
+
+from testbed.eval.runner import SimRun
+from testbed.eval.scenario import ScenarioError, load_scenario
+
+
+def _scenario(**overrides):
+    return load_scenario("urban-straight").with_overrides(**{"duration": 1.0, "detector": "oracle", **overrides})
+
+
+def test_tracking_defaults_to_camera_detectors_and_needs_a_detector():
+    sim = SimRun(_scenario())
+    try:
+        assert sim.tracker is None  # the oracle reads no camera
+    finally:
+        sim.close()
+    with pytest.raises(ScenarioError, match="tracking needs a lane detector"):
+        SimRun(_scenario(detector="none"), tracking=True)
+
+
+def test_the_tracker_runs_after_the_ld_side_tamper_and_feeds_the_recorded_d_ld():
+    shift = 0.5
+    sc = _scenario(attack={"kind": "drp-trace", "start": 0.3, "shift": shift, "ramp": 0.0, "duration": 5.0})
+    sim = SimRun(sc, tracking=True)
+    try:
+        result = sim.run()
+    finally:
+        sim.close()
+    assert result.summary["tracking"] is True
+    last = result.rows[-1]
+    assert last.ld_dev - last.phys_dev == pytest.approx(shift, abs=0.03)  # D_LD is of the tracked lines
+    tracked_left = sim.tracker.kf.x[0, 0]  # the tracker itself saw the tampered lines
+    assert tracked_left == pytest.approx(sim.lane_width / 2 - last.phys_dev - shift, abs=0.03)
+
+
+def test_the_scenarios_detector_tracking_key_switches_the_tracker():
+    from testbed.eval.scenario import apply_settings
+
+    on = SimRun(_scenario(detector="classical"))
+    off = SimRun(apply_settings(_scenario(detector="classical"), ["detector.tracking=false"]))
+    try:
+        assert on.tracker is not None and off.tracker is None
+    finally:
+        on.close()
+        off.close()
+
+
+def test_tracking_is_refused_for_a_detector_without_a_camera():
+    from testbed.eval.scenario import apply_settings
+
+    with pytest.raises(ScenarioError, match=r"\[detector oracle\] unknown parameter 'tracking'"):
+        apply_settings(_scenario(detector="oracle"), ["detector.tracking=true"])
