@@ -34,8 +34,10 @@ def drive(
     """Step the world for `seconds`, asking `controller` for (steer, accel) before every physics step."""
     for _ in range(round(seconds / DT)):
         vehicle.apply(*controller())
-        vehicle.pre_step(DT)
+        vehicle.actuate(DT)
+        vehicle.apply_road_load()
         p.stepSimulation(physicsClientId=cid)
+        vehicle.sense(DT)
         if on_step is not None:
             on_step()
 
