@@ -18,21 +18,22 @@ class SectionTimer:
     """Accumulates wall time per named section by wrapping bound methods of live objects. A wrapped call made
     inside another counts for its own section only (exclusive time), so the sections add up to the total."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
         self.seconds: dict[str, float] = defaultdict(float)
+        self._clock = clock
         self._inner: list[float] = [0.0]  # time spent in nested wrapped calls, per open call
 
     def wrap(self, obj: object, method: str, section: str) -> None:
         inner: Callable[..., Any] = getattr(obj, method)
-        nested = self._inner
+        nested, clock = self._inner, self._clock
 
         def timed(*args: Any, **kwargs: Any) -> Any:
             nested.append(0.0)
-            t0 = time.perf_counter()
+            t0 = clock()
             try:
                 return inner(*args, **kwargs)
             finally:
-                elapsed = time.perf_counter() - t0
+                elapsed = clock() - t0
                 self.seconds[section] += elapsed - nested.pop()
                 nested[-1] += elapsed
 
