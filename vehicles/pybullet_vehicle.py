@@ -2,7 +2,7 @@
 
 Once per command interval of `dt` s (`actuate`, the motors then hold their targets for the physics steps
 in it), the rate-limited steering advances towards its command by dt and the two Ackermann front wheels
-ramp to their angles over the interval (position control with a velocity cap), and the acceleration
+are sent to the angles it reaches at the interval's end (position control), and the acceleration
 command becomes wheel torques from the speed measured at the interval's start: F = m_eff·a + road_load(v)
 with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at that torque limit, their
 target capped 1 m/s above the body speed as traction control), F < 0 brakes all four (velocity motors
@@ -34,7 +34,6 @@ _MAX_WHEEL_SPEED = 400.0  # rad/s, PyBullet's joint velocity cap (default 100 ra
 _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
-_STEER_HOLD_RATE = 100.0  # rad/s: a wheel whose target does not move corrects any deflection at once
 _ORIGIN = (0.0, 0.0, 0.0)
 
 
@@ -76,8 +75,7 @@ class PyBulletVehicle:
         self._steering = SteeringActuator(params.max_steer, params.max_steer_rate)
         self._cmd_steer = 0.0
         self._cmd_accel = 0.0
-        self._sent_steer = (0.0, 0.0)
-        self._sent_wheels = (0.0, 0.0)
+        self._sent_steer = 0.0
         self._load = 0.0
         self._speed = 0.0
         self._accel = 0.0
@@ -95,8 +93,8 @@ class PyBulletVehicle:
         interval; the motors keep their targets across the physics steps in it)."""
         prm, v = self.params, self._speed
         delta = self._steering.step(self._cmd_steer, dt)
-        if (delta, self._steering.rate) != self._sent_steer:  # motors keep their targets: resend on change
-            self._send_steer(delta, dt)
+        if delta != self._sent_steer:  # motors keep their targets: resend on change
+            self._send_steer(delta)
         accel = max(-prm.max_decel, min(prm.max_accel, self._cmd_accel, _GOVERNOR_GAIN * (prm.max_speed - v)))
         self._load = road_load(prm, v)
         force = self._m_eff * accel + self._load
@@ -133,24 +131,20 @@ class PyBulletVehicle:
         self._accel += alpha * ((v - self._speed) / dt - self._accel)
         self._speed = v
 
-    def _send_steer(self, delta: float, dt: float) -> None:
-        """Front wheels to their Ackermann angles for `delta`, each ramping there over `dt` s at a constant
-        rate (held at once where its angle does not change)."""
+    def _send_steer(self, delta: float) -> None:
+        """Front wheels to their Ackermann angles for `delta` (the position motors reach them within a step)."""
         left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
-        for joint, target, now in zip(self.steer_joint_ids, (left, right), self._sent_wheels, strict=True):
-            p.setJointMotorControl2(
-                self.body_id,
-                joint,
-                p.POSITION_CONTROL,
-                targetPosition=target,
-                force=_STEER_TORQUE,
-                positionGain=_STEER_POSITION_GAIN,
-                velocityGain=_STEER_VELOCITY_GAIN,
-                maxVelocity=abs(target - now) / dt or _STEER_HOLD_RATE,
-                physicsClientId=self._cid,
-            )
-        self._sent_steer = (delta, self._steering.rate)
-        self._sent_wheels = (left, right)
+        p.setJointMotorControlArray(
+            self.body_id,
+            self.steer_joint_ids,
+            p.POSITION_CONTROL,
+            targetPositions=(left, right),
+            forces=(_STEER_TORQUE, _STEER_TORQUE),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
+            velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
+            physicsClientId=self._cid,
+        )
+        self._sent_steer = delta
 
     def reset_pose(self, pose: Pose, speed: float = 0.0) -> None:
         """Place the car (initial placement only) at `pose`, straight wheels, rolling forward at `speed`."""
@@ -167,8 +161,7 @@ class PyBulletVehicle:
         for j in self.wheel_link_ids:
             p.resetJointState(body, j, 0.0, speed / self.params.wheel_radius, physicsClientId=cid)
         self._steering.reset(0.0)
-        self._sent_wheels = (0.0, 0.0)
-        self._send_steer(0.0, 1.0)  # the wheels are at 0 already: a hold
+        self._send_steer(0.0)
         self._cmd_steer = 0.0
         self._cmd_accel = 0.0
         self._speed = speed

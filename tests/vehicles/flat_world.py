@@ -55,10 +55,11 @@ def drive_at_rate(
     seconds: float,
     controller: Callable[[], tuple[float, float]],
     command_hz: float,
-    on_step: Callable[[], None] | None = None,
+    on_interval: Callable[[], None] | None = None,
 ) -> None:
     """Step the world for `seconds` with a command from `controller` every 1/`command_hz` s, actuated once
-    for the physics steps up to the next command (2 or 3 of them at 100 Hz), as the direct chassis does."""
+    for the physics steps up to the next command (2 or 3 of them at 100 Hz), as the direct chassis does;
+    `on_interval` is called at the end of each command interval."""
     steps_done = 0
     for k in range(1, round(seconds * command_hz) + 1):
         steps = round(k / command_hz / DT) - steps_done
@@ -67,7 +68,7 @@ def drive_at_rate(
         for _ in range(steps):
             vehicle.apply_road_load()
             p.stepSimulation(physicsClientId=cid)
-            if on_step is not None:
-                on_step()
         vehicle.sense(steps * DT)
         steps_done += steps
+        if on_interval is not None:
+            on_interval()
