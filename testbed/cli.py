@@ -150,12 +150,32 @@ def cmd_patch_figure(args: argparse.Namespace) -> int:
     return 0
 
 
+LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector", "seconds")
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from testbed.eval import bench
 
-    result = bench.run(args.what, seconds=args.seconds, detector=args.detector, ground=args.ground)
-    print(json.dumps(result, indent=2))
+    given = [f"--{name}" for name in LOOP_ONLY if getattr(args, name) is not None]
+    if args.what != "loop" and given:
+        raise UserError(f"{', '.join(given)} only apply to `ld3 bench loop`; drop them for `{args.what}`")
+    loop = {name: getattr(args, name) for name in LOOP_ONLY if getattr(args, name) is not None}
+    if "camera" in loop:
+        loop["camera"] = loop["camera"] == "on"
+    result = bench.run(args.what, **loop)
+    print(json.dumps(result, indent=2) if args.json else format_bench(result))
     return 0
+
+
+def format_bench(result: dict, indent: str = "") -> str:
+    """A benchmark's result as indented `key: value` lines."""
+    lines = []
+    for key, value in result.items():
+        if isinstance(value, dict):
+            lines += [f"{indent}{key}:", format_bench(value, indent + "  ")]
+        else:
+            lines.append(f"{indent}{key}: {value}")
+    return "\n".join(lines)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -252,10 +272,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="benchmarks (not tests): loop, render, ld (lane detectors), map, defense")
     p.add_argument("what", choices=["loop", "render", "ld", "map", "defense"])
-    p.add_argument("--seconds", type=float, default=20.0, help="simulated seconds for `loop`")
-    p.add_argument("--detector", default="neural", help="lane detector for `loop` (its camera is rendered anyway)")
-    p.add_argument("--ground", default="canvas", choices=["canvas", "mesh"],
-                   help="how `loop` draws the road surface: ground canvas (default) or TinyRenderer meshes")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    loop = p.add_argument_group("loop", "the closed loop: real-time factor, bare-physics real-time factor of the "
+                                "same world and car, their ratio, and the split of time between the loop's parts")
+    loop.add_argument("--camera", choices=["on", "off"], help="render the camera at its rate (default on), or run "
+                      "without a camera (a detector that reads it is refused)")
+    loop.add_argument("--scenario", help="scenario preset (default urban-straight)")
+    loop.add_argument("--speed", type=float, help="target speed, m/s (default: the scenario's)")
+    loop.add_argument("--localization", help="localization (default: the scenario's)")
+    loop.add_argument("--seconds", type=float, help="simulated seconds (default 20)")
+    loop.add_argument("--detector", help="lane detector (default neural; with --camera on the camera is rendered "
+                      "even for a detector that does not read it)")
+    loop.add_argument("--ground", choices=["canvas", "mesh"],
+                      help="how the camera draws the road surface: ground canvas (default) or TinyRenderer meshes")
     p.set_defaults(func=cmd_bench)
 
     from testbed.perception.commands import add_ld_parser

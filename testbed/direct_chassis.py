@@ -55,9 +55,15 @@ class DirectChassis(ChassisPort):
         self.vehicle.apply(self._applied.steer, self._applied.accel)
 
     def advance(self, dt: float) -> None:
+        """Hand the applied command to the vehicle once, step physics to the next control instant, sense."""
         self._apply_due_command()
         self._t_target += dt
-        target = round(self._t_target / self.world.dt)
-        while self._steps < target:
+        steps = round(self._t_target / self.world.dt) - self._steps
+        if steps <= 0:
+            return
+        interval = steps * self.world.dt
+        self.vehicle.actuate(interval)
+        for _ in range(steps):
             self.world.step()
-            self._steps += 1
+        self._steps += steps
+        self.vehicle.sense(interval)

@@ -39,7 +39,7 @@ class LoopRates:
         return max(1, round(self.control_hz / self.camera_hz))
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class TickRecord:
     """One row of trajectory.csv (DESIGN.md output contract), the attack's state, and in attack response
     the fusion's internals (None outside it, or for a defense without them)."""

@@ -101,9 +101,10 @@ class PhysicsWorld:
         return body
 
     def step(self) -> None:
+        """One physics step (the vehicle's motors were set by its last `actuate`), with its road load."""
         if self.steps % OBSTACLE_UPDATE_STEPS == 0:
             self.update_obstacles(self.vehicle.pose())
-        self.vehicle.pre_step(self.dt)
+        self.vehicle.apply_road_load()
         pb.stepSimulation(physicsClientId=self.client)
         self.steps += 1
         self.t = self.steps * self.dt

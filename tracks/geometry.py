@@ -19,6 +19,7 @@ from tracks.pose import Pose
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
 _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-point search
+_MEMO_SIZE = 16  # recent projections kept: a control tick asks about the same few points several times
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,7 @@ class ReferenceLine:
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
         self._hint: int | None = None
+        self._memo: dict[tuple[float, float, float], tuple[float, float]] = {}
 
     # ---- exact segment formulas -------------------------------------------------------------
     def _seg_index(self, s: float) -> int:
@@ -210,8 +212,19 @@ class ReferenceLine:
         Walks from the previous answer first (consecutive queries of a moving vehicle); when that walk does
         not settle or lands farther than `max_offset` laterally, restarts from the nearest of coarse samples
         (every ~5 m). s is then refined exactly by Newton steps on the segment formulas. s < 0 or
-        s > length means the point lies beyond an end.
+        s > length means the point lies beyond an end. The answers to the last few queries are kept and
+        returned again for the same point.
         """
+        key = (x, y, max_offset)
+        memo = self._memo
+        found = memo.get(key)
+        if found is None:
+            found = memo[key] = self._project(x, y, max_offset)
+            if len(memo) > _MEMO_SIZE:
+                del memo[next(iter(memo))]
+        return found
+
+    def _project(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         if self._hint is not None:
             i, settled = self._walk(x, y, self._hint)
             if settled:

@@ -9,6 +9,7 @@ are indexed 0 = rightmost; lateral offsets t are + left.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 
@@ -118,6 +119,21 @@ class Track:
             return False
         lo, hi = self.lateral_range if self.in_intersection(s) else self.paved_range
         return lo <= t <= hi
+
+    @functools.cached_property
+    def max_abs_curvature(self) -> float:
+        """Largest |curvature| (1/m) of the reference line."""
+        return float(np.max(np.abs(self.reference.curvature)))
+
+    def surface_holds_disc(self, x: float, y: float, radius: float) -> bool:
+        """True when every point within `radius` of (x, y) is surely on the paved surface: the centre projects
+        `radius` inside the paved range and 2·radius inside the road's ends, where the curvature is mild
+        enough at that offset (|k|·(|t| + radius) ≤ ½) that t changes no faster than the point moves and s
+        at most twice as fast. False means: test the points themselves."""
+        s, t = self.reference.project(x, y)
+        lo, hi = self.paved_range
+        return (self.max_abs_curvature * (abs(t) + radius) <= 0.5 and lo + radius <= t <= hi - radius
+                and 2.0 * radius <= s <= self.length - 2.0 * radius)
 
     def edge_kind_at(self, x: float, y: float) -> str | None:
         """None on the paved surface; otherwise the kind of the edge the point lies beyond

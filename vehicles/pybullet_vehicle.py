@@ -1,13 +1,16 @@
 """The vehicle as a PyBullet multibody driven through its wheels: physics does the driving.
 
-Each physics step, `pre_step` moves the rate-limited steering towards its command and sets the two
-Ackermann front-wheel angles (position control), and turns the acceleration command into wheel torques:
-F = m_eff·a + road_load(v) with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at
-that torque limit, their target capped 1 m/s above the body speed as traction control), F < 0 brakes all
-four (velocity motors held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes
-that hold a stopped car). The road load is applied to the body as an external force. A speed governor
-caps the command at (max_speed − v)·2 s⁻¹. The car is only placed by `reset_pose`, never teleported.
-"""
+Once per command interval of `dt` s (`actuate`, the motors then hold their targets for the physics steps
+in it), the rate-limited steering advances towards its command by dt and the two Ackermann front wheels
+are sent to the angles it reaches at the interval's end (position control), and the acceleration
+command becomes wheel torques from the speed measured at the interval's start: F = m_eff·a + road_load(v)
+with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at that torque limit, their
+target capped 1 m/s above the body speed as traction control), F < 0 brakes all four (velocity motors
+held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes that hold a stopped car).
+The road load is pushed on the body as an external force every physics step (`apply_road_load`). A speed
+governor caps the command at (max_speed − v)·2 s⁻¹. `sense` measures the speed after each interval and
+low-pass filters its change into the reported acceleration. The car is only placed by `reset_pose`,
+never teleported"""
 
 from __future__ import annotations
 
@@ -15,7 +18,6 @@ import math
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pybullet as p
 
 from tracks.pose import Pose
@@ -32,6 +34,7 @@ _MAX_WHEEL_SPEED = 400.0  # rad/s, PyBullet's joint velocity cap (default 100 ra
 _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
+_ORIGIN = (0.0, 0.0, 0.0)
 
 
 def _yaw_of(q: tuple[float, float, float, float]) -> float:
@@ -68,41 +71,33 @@ class PyBulletVehicle:
         r = params.wheel_radius
         i_spin = params.wheel_mass * r * r / 2.0
         self._m_eff = params.mass + 4.0 * i_spin / (r * r)
-        self._cg_offset = np.array([params.cg_x, 0.0, params.cg_height])
+        self._cg_offset = (params.cg_x, 0.0, params.cg_height)
         self._steering = SteeringActuator(params.max_steer, params.max_steer_rate)
         self._cmd_steer = 0.0
         self._cmd_accel = 0.0
-        self._sent_steer = (0.0, 0.0)
+        self._sent_steer = 0.0
+        self._load = 0.0
         self._speed = 0.0
         self._accel = 0.0
         self.reset_pose(pose)
 
-    # -- commands and stepping ------------------------------------------------------------------------
+    # -- commands and actuation -----------------------------------------------------------------------
 
     def apply(self, steer_cmd: float, accel_cmd: float) -> None:
         """Store the command: road-wheel angle (rad, + left) and longitudinal accel (m/s², < 0 brakes)."""
         self._cmd_steer = steer_cmd
         self._cmd_accel = accel_cmd
 
-    def pre_step(self, dt: float) -> None:
-        """Actuate for the physics step of length `dt` that follows (call before every stepSimulation)."""
-        cid, body, prm = self._cid, self.body_id, self.params
-        pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=cid)
-        lin, _ = p.getBaseVelocity(body, physicsClientId=cid)
-        yaw = _yaw_of(orn)
-        c, s = math.cos(yaw), math.sin(yaw)
-        v = lin[0] * c + lin[1] * s
-        alpha = dt / (_ACCEL_FILTER_TAU + dt)
-        self._accel += alpha * ((v - self._speed) / dt - self._accel)
-        self._speed = v
-
+    def actuate(self, dt: float) -> None:
+        """Hand the stored command to PyBullet's motors for the next `dt` s of physics (once per command
+        interval; the motors keep their targets across the physics steps in it)."""
+        prm, v = self.params, self._speed
         delta = self._steering.step(self._cmd_steer, dt)
-        if (delta, self._steering.rate) != self._sent_steer:  # motors keep their targets: resend on change
+        if delta != self._sent_steer:  # motors keep their targets: resend on change
             self._send_steer(delta)
-
         accel = max(-prm.max_decel, min(prm.max_accel, self._cmd_accel, _GOVERNOR_GAIN * (prm.max_speed - v)))
-        load = road_load(prm, v)
-        force = self._m_eff * accel + load
+        self._load = road_load(prm, v)
+        force = self._m_eff * accel + self._load
         r = prm.wheel_radius
         if force >= 0.0:
             drive = force * r / 2.0
@@ -115,30 +110,41 @@ class PyBulletVehicle:
             targets = (0.0, 0.0, 0.0, 0.0)
             torques = (front, front, rear, rear)
         p.setJointMotorControlArray(
-            body,
+            self.body_id,
             self.wheel_link_ids,
             p.VELOCITY_CONTROL,
             targetVelocities=targets,
             forces=torques,
-            physicsClientId=cid,
+            physicsClientId=self._cid,
         )
-        p.applyExternalForce(body, -1, (-load * c, -load * s, 0.0), pos, p.WORLD_FRAME, physicsClientId=cid)
+
+    def apply_road_load(self) -> None:
+        """Push the road load of the last `actuate` on the body, along its x axis at its centre of mass, for
+        the next physics step (PyBullet clears external forces after every step)."""
+        p.applyExternalForce(self.body_id, -1, (-self._load, 0.0, 0.0), _ORIGIN, p.LINK_FRAME,
+                             physicsClientId=self._cid)
+
+    def sense(self, dt: float) -> None:
+        """Measure the speed after `dt` s of physics since the last `sense` and update the filtered accel."""
+        v = self.speed()
+        alpha = dt / (_ACCEL_FILTER_TAU + dt)
+        self._accel += alpha * ((v - self._speed) / dt - self._accel)
+        self._speed = v
 
     def _send_steer(self, delta: float) -> None:
+        """Front wheels to their Ackermann angles for `delta` (the position motors reach them within a step)."""
         left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
-        rate = self._steering.rate
         p.setJointMotorControlArray(
             self.body_id,
             self.steer_joint_ids,
             p.POSITION_CONTROL,
             targetPositions=(left, right),
-            targetVelocities=(rate, rate),
             forces=(_STEER_TORQUE, _STEER_TORQUE),
             positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
             velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
             physicsClientId=self._cid,
         )
-        self._sent_steer = (delta, rate)
+        self._sent_steer = delta
 
     def reset_pose(self, pose: Pose, speed: float = 0.0) -> None:
         """Place the car (initial placement only) at `pose`, straight wheels, rolling forward at `speed`."""
@@ -160,15 +166,17 @@ class PyBulletVehicle:
         self._cmd_accel = 0.0
         self._speed = speed
         self._accel = 0.0
+        self._load = 0.0
 
     # -- measurements ---------------------------------------------------------------------------------
 
     def pose(self) -> Pose:
         """Reference point (footprint centre projected on the ground) and heading, world frame."""
-        pos, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
-        rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        ref = np.asarray(pos) - rot @ self._cg_offset
-        return Pose(float(ref[0]), float(ref[1]), _yaw_of(orn))
+        (px, py, _), (x, y, z, w) = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
+        ox, _, oz = self._cg_offset
+        ref_x = px - ((1.0 - 2.0 * (y * y + z * z)) * ox + 2.0 * (x * z + y * w) * oz)
+        ref_y = py - (2.0 * (x * y + z * w) * ox + 2.0 * (y * z - x * w) * oz)
+        return Pose(ref_x, ref_y, _yaw_of((x, y, z, w)))
 
     def speed(self) -> float:
         """Signed longitudinal speed (m/s, + forward)."""

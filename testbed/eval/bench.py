@@ -15,22 +15,33 @@ import torch
 
 
 class SectionTimer:
-    """Accumulates wall time per named section by wrapping bound methods of live objects."""
+    """Accumulates wall time per named section by wrapping bound methods of live objects. A wrapped call made
+    inside another counts for its own section only (exclusive time), so the sections add up to the total."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
         self.seconds: dict[str, float] = defaultdict(float)
+        self._clock = clock
+        self._inner: list[float] = [0.0]  # time spent in nested wrapped calls, per open call
 
     def wrap(self, obj: object, method: str, section: str) -> None:
         inner: Callable[..., Any] = getattr(obj, method)
+        nested, clock = self._inner, self._clock
 
         def timed(*args: Any, **kwargs: Any) -> Any:
-            t0 = time.perf_counter()
+            nested.append(0.0)
+            t0 = clock()
             try:
                 return inner(*args, **kwargs)
             finally:
-                self.seconds[section] += time.perf_counter() - t0
+                elapsed = clock() - t0
+                self.seconds[section] += elapsed - nested.pop()
+                nested[-1] += elapsed
 
         setattr(obj, method, timed)
+
+    def wrap_all(self, obj: object, methods: tuple[str, ...], section: str) -> None:
+        for method in methods:
+            self.wrap(obj, method, section)
 
 
 def one_core() -> None:
@@ -39,43 +50,128 @@ def one_core() -> None:
     cv2.setNumThreads(1)
 
 
+LOOP_SECTIONS = ("physics", "vehicle actuation", "localization", "map", "control", "defense", "attack",
+                 "logging", "consequence monitor", "render", "tile streaming", "detector")
+"""The parts `bench loop` splits the loop's wall time into (plus `rest`: the loop's own glue)."""
+
+
+def _instrument(sim, timer: SectionTimer) -> None:
+    """Wrap every part of a built SimRun in its LOOP_SECTIONS section."""
+    loop, track = sim.loop, sim.track
+    timer.wrap(sim.world, "step", "physics")
+    timer.wrap(sim.world, "update_obstacles", "tile streaming")
+    timer.wrap_all(sim.world.vehicle, ("actuate", "sense", "apply_road_load"), "vehicle actuation")
+    timer.wrap(sim.chassis, "read", "vehicle actuation")
+    timer.wrap(sim.localization, "step", "localization")
+    timer.wrap_all(sim.smap, ("project", "lane_dev", "lane_width", "lane_point", "lane_curvature"), "map")
+    timer.wrap_all(track, ("road_surface_contains", "edge_kind_at", "lidar_feature_quality"), "map")
+    timer.wrap(track.reference, "project", "map")
+    timer.wrap_all(loop.driving.planner, ("plan", "start_stop"), "control")
+    timer.wrap(loop.driving.lateral, "update", "control")
+    timer.wrap(loop.driving.longitudinal, "update", "control")
+    timer.wrap_all(sim.defense, ("on_gnss", "on_lane_detection", "pose_for_control", "on_command", "status"),
+                   "defense")
+    timer.wrap(loop.ld_dev, "update", "defense")
+    if sim.attack is not None:
+        timer.wrap_all(sim.attack, ("spoof_gnss", "tamper_msf", "tamper_ld", "state"), "attack")
+        timer.wrap(loop, "_attacker_view", "attack")
+    timer.wrap(loop, "_record", "logging")
+    timer.wrap_all(sim, ("_edge_beyond", "_stopped"), "consequence monitor")
+    timer.wrap(sim.monitor, "observe", "consequence monitor")
+    timer.wrap(sim.world, "contact_kinds", "consequence monitor")
+    if sim.camera is not None:
+        timer.wrap(sim.camera, "capture", "render")
+        timer.wrap(sim.streamer, "update", "tile streaming")
+    if sim.detector is not None:
+        timer.wrap(sim.detector, "detect", "detector")
+    if sim.tracker is not None:
+        timer.wrap(sim.tracker, "update", "detector")
+
+
+def _bare_physics(sc, steps: int) -> dict[str, float]:
+    """`stepSimulation` alone, `steps` times, in a fresh world of the scenario with its car rolling at the
+    scenario speed under a constant command: wall and CPU seconds."""
+    import pybullet as pb
+
+    from testbed.eval.runner import physics_world_for
+    from tracks.presets import load_track
+    from vehicles.params import get_vehicle
+
+    track = load_track(sc.track)
+    lane = sc.lane if sc.lane is not None else track.ego_lane
+    start = track.start_pose(lane, sc.start_s)
+    world = physics_world_for(sc, track, get_vehicle(sc.vehicle), start)
+    try:
+        world.vehicle.reset_pose(start, sc.speed)
+        world.vehicle.actuate(world.dt)
+        client = world.client
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        for _ in range(steps):
+            pb.stepSimulation(physicsClientId=client)
+        return {"wall_s": time.perf_counter() - wall0, "cpu_s": time.process_time() - cpu0}
+    finally:
+        world.close()
+
+
 def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector: str = "neural",
-               ground: str = "canvas") -> dict[str, Any]:
-    """Closed loop with the camera rendered at 20 Hz on one core: real-time factor (wall clock, and process
-    CPU time, which a busy machine disturbs less) and the split of wall time between the parts."""
+               ground: str = "canvas", camera: bool = True, speed: float | None = None,
+               localization: str | None = None) -> dict[str, Any]:
+    """The closed loop on one core, with the camera rendered at its rate or without a camera: its real-time
+    factor (wall clock, and process CPU time, which a busy machine disturbs less), the bare-physics
+    real-time factor of the same world and car (`stepSimulation` alone, as many steps), their ratio, and
+    the split of wall time between the loop's parts (LOOP_SECTIONS) from a second, instrumented run."""
     from testbed.eval.runner import SimRun
-    from testbed.eval.scenario import load_scenario
+    from testbed.eval.scenario import ScenarioError, load_scenario
+    from testbed.perception.registry import DETECTORS
+    from testbed.registry import Capability
 
     one_core()
-    sc = load_scenario(scenario).with_overrides(duration=seconds, detector=detector)
-    sim = SimRun(sc, render=True, ground=ground)
-    timer = SectionTimer()
-    timer.wrap(sim.world, "step", "physics")
-    timer.wrap(sim.camera, "render", "rendering")
-    timer.wrap(sim.streamer, "update", "tile streaming")
-    if sim.detector is not None:
-        timer.wrap(sim.detector, "detect", "lane detection")
-    driving = sim.loop.driving
-    for obj, name in ((driving.planner, "plan"), (driving.lateral, "update"), (driving.longitudinal, "update")):
-        timer.wrap(obj, name, "control")
-    timer.wrap(sim.localization, "step", "localization")
+    sc = load_scenario(scenario).with_overrides(duration=seconds, detector=detector, speed=speed,
+                                                localization=localization)
+    if not camera and Capability.CAMERA_IMAGE in DETECTORS.get(sc.detector).provides:
+        raise ScenarioError(f"detector {sc.detector!r} reads the camera: use --camera on, or a detector that "
+                            f"does not (--detector oracle or none)")
+
+    def build() -> SimRun:
+        return SimRun(sc, render=camera, ground=ground)
+
+    sim = build()
     cpu0 = time.process_time()
     try:
         result = sim.run()
     finally:
         sim.close()
     cpu = time.process_time() - cpu0
-    wall = result.summary["wall_time_s"]
-    split = {k: round(v / wall, 4) for k, v in sorted(timer.seconds.items())}
+    summary = result.summary
+    sim_time, wall = summary["sim_time_s"], summary["wall_time_s"]
+    steps = round(sim_time * sc.rates.get("physics_hz", 240.0))
+    bare = _bare_physics(sc, steps)
+
+    timed, timer = build(), SectionTimer()
+    _instrument(timed, timer)
+    try:
+        timed_wall = timed.run().summary["wall_time_s"]
+    finally:
+        timed.close()
+    split = {k: round(timer.seconds.get(k, 0.0) / timed_wall, 4) for k in LOOP_SECTIONS}
     split["rest"] = round(1.0 - sum(split.values()), 4)
-    return {
-        "scenario": scenario, "detector": detector, "ground": ground, "resolution": f"{sim.rig.width}x{sim.rig.height}",
-        "sim_time_s": result.summary["sim_time_s"], "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
-        "real_time_factor": round(result.summary["real_time_factor"], 2),
-        "real_time_factor_cpu": round(result.summary["sim_time_s"] / cpu, 2), "time_fraction": split,
-        "tile_render_resets": sim.streamer.resets,
-        "ground_canvas_recentres": sim.streamer.canvas.rebuilds if sim.streamer.canvas else None,
+    rtf, bare_rtf = sim_time / wall, sim_time / bare["wall_s"]
+    out: dict[str, Any] = {
+        "scenario": scenario, "track": sc.track, "vehicle": sc.vehicle, "speed_mps": sc.speed,
+        "localization": sc.localization, "detector": sc.detector, "camera": camera,
+        "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
+        "real_time_factor": round(rtf, 2), "real_time_factor_cpu": round(sim_time / cpu, 2),
+        "bare_physics_real_time_factor": round(bare_rtf, 2),
+        "bare_physics_real_time_factor_cpu": round(sim_time / bare["cpu_s"], 2),
+        "ratio_to_bare_physics": round(rtf / bare_rtf, 3),
+        "ratio_to_bare_physics_cpu": round(bare["cpu_s"] / cpu, 3),
+        "instrumented_real_time_factor": round(sim_time / timed_wall, 2), "time_fraction": split,
     }
+    if camera:
+        out |= {"ground": ground, "resolution": f"{sim.rig.width}x{sim.rig.height}",
+                "tile_render_resets": sim.streamer.resets,
+                "ground_canvas_recentres": sim.streamer.canvas.rebuilds if sim.streamer.canvas else None}
+    return out
 
 
 def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[str, Any]:
@@ -159,9 +255,12 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
     return out
 
 
-def run(what: str, seconds: float = 20.0, detector: str = "neural", ground: str = "canvas") -> dict[str, Any]:
+def run(what: str, seconds: float = 20.0, detector: str = "neural", ground: str = "canvas", camera: bool = True,
+        scenario: str = "urban-straight", speed: float | None = None, localization: str | None = None
+        ) -> dict[str, Any]:
+    """Run benchmark `what`; the other arguments are `loop`'s."""
     if what == "loop":
-        return bench_loop(seconds, detector=detector, ground=ground)
+        return bench_loop(seconds, scenario, detector, ground, camera, speed, localization)
     if what == "render":
         return bench_render()
     if what == "ld":

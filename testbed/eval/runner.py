@@ -204,6 +204,8 @@ class SimRun:
 
     def _edge_beyond(self, pose: Pose) -> str | None:
         """Kind of road edge a whole side of the footprint is beyond (two corners off the paved surface)."""
+        if self.track.surface_holds_disc(pose.x, pose.y, 0.5 * math.hypot(self.params.length, self.params.width)):
+            return None
         corners = footprint_corners(pose.x, pose.y, pose.yaw, self.params.length, self.params.width)
         kinds = [self.track.edge_kind_at(x, y) for x, y in corners]
         off = [k for k in kinds if k is not None]

@@ -3,12 +3,14 @@
 Nominal state (x, y, yaw, v, gyro bias, accel bias, lateral-velocity residual u) is propagated with each
 IMU sample: ω = ω_m − b_g, yaw += ω dt, v += (a − b_a) dt, and the reference point (ahead of the rear axle
 by `lever`) moves with body velocity (v, lever·ω + u): the kinematic sideslip of a car's centre plus a
-random-walk residual for tyre slip. The filterpy KalmanFilter holds the 7-D error state
-δ = (δx, δy, δyaw, δv, δb_g, δb_a, δu) and its covariance; its transition is the linearisation of the
-propagation above. GNSS (x, y) and LiDAR (x, y, yaw) fixes update the error state
-with the covariances their sensors report, after a chi-square innovation gate (Mahalanobis distance of
-the innovation against H P Hᵀ + R); the accepted correction is injected into the nominal state and δ
-reset to zero. The LiDAR locator is the filter's anchor: rejected for `lidar_reset_after` seconds in a
+random-walk residual for tyre slip. The 7-D error state δ = (δx, δy, δyaw, δv, δb_g, δb_a, δu) is zero
+between updates (each correction is injected into the nominal state at once), so the filter carries only
+its covariance P: predicted P ← F P Fᵀ + Q with F the linearisation of the propagation above, and updated
+by filterpy's Kalman equations (gain K = P Hᵀ S⁻¹, S = H P Hᵀ + R; Joseph form P ← (I − KH) P (I − KH)ᵀ +
+K R Kᵀ) on preallocated arrays. GNSS (x, y) and LiDAR (x, y, yaw) fixes observe the first 2 or 3 error
+components (H = [I 0]) with the covariances their sensors report, after a chi-square innovation gate
+(Mahalanobis distance of the innovation against S); the accepted correction K z is added to the nominal
+state. The LiDAR locator is the filter's anchor: rejected for `lidar_reset_after` seconds in a
 row, it is re-admitted by inflating the position covariance (the filter admits it may have drifted).
 GNSS fixes that fail the gate are simply dropped.
 """
@@ -19,7 +21,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from scipy.stats import chi2
 
 from testbed.localization.estimate import LocalizationEstimate
@@ -27,8 +28,24 @@ from testbed.localization.sensors import GnssFix, ImuSample, LidarFix
 from tracks.pose import Pose, wrap_angle
 
 _N = 7
-_H_GNSS = np.hstack([np.eye(2), np.zeros((2, _N - 2))])
-_H_LIDAR = np.hstack([np.eye(3), np.zeros((3, _N - 3))])
+
+
+def propagate_covariance(p: np.ndarray, f: np.ndarray, q_diag: np.ndarray, scratch: np.ndarray) -> None:
+    """P ← F P Fᵀ + diag(q) in place (filterpy's `predict` for a zero state), `scratch` an array like P."""
+    np.matmul(f, p, out=scratch)
+    np.matmul(scratch, f.T, out=p)
+    p.flat[:: len(p) + 1] += q_diag
+
+
+def observed_prefix_update(p: np.ndarray, z: np.ndarray, r: np.ndarray, s: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update of a zero state whose first len(z) components are measured (H = [I 0]) as z with noise
+    covariance R, S = H P Hᵀ + R given: the correction K z and the Joseph-form covariance (filterpy's `update`)."""
+    n = len(z)
+    k = p[:, :n] @ np.linalg.inv(s)
+    i_kh = np.eye(len(p))
+    i_kh[:, :n] -= k
+    return k @ z, i_kh @ p @ i_kh.T + k @ r @ k.T
 
 
 @dataclass(frozen=True)
@@ -56,8 +73,7 @@ class MultiSensorFusion:
     def __init__(self, start_pose: Pose, start_speed: float, params: MsfParams | None = None) -> None:
         self.params = p = params or MsfParams()
         self.nominal = np.array([start_pose.x, start_pose.y, start_pose.yaw, start_speed, 0.0, 0.0, 0.0])
-        self.kf = KalmanFilter(dim_x=_N, dim_z=2)
-        self.kf.P = np.diag(
+        self.P = np.diag(
             [
                 p.init_pos_std**2,
                 p.init_pos_std**2,
@@ -68,6 +84,10 @@ class MultiSensorFusion:
                 0.0,
             ]
         )
+        self._f = np.eye(_N)
+        self._fp = np.empty((_N, _N))
+        self._q = np.array([0.0, 0.0, p.gyro_noise**2, p.accel_noise**2, p.gyro_bias_walk**2,
+                            p.accel_bias_walk**2, p.lat_vel_walk**2])
         self.t: float | None = None
         self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
         self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
@@ -85,7 +105,7 @@ class MultiSensorFusion:
         if dt <= 0.0:
             return
         p = self.params
-        x, y, yaw, v, bg, ba, u = self.nominal
+        x, y, yaw, v, bg, ba, u = self.nominal.tolist()
         c, s = math.cos(yaw), math.sin(yaw)
         omega = imu.yaw_rate - bg
         vl = p.lever * omega + u
@@ -95,61 +115,45 @@ class MultiSensorFusion:
             wrap_angle(yaw + omega * dt),
             v + (imu.accel_long - ba) * dt,
         )
-        f = np.eye(_N)
+        f = self._f
         f[0, 2], f[0, 3], f[0, 4], f[0, 6] = (-v * s - vl * c) * dt, c * dt, p.lever * s * dt, -s * dt
         f[1, 2], f[1, 3], f[1, 4], f[1, 6] = (v * c - vl * s) * dt, s * dt, -p.lever * c * dt, c * dt
         f[2, 4] = -dt
         f[3, 5] = -dt
-        self.kf.F = f
-        self.kf.Q = np.diag(
-            [
-                0.0,
-                0.0,
-                p.gyro_noise**2 * dt,
-                p.accel_noise**2 * dt,
-                p.gyro_bias_walk**2 * dt,
-                p.accel_bias_walk**2 * dt,
-                p.lat_vel_walk**2 * dt,
-            ]
-        )
-        self.kf.predict()
+        propagate_covariance(self.P, f, self._q * dt, self._fp)
 
-    def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray, h: np.ndarray) -> bool:
-        s = h @ self.kf.P @ h.T + r
+    def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
+        n = len(z)
+        pht = self.P[:, :n]
+        s = pht[:n] + r
         d2 = float(z @ np.linalg.solve(s, z))
-        if d2 > self._gate[len(z)]:
+        if d2 > self._gate[n]:
             self.rejected[source] += 1
             if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
                 self._readmit(source, t, z)
             return False
-        self.kf.x = np.zeros(_N)
-        self.kf.update(z, R=r, H=h)
-        self._inject()
+        dx, self.P = observed_prefix_update(self.P, z, r, s)
+        self.nominal += dx
+        self.nominal[2] = wrap_angle(self.nominal[2])
         self._last_accepted[source] = t
         return True
 
     def _readmit(self, source: str, t: float, z: np.ndarray) -> None:
         """Inflate the position covariance to the rejected innovation so the next fix can be accepted."""
         inflation = float(np.max(z[:2] ** 2))
-        self.kf.P[0, 0] += inflation
-        self.kf.P[1, 1] += inflation
+        self.P[0, 0] += inflation
+        self.P[1, 1] += inflation
         self._last_accepted[source] = t
-
-    def _inject(self) -> None:
-        dx = self.kf.x
-        self.nominal += dx
-        self.nominal[2] = wrap_angle(self.nominal[2])
-        self.kf.x = np.zeros(_N)
 
     def update_gnss(self, fix: GnssFix) -> bool:
         """Fuse a GNSS fix; returns False when the innovation gate rejects it."""
         z = np.asarray(fix.xy, float) - self.nominal[:2]
-        return self._gated_update("gnss", fix.t, z, np.asarray(fix.cov, float), _H_GNSS)
+        return self._gated_update("gnss", fix.t, z, np.asarray(fix.cov, float))
 
     def update_lidar(self, fix: LidarFix) -> bool:
         """Fuse a LiDAR-locator pose; returns False when the innovation gate rejects it."""
         z = np.array([fix.xy[0] - self.nominal[0], fix.xy[1] - self.nominal[1], wrap_angle(fix.yaw - self.nominal[2])])
-        return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float), _H_LIDAR)
+        return self._gated_update("lidar", fix.t, z, np.asarray(fix.cov, float))
 
     @property
     def pose(self) -> Pose:
@@ -160,4 +164,4 @@ class MultiSensorFusion:
         return float(self.nominal[3])
 
     def estimate(self, t: float) -> LocalizationEstimate:
-        return LocalizationEstimate(t, self.pose, self.kf.P[:3, :3].copy())
+        return LocalizationEstimate(t, self.pose, self.P[:3, :3].copy())

@@ -1,8 +1,10 @@
 """Benchmarks run and report their figures (values are machine-dependent and never asserted against targets)."""
 
 import importlib.util
+import json
 
-from testbed.eval.bench import bench_lane_detectors
+from testbed.cli import EXIT_USAGE, main
+from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, bench_lane_detectors
 
 
 def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
@@ -15,3 +17,41 @@ def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
         r = result[name]
         assert 0.0 < r["ms_median"] <= r["ms_p99"]
         assert 0.0 < r["cpu_ms_median"] <= r["cpu_ms_p99"]
+
+
+def test_loop_bench_without_camera_reports_both_real_time_factors_and_a_complete_split(capsys):
+    assert main(["bench", "loop", "--camera", "off", "--scenario", "highway", "--speed", "27", "--localization",
+                 "msf", "--detector", "none", "--seconds", "0.5", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["camera"] is False and result["sim_time_s"] == 0.5 and result["physics_steps"] == 120
+    assert result["real_time_factor"] > 0 and result["bare_physics_real_time_factor"] > 0
+    assert set(result["time_fraction"]) == {*LOOP_SECTIONS, "rest"}
+    assert result["time_fraction"]["physics"] > 0 and result["time_fraction"]["localization"] > 0
+    assert result["time_fraction"]["render"] == 0 and result["time_fraction"]["detector"] == 0
+
+
+def test_loop_bench_refuses_a_camera_detector_without_camera_and_loop_options_elsewhere(capsys):
+    assert main(["bench", "loop", "--camera", "off", "--detector", "neural", "--seconds", "0.5"]) == EXIT_USAGE
+    assert "--camera on" in capsys.readouterr().err
+    assert main(["bench", "map", "--camera", "off"]) == EXIT_USAGE
+    assert "only apply to `ld3 bench loop`" in capsys.readouterr().err
+
+
+def test_section_timer_counts_nested_calls_once():
+    now = [0.0]
+
+    class Parts:
+        def outer(self) -> None:
+            now[0] += 2.0
+            self.inner()
+            now[0] += 1.0
+
+        def inner(self) -> None:
+            now[0] += 3.0
+
+    parts, timer = Parts(), SectionTimer(clock=lambda: now[0])
+    timer.wrap(parts, "outer", "a")
+    timer.wrap(parts, "inner", "b")
+    parts.outer()
+    parts.inner()
+    assert dict(timer.seconds) == {"a": 3.0, "b": 6.0}

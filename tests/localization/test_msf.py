@@ -26,7 +26,7 @@ def test_imu_propagation_dead_reckons_and_grows_uncertainty():
     assert msf.pose.x == pytest.approx(20.0, abs=1e-6)
     assert msf.pose.y == pytest.approx(0.0, abs=1e-9)
     p0 = MsfParams().init_pos_std ** 2
-    assert msf.kf.P[1, 1] > p0
+    assert msf.P[1, 1] > p0
 
 
 def test_turning_imu_sample_turns_the_estimate():
@@ -62,7 +62,7 @@ def test_precise_lidar_outweighs_gnss():
 
 def test_update_shrinks_covariance_and_estimate_exposes_it():
     msf = driven()
-    before = msf.kf.P[1, 1]
+    before = msf.P[1, 1]
     p = msf.pose
     msf.update_lidar(LidarFix(msf.t, np.array([p.x, p.y]), p.yaw, np.diag([0.04**2, 0.04**2, 1e-5])))
     est = msf.estimate(msf.t)

@@ -72,3 +72,22 @@ def test_lane_curvature_of_offset_lanes():
     assert left.curvature_at(s) == pytest.approx(1.0 / (1.0 / k - 3.75))
     assert right.curvature_at(s) == pytest.approx(1.0 / (1.0 / k + 3.75))
     assert math.copysign(1.0, left.curvature_at(s)) == math.copysign(1.0, k)
+
+
+@pytest.mark.parametrize("name", ["urban-curvy", "highway", "local", "slr"])
+def test_a_disc_the_surface_holds_has_every_point_on_the_surface(name):
+    track = load_track(name)
+    rng = np.random.default_rng(4)
+    lo, hi = track.paved_range
+    held = 0
+    for _ in range(300):
+        s, t, radius = rng.uniform(0.0, track.length), rng.uniform(lo - 1.0, hi + 1.0), rng.uniform(0.3, 1.5)
+        x, y = track.reference.point(s, t)
+        if not track.surface_holds_disc(x, y, radius):
+            continue
+        held += 1
+        ang, r = rng.uniform(-math.pi, math.pi, 24), radius * np.sqrt(rng.uniform(0.0, 1.0, 24))
+        ring = [(x + radius * math.cos(a), y + radius * math.sin(a)) for a in np.linspace(-math.pi, math.pi, 24)]
+        inside = [(x + rk * math.cos(a), y + rk * math.sin(a)) for a, rk in zip(ang, r, strict=True)]
+        assert all(track.road_surface_contains(px, py) for px, py in ring + inside)
+    assert held > 30  # the shortcut applies on a good share of the road

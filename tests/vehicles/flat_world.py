@@ -34,8 +34,10 @@ def drive(
     """Step the world for `seconds`, asking `controller` for (steer, accel) before every physics step."""
     for _ in range(round(seconds / DT)):
         vehicle.apply(*controller())
-        vehicle.pre_step(DT)
+        vehicle.actuate(DT)
+        vehicle.apply_road_load()
         p.stepSimulation(physicsClientId=cid)
+        vehicle.sense(DT)
         if on_step is not None:
             on_step()
 
@@ -45,3 +47,28 @@ def speed_controller(
 ) -> Callable[[], tuple[float, float]]:
     """Proportional speed control (1 s⁻¹) at a constant steering angle."""
     return lambda: (steer, 1.0 * (target - vehicle.speed()))
+
+
+def drive_at_rate(
+    cid: int,
+    vehicle: PyBulletVehicle,
+    seconds: float,
+    controller: Callable[[], tuple[float, float]],
+    command_hz: float,
+    on_interval: Callable[[], None] | None = None,
+) -> None:
+    """Step the world for `seconds` with a command from `controller` every 1/`command_hz` s, actuated once
+    for the physics steps up to the next command (2 or 3 of them at 100 Hz), as the direct chassis does;
+    `on_interval` is called at the end of each command interval."""
+    steps_done = 0
+    for k in range(1, round(seconds * command_hz) + 1):
+        steps = round(k / command_hz / DT) - steps_done
+        vehicle.apply(*controller())
+        vehicle.actuate(steps * DT)
+        for _ in range(steps):
+            vehicle.apply_road_load()
+            p.stepSimulation(physicsClientId=cid)
+        vehicle.sense(steps * DT)
+        steps_done += steps
+        if on_interval is not None:
+            on_interval()

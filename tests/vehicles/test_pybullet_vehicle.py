@@ -6,7 +6,7 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from tests.vehicles.flat_world import DT, drive, make_world, speed_controller
+from tests.vehicles.flat_world import DT, drive, drive_at_rate, make_world, speed_controller
 from tracks.pose import Pose
 from vehicles.params import DEV_CHASSIS, SEDAN
 from vehicles.pybullet_vehicle import PyBulletVehicle
@@ -94,6 +94,27 @@ def test_steering_follows_its_rate_and_angle_limits(world):
     assert rates.max() < 1.1 * SEDAN.max_steer_rate
     assert angles[round(0.5 / DT)] == pytest.approx(0.5 * SEDAN.max_steer_rate, abs=0.02)
     assert angles[-1] == pytest.approx(SEDAN.max_steer, abs=0.005)
+
+
+def test_steering_follows_its_rate_limit_under_100_hz_commands(world):
+    car = PyBulletVehicle(world, SEDAN, Pose(0.0, 0.0, 0.0))
+    car.reset_pose(Pose(0.0, 0.0, 0.0), speed=2.0)
+    angles: list[float] = []
+    drive_at_rate(world, car, 1.5, lambda: (1.5, 0.0), 100.0, on_interval=lambda: angles.append(car.steer_angle()))
+    times = [round((k + 1) / 100.0 / DT) * DT for k in range(len(angles))]  # each interval ends on a step
+    rates = np.diff(angles) / np.diff(times)
+    assert rates.max() < 1.1 * SEDAN.max_steer_rate
+    assert rates[10:50].min() > 0.9 * SEDAN.max_steer_rate  # a ramp at the limit, not a jump
+    assert angles[49] == pytest.approx(0.5 * SEDAN.max_steer_rate, abs=0.02)
+    assert angles[-1] == pytest.approx(SEDAN.max_steer, abs=0.005)
+
+
+def test_100_hz_commands_track_speed_and_report_the_acceleration(world):
+    car = PyBulletVehicle(world, SEDAN, Pose(0.0, 0.0, 0.0))
+    speeds: list[float] = []
+    drive_at_rate(world, car, 3.0, lambda: (0.0, 2.0), 100.0, on_interval=lambda: speeds.append(car.speed()))
+    assert speeds[-1] == pytest.approx(6.0, abs=0.1)
+    assert car.accel() == pytest.approx(2.0, abs=0.1)
 
 
 def test_dev_chassis_never_exceeds_5_mps(world):
