@@ -284,18 +284,23 @@ def _alarm(seconds: float) -> Iterator[None]:
 
 def _run_in_process(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     bar: tqdm) -> list[str]:
-    """Each run in this process, one after the other, under `_alarm`; returns the failure records."""
+    """Each run in this process, one after the other, within its limit; returns the failure records."""
     failures: list[str] = []
     for run in todo:
         tmp = temp_dir(out, run.run_id)
         tmp.mkdir(parents=True)
-        try:
-            with _alarm(run_limit(run, timeout)):
-                error = attempt(execute, run, tmp)
-        except RunTimeout as exc:
-            error = failure_record(run.run_id, "RunTimeout", str(exc))
-        count_finished(bar, failures, settle(run, out, tmp, error))
+        count_finished(bar, failures, settle(run, out, tmp, attempt_within(execute, run, tmp,
+                                                                           run_limit(run, timeout))))
     return failures
+
+
+def attempt_within(execute: RunExecutor, run: CampaignRun, tmp: Path, limit_s: float) -> str | None:
+    """`attempt` in this process under `_alarm(limit_s)`; a run over the limit is a RunTimeout record."""
+    try:
+        with _alarm(limit_s):
+            return attempt(execute, run, tmp)
+    except RunTimeout as exc:
+        return failure_record(run.run_id, "RunTimeout", str(exc))
 
 
 # ---- workers > 1: spawned worker processes --------------------------------------------------------------

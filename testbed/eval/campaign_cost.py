@@ -10,11 +10,12 @@ from testbed.eval.campaign import CampaignRun
 from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 
-WALL_PER_SIM_S_CAMERA = 0.0
-WALL_PER_SIM_S_NO_CAMERA = 0.0
-"""Wall seconds one worker spends per simulated second of a run whose detector reads the rendered camera, and
-of one whose detector does not (no camera frame is rendered): measured on the development machine, one run
-at a time on 2 cores (docs/cluster.md, per-run cost)."""
+WALL_PER_SIM_S_CAMERA = 0.23
+WALL_PER_SIM_S_NO_CAMERA = 0.08
+"""Seconds one worker (one core) spends per simulated second of a run whose detector reads the rendered
+camera (neural), and of one whose detector does not (no frame is rendered): CPU seconds of whole runs
+(set-up, loop, outputs; one torch thread) per simulated second on the development machine, FusionRipper
+campaign runs (docs/cluster.md, per-run cost)."""
 
 
 def wall_per_sim_s(run: CampaignRun) -> float:

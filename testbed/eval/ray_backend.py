@@ -2,10 +2,11 @@
 returns the folder's files; the campaign process writes them into the run's temporary folder and settles
 it exactly as the local backend does (rename into place, failures.txt, redone runs, the folder lock).
 
-At most `workers` tasks are in flight (default: every CPU of the cluster), one CPU each, so a run's time
-limit, counted from its submission, is a limit on its execution; a task over it is cancelled with its
-worker process killed. Workers never touch the campaign folder, so killing the campaign leaves no writer
-there. Needs the optional extra: `pip install '.[ray]'`.
+At most `workers` tasks are in flight (default: every CPU of the cluster), one CPU each. A task keeps its
+run's time limit itself, counted from when it starts executing (as the in-process local backend does);
+a task still unfinished `START_ALLOWANCE_S` after its limit, counted from submission, is cancelled with its
+worker process killed (a hang in one long C call). Workers never touch the campaign folder, so killing the
+campaign leaves no writer there. Needs the optional extra: `pip install '.[ray]'`.
 """
 
 from __future__ import annotations
@@ -23,10 +24,11 @@ from typing import Any
 from tqdm import tqdm
 
 from testbed.eval.campaign import (
+    DEFAULT_WORKERS,
     BackendUnavailable,
     CampaignRun,
     RunExecutor,
-    attempt,
+    attempt_within,
     count_finished,
     failure_record,
     run_limit,
@@ -35,7 +37,10 @@ from testbed.eval.campaign import (
 )
 
 INSTALL_HINT = "pip install '.[ray]'"
-LOCAL_DEFAULT_CPUS = 2
+START_ALLOWANCE_S = 60.0
+"""What a task may take beyond its run's limit, counted from submission, before it is cancelled: a worker
+process to start and import the testbed (2.8 s on the idle 2-core development machine, over 8 s at a load
+average of 30)."""
 
 
 def require_ray() -> ModuleType:
@@ -47,13 +52,14 @@ def require_ray() -> ModuleType:
     return ray
 
 
-def execute_in_scratch(execute: RunExecutor, run: CampaignRun) -> tuple[str | None, dict[str, bytes]]:
-    """The body of a run's task: `execute` into a fresh scratch folder; (failure record or None, the
-    folder's files by relative POSIX path; none after a failure)."""
+def execute_in_scratch(execute: RunExecutor, run: CampaignRun, limit_s: float,
+                       ) -> tuple[str | None, dict[str, bytes]]:
+    """The body of a run's task: `execute` into a fresh scratch folder within `limit_s` (counted from here);
+    (failure record or None, the folder's files by relative POSIX path; none after a failure)."""
     with tempfile.TemporaryDirectory(prefix="ld3-run-") as scratch:
         run_dir = Path(scratch) / "run"
         run_dir.mkdir()
-        error = attempt(execute, run, run_dir)
+        error = attempt_within(execute, run, run_dir, limit_s)
         if error is not None:
             return error, {}
         return None, {p.relative_to(run_dir).as_posix(): p.read_bytes()
@@ -80,9 +86,12 @@ def connected(ray: ModuleType, address: str | None, workers: int | None) -> Iter
         yield workers or _cluster_cpus(ray)
         return
     if address is None:
-        ray.init(num_cpus=workers or LOCAL_DEFAULT_CPUS, include_dashboard=False, logging_level=logging.WARNING)
+        ray.init(num_cpus=workers or DEFAULT_WORKERS, include_dashboard=False, logging_level=logging.WARNING)
     else:
-        ray.init(address=address, logging_level=logging.WARNING)
+        try:
+            ray.init(address=address, logging_level=logging.WARNING)
+        except ConnectionError as exc:
+            raise BackendUnavailable(f"cannot connect to the Ray cluster at {address!r}: {exc}") from None
     try:
         yield workers or _cluster_cpus(ray)
     finally:
@@ -138,7 +147,8 @@ def run_on_ray(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, tim
                 while pending and len(in_flight) < slots:
                     run = pending.pop()
                     limit = run_limit(run, timeout)
-                    in_flight[task.remote(execute, run)] = _Task(run, limit, time.monotonic() + limit)
+                    in_flight[task.remote(execute, run, limit)] = _Task(run, limit, time.monotonic() + limit
+                                                                        + START_ALLOWANCE_S)
                 wait_s = max(0.0, min(t.deadline for t in in_flight.values()) - time.monotonic())
                 ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=wait_s)
                 for ref in ready:
@@ -150,8 +160,9 @@ def run_on_ray(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, tim
                     if now >= job.deadline:
                         ray.cancel(ref, force=True)
                         del in_flight[ref]
-                        count_finished(bar, failures, failure_record(job.run.run_id, "RunTimeout",
-                                                                     f"over its {job.limit_s:g} s limit"))
+                        count_finished(bar, failures, failure_record(
+                            job.run.run_id, "RunTimeout", f"over its {job.limit_s:g} s limit (+ "
+                                                          f"{START_ALLOWANCE_S:g} s to start, cancelled)"))
         finally:
             for ref in in_flight:
                 ray.cancel(ref, force=True)

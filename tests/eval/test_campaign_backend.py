@@ -3,6 +3,7 @@ same bytes) and its failure handling; `ld3 campaign list`."""
 
 import json
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -41,6 +42,19 @@ def test_campaign_options_that_cannot_act_are_refused(tmp_path, capsys, extra, m
     assert cli.main(_table4_argv(tmp_path, *extra)) == cli.EXIT_USAGE
     assert capsys.readouterr().err == f"ld3: error: {message}\n"
     assert not (tmp_path / "c").exists()
+
+
+def test_an_unreachable_ray_cluster_is_one_line_and_runs_nothing(tmp_path, monkeypatch, capsys):
+    ray = pytest.importorskip("ray")
+
+    def refuse(**kwargs):
+        raise ConnectionError("Could not find any running Ray instance.")
+
+    monkeypatch.setattr(ray, "init", refuse)
+    assert cli.main(_table4_argv(tmp_path, "--backend", "ray", "--address", "auto")) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == ("ld3: error: cannot connect to the Ray cluster at 'auto': Could not find any "
+                                       "running Ray instance.\n")
+    assert not (tmp_path / "c" / "ld3-start6").exists()
 
 
 def test_ld3_campaign_passes_backend_address_and_workers_through(tmp_path, monkeypatch):
@@ -110,12 +124,20 @@ def test_the_same_run_is_byte_identical_on_the_local_and_the_ray_backend(tmp_pat
 
 
 def test_the_ray_backend_records_failures_timeouts_and_dead_workers_and_goes_on(tmp_path):
-    pytest.importorskip("ray")
+    ray = pytest.importorskip("ray")
     sc = load_scenario("slr")
     runs = [CampaignRun("hang", sc, {"hang": True}), CampaignRun("fail", sc, {"fail": True}),
             CampaignRun("die", sc, {"die": True}), *(CampaignRun(f"grp/ok{i}", sc, {"parts": 2}) for i in range(3))]
-    done = run_campaign(runs, tmp_path, workers=2, progress=False, execute=slow_writer, timeout=8.0,
-                        backend="ray")
+    ray.init(num_cpus=2, include_dashboard=False)  # a connection this process holds is used and left open
+    try:
+        done = run_campaign(runs, tmp_path, workers=2, progress=False, execute=slow_writer, timeout=8.0,
+                            backend="ray")
+        assert ray.is_initialized()
+        with pytest.raises(ValueError, match="Ray is already connected in this process"):
+            run_campaign(runs, tmp_path / "other", progress=False, execute=slow_writer, backend="ray",
+                         address="auto")
+    finally:
+        ray.shutdown()
     assert [r.run_id for r, _ in done] == ["grp/ok0", "grp/ok1", "grp/ok2"]
     for i in range(3):
         assert {p.name for p in (tmp_path / "grp" / f"ok{i}").iterdir()} == {"summary.json", "part-0", "part-1"}
@@ -125,3 +147,30 @@ def test_the_ray_backend_records_failures_timeouts_and_dead_workers_and_goes_on(
     assert headers[1:] == ["fail: RuntimeError: boom second line", "hang: RunTimeout: over its 8 s limit"]
     assert not list(tmp_path.rglob(".*.tmp-*"))
     assert not (tmp_path / "pids.log").exists()  # the workers wrote only into their scratch folders
+
+
+@pytest.mark.slow
+def test_a_ray_task_deaf_to_its_alarm_is_cancelled_after_the_start_allowance(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    from testbed.eval import ray_backend
+
+    monkeypatch.setattr(ray_backend, "START_ALLOWANCE_S", 30.0)
+    sc = load_scenario("slr")
+    runs = [CampaignRun("deaf", sc, {"deaf": True}), CampaignRun("ok", sc, {"parts": 1})]
+    done = run_campaign(runs, tmp_path, workers=1, progress=False, execute=slow_writer, timeout=5.0,
+                        backend="ray")
+    assert [r.run_id for r, _ in done] == ["ok"]
+    assert (tmp_path / "failures.txt").read_text() == ("deaf: RunTimeout: over its 5 s limit (+ 30 s to start, "
+                                                       "cancelled)\n")
+    assert not list(tmp_path.glob(".*.tmp-*"))
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parents[2] / "docs" / "cluster").glob("*.yaml")),
+                         ids=lambda p: p.name)
+def test_the_documented_cluster_configs_pass_rays_schema(path):
+    autoscaler = pytest.importorskip("ray.autoscaler")
+    import jsonschema
+    import yaml
+
+    schema = json.loads((Path(autoscaler.__file__).parent / "ray-schema.json").read_text())
+    jsonschema.validate(yaml.safe_load(path.read_text()), schema)
