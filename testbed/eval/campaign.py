@@ -8,13 +8,13 @@ is redone) and named on stderr and in `redone.txt`. A run that fails or exceeds 
 default `run_timeout`) is named on stderr and in `failures.txt` (first line `run_id: ErrorType: message`,
 the traceback tail indented below it) and the campaign goes on; both files describe the latest invocation.
 
-On the `local` backend with workers > 1, runs go to spawned worker processes that die with the campaign
-process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so killing the campaign leaves at
-most temporary folders; a worker over its time limit is killed and replaced. With workers = 1 runs execute in
-this process. On the `ray` backend runs are Ray tasks whose files come back to this process, which writes and
-settles them the same way (`testbed.eval.ray_backend`). One campaign process at a time may use a folder
-(`.campaign.lock`). The collected summaries go to `runs.csv` (nested fields as dotted columns) and the
-campaign's own table to `report.md`.
+On the `local` backend with workers > 1, runs go to spawned worker processes (one OpenMP thread each, as on
+Ray) that die with the campaign process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so
+killing the campaign leaves at most temporary folders; a worker over its time limit is killed and replaced.
+With workers = 1 runs execute in this process. On the `ray` backend runs are Ray tasks whose files come back
+to this process, which writes and settles them the same way (`testbed.eval.ray_backend`). One campaign process
+at a time may use a folder (`.campaign.lock`). The collected summaries go to `runs.csv` (nested fields as
+dotted columns) and the campaign's own table to `report.md`.
 """
 
 from __future__ import annotations
@@ -55,6 +55,7 @@ measured (75 neural-detector campaign runs) took 3.3 × their simulated time."""
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.2
 BACKENDS = ("local", "ray")
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 DEFAULT_WORKERS = 2
 
 
@@ -322,9 +323,18 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(1)
 
 
+def _one_thread() -> None:
+    """One OpenMP/MKL thread in this worker (torch's lane detector included), as Ray gives its workers: a
+    worker is one core's worth of work beside the others."""
+    os.environ.update({name: "1" for name in WORKER_THREAD_VARIABLES})
+    if "torch" in sys.modules:  # already loaded (a parent's __main__ that imports it): the variables came late
+        sys.modules["torch"].set_num_threads(1)
+
+
 def _worker_main(conn: Connection, parent_pid: int) -> None:
     """A worker: run each (run, temporary folder, executor) received and answer its failure record or None."""
     _die_with_parent(parent_pid)
+    _one_thread()
     while True:
         try:
             job = conn.recv()

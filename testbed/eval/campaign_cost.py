@@ -26,20 +26,23 @@ def wall_per_sim_s(run: CampaignRun) -> float:
 
 @dataclass(frozen=True)
 class CampaignCost:
-    """A set of runs: how many, their simulated seconds, and their estimated wall seconds on one worker."""
+    """A set of runs: how many, their simulated seconds, and their estimated wall seconds on one worker and
+    of the longest run."""
 
     runs: int
     sim_s: float
     wall_s_one_worker: float
+    longest_run_s: float
 
     def wall_s(self, workers: int) -> float:
-        """Estimated wall seconds on `workers` workers of one core each (runs spread evenly)."""
-        return self.wall_s_one_worker / workers
+        """Estimated wall seconds on `workers` workers of one core each: the runs spread evenly, and never
+        less than the longest run."""
+        return max(self.wall_s_one_worker / workers, self.longest_run_s)
 
 
 def campaign_cost(runs: Sequence[CampaignRun]) -> CampaignCost:
-    return CampaignCost(len(runs), sum(r.scenario.duration for r in runs),
-                        sum(r.scenario.duration * wall_per_sim_s(r) for r in runs))
+    costs = [r.scenario.duration * wall_per_sim_s(r) for r in runs]
+    return CampaignCost(len(runs), sum(r.scenario.duration for r in runs), sum(costs), max(costs, default=0.0))
 
 
 def human_duration(seconds: float) -> str:

@@ -57,6 +57,15 @@ def process_probe(run: CampaignRun, run_dir: Path) -> dict:
     return summary
 
 
+def thread_probe(run: CampaignRun, run_dir: Path) -> dict:
+    """Records how many threads torch computes on in the process it runs in."""
+    import torch
+
+    summary = {"torch_threads": torch.get_num_threads()}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    return summary
+
+
 def crash_runs(n: int = 8) -> list[CampaignRun]:
     sc = load_scenario("slr")
     return [CampaignRun(f"run-{i}", sc, {"i": i}) for i in range(n)]

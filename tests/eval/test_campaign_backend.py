@@ -17,7 +17,7 @@ from testbed.eval.campaign_cost import (
 )
 from testbed.eval.campaigns import CAMPAIGNS
 from testbed.eval.scenario import load_scenario
-from tests.eval.campaign_helpers import slow_writer
+from tests.eval.campaign_helpers import slow_writer, thread_probe
 
 WALL_FIELDS = ("wall_time_s", "real_time_factor")
 
@@ -99,8 +99,14 @@ def test_the_cost_of_a_run_depends_on_whether_its_detector_reads_the_camera():
     cost = campaign_cost(runs)
     assert (cost.runs, cost.sim_s) == (3, 25.0)
     assert cost.wall_s(1) == pytest.approx(10.0 * WALL_PER_SIM_S_CAMERA + 15.0 * WALL_PER_SIM_S_NO_CAMERA)
-    assert cost.wall_s(5) == pytest.approx(cost.wall_s(1) / 5)
+    assert cost.wall_s(50) == cost.longest_run_s == pytest.approx(10.0 * WALL_PER_SIM_S_CAMERA)
     assert WALL_PER_SIM_S_CAMERA > WALL_PER_SIM_S_NO_CAMERA > 0
+
+
+def test_local_workers_compute_on_one_thread_each_as_rays_do(tmp_path):
+    runs = [CampaignRun(f"r{i}", load_scenario("slr"), {}) for i in range(2)]
+    done = run_campaign(runs, tmp_path, workers=2, progress=False, execute=thread_probe)
+    assert [s["torch_threads"] for _, s in done] == [1, 1]
 
 
 def test_the_same_run_is_byte_identical_on_the_local_and_the_ray_backend(tmp_path):
