@@ -188,20 +188,41 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_campaign(args: argparse.Namespace) -> int:
     from testbed.eval.campaign import CampaignBusyError
-    from testbed.eval.campaigns import CAMPAIGNS, run_named
+    from testbed.eval.campaigns import run_named
 
     if args.name == "list":
-        for spec in CAMPAIGNS:
-            print(f"{spec.name:18s} {spec.help}")
-        return 0
+        return _campaign_list(args)
     out = args.out or Path("runs") / f"campaign-{args.name}"
     try:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
-                           progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout)
+                           progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
+                           backend=args.backend or "local", address=args.address)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
     print(f"report: {report}")
+    return 0
+
+
+def _campaign_list(args: argparse.Namespace) -> int:
+    """`ld3 campaign list`: every campaign with its runs, simulated time and estimated wall time."""
+    from testbed.eval.campaign import DEFAULT_WORKERS
+    from testbed.eval.campaign_cost import campaign_cost, human_duration
+    from testbed.eval.campaigns import CAMPAIGNS
+
+    unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
+                                       ("--set", args.set), ("--backend", args.backend), ("--address", args.address))
+              if value]
+    if unused:
+        raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
+    workers = args.workers or DEFAULT_WORKERS
+    print(f"{'campaign':18s} {'runs':>5s} {'simulated':>10s} {f'est. wall ({workers} workers)':>24s}  what")
+    for spec in CAMPAIGNS:
+        cost = campaign_cost(spec.build(args.detector))
+        print(f"{spec.name:18s} {cost.runs:5d} {human_duration(cost.sim_s):>10s} "
+              f"{human_duration(cost.wall_s(workers)):>24s}  {spec.help}")
+    print(f"Estimated from the measured cost per simulated second on one core (lane detector {args.detector}); "
+          "see docs/cluster.md.")
     return 0
 
 
@@ -246,12 +267,20 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--out", type=Path)
     p.set_defaults(func=cmd_tracks)
 
+    from testbed.eval.campaign import BACKENDS
+
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
     p.add_argument("--out", type=Path, help="output directory (default runs/campaign-NAME); reruns resume, redoing "
                                              "unfinished runs (redone.txt)")
     p.add_argument("--detector", default="neural", help="lane detector for the runs that use one")
-    p.add_argument("--workers", type=int, default=2, help="worker processes (1: every run in this process)")
+    p.add_argument("--workers", type=int, help="local: worker processes (default 2; 1: every run in this process); "
+                                                "ray: CPUs of the local Ray instance (default 2), or with --address "
+                                                "the most runs in flight (default: every CPU of the cluster)")
+    p.add_argument("--backend", choices=BACKENDS, help="where the runs execute: local (default) or ray (needs "
+                                                       "pip install '.[ray]')")
+    p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto, or ray://HEAD:10001); without it "
+                                     "a local Ray instance is started")
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="time limit of each run (default 120 s + 10 × its simulated duration); a run over it is "
                         "stopped and listed in failures.txt")

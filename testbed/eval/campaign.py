@@ -8,11 +8,13 @@ is redone) and named on stderr and in `redone.txt`. A run that fails or exceeds 
 default `run_timeout`) is named on stderr and in `failures.txt` (first line `run_id: ErrorType: message`,
 the traceback tail indented below it) and the campaign goes on; both files describe the latest invocation.
 
-With workers > 1, runs go to spawned worker processes that die with the campaign process (PR_SET_PDEATHSIG
-on Linux, else a watchdog on the parent's pid), so killing the campaign leaves at most temporary folders; a
-worker over its time limit is killed and replaced. With workers = 1 runs execute in this process. One
-campaign process at a time may use a folder (`.campaign.lock`). The collected summaries go to `runs.csv`
-(nested fields as dotted columns) and the campaign's own table to `report.md`.
+On the `local` backend with workers > 1, runs go to spawned worker processes (one OpenMP thread each, as on
+Ray) that die with the campaign process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so
+killing the campaign leaves at most temporary folders; a worker over its time limit is killed and replaced.
+With workers = 1 runs execute in this process. On the `ray` backend runs are Ray tasks whose files come back
+to this process, which writes and settles them the same way (`testbed.eval.ray_backend`). One campaign process
+at a time may use a folder (`.campaign.lock`). The collected summaries go to `runs.csv` (nested fields as
+dotted columns) and the campaign's own table to `report.md`.
 """
 
 from __future__ import annotations
@@ -53,6 +55,9 @@ SIM_TIME_FACTOR = 10.0
 measured (75 neural-detector campaign runs) took 3.3 × their simulated time."""
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.2
+BACKENDS = ("local", "ray")
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+DEFAULT_WORKERS = 2
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,10 @@ class RunTimeout(BaseException):
 
 class CampaignBusyError(RuntimeError):
     """Another campaign process holds the folder's lock."""
+
+
+class BackendUnavailable(UserError):
+    """The chosen campaign backend cannot run here (its optional dependency is not installed)."""
 
 
 def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
@@ -112,7 +121,8 @@ def failure_record(run_id: str, error: str, message: str, tail: str = "") -> str
     return "\n".join(lines)
 
 
-def _limit(run: CampaignRun, timeout: float | None) -> float:
+def run_limit(run: CampaignRun, timeout: float | None) -> float:
+    """The time limit of `run` (s): `timeout`, or its default `run_timeout`."""
     return timeout if timeout is not None else run_timeout(run)
 
 
@@ -123,7 +133,7 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def _attempt(execute: RunExecutor, run: CampaignRun, tmp: Path) -> str | None:
+def attempt(execute: RunExecutor, run: CampaignRun, tmp: Path) -> str | None:
     """Run the executor into `tmp`; None on success, else its failure record (no Exception escapes)."""
     try:
         execute(run, tmp)
@@ -133,7 +143,7 @@ def _attempt(execute: RunExecutor, run: CampaignRun, tmp: Path) -> str | None:
         return failure_record(run.run_id, type(exc).__name__, str(exc), "".join(frames))
 
 
-def _settle(run: CampaignRun, out: Path, tmp: Path, error: str | None) -> str | None:
+def settle(run: CampaignRun, out: Path, tmp: Path, error: str | None) -> str | None:
     """Rename a finished run's temporary folder into place, or remove it; returns the failure record if any."""
     if error is None and isinstance(problem := load_summary(tmp), str):
         error = failure_record(run.run_id, "IncompleteRun", f"the executor returned but {problem}")
@@ -188,13 +198,27 @@ def _write_record(path: Path, entries: list[str]) -> None:
         path.unlink(missing_ok=True)
 
 
-def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progress: bool = True,
-                 execute: RunExecutor = run_and_write, timeout: float | None = None,
-                 ) -> list[tuple[CampaignRun, dict[str, Any]]]:
+def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = None, progress: bool = True,
+                 execute: RunExecutor = run_and_write, timeout: float | None = None, backend: str = "local",
+                 address: str | None = None) -> list[tuple[CampaignRun, dict[str, Any]]]:
     """Run every campaign run not yet done with `execute`, each within `timeout` seconds (default
-    `run_timeout` per run); returns (run, summary) for all runs that are done."""
+    `run_timeout` per run), on `backend`; returns (run, summary) for all runs that are done.
+
+    `local`: `workers` (default 2) spawned worker processes, or this process for 1. `ray`: Ray tasks on the
+    cluster at `address`, at most `workers` at a time (default: all of its CPUs), or on a local Ray instance
+    with `workers` (default 2) CPUs when `address` is None; see `testbed.eval.ray_backend`."""
     if timeout is not None and not timeout > 0:
         raise UserError(f"timeout must be > 0 s, got {timeout}")
+    if workers is not None and workers < 1:
+        raise UserError(f"workers must be ≥ 1, got {workers}")
+    if backend not in BACKENDS:
+        raise UserError(f"unknown campaign backend {backend!r}: choose one of {', '.join(BACKENDS)}")
+    if address is not None and backend != "ray":
+        raise UserError(f"a cluster address ({address!r}) needs the ray backend: add --backend ray")
+    if backend == "ray":
+        from testbed.eval.ray_backend import require_ray
+
+        require_ray()
     out.mkdir(parents=True, exist_ok=True)
     with _folder_lock(out):
         redone = _sweep(runs, out)
@@ -203,15 +227,27 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int = 2, progr
         _write_record(out / "redone.txt", redone)
         todo = [r for r in runs if not (out / r.run_id).exists()]
         with tqdm(total=len(todo), desc=out.name, disable=not progress or not todo) as bar:
-            failures = (_run_in_process(todo, out, execute, timeout, bar) if workers <= 1
-                        else _run_in_workers(todo, out, execute, timeout, workers, bar))
+            failures = _dispatch(todo, out, execute, timeout, workers, backend, address, bar) if todo else []
         _write_record(out / "failures.txt", failures)
         done = [(run, summary) for run in runs if isinstance(summary := load_summary(out / run.run_id), dict)]
         _write_runs_csv(out / "runs.csv", done)
     return done
 
 
-def _count(bar: tqdm, failures: list[str], error: str | None) -> None:
+def _dispatch(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+              workers: int | None, backend: str, address: str | None, bar: tqdm) -> list[str]:
+    """The runs on the chosen backend; returns the failure records."""
+    if backend == "ray":
+        from testbed.eval.ray_backend import run_on_ray
+
+        return run_on_ray(todo, out, execute, timeout, workers, address, bar)
+    n_workers = DEFAULT_WORKERS if workers is None else workers
+    if n_workers == 1:
+        return _run_in_process(todo, out, execute, timeout, bar)
+    return _run_in_workers(todo, out, execute, timeout, n_workers, bar)
+
+
+def count_finished(bar: tqdm, failures: list[str], error: str | None) -> None:
     """One more run finished: advance the bar; a failure is kept and its first line shown on stderr."""
     bar.update(1)
     if error is not None:
@@ -250,18 +286,23 @@ def _alarm(seconds: float) -> Iterator[None]:
 
 def _run_in_process(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     bar: tqdm) -> list[str]:
-    """Each run in this process, one after the other, under `_alarm`; returns the failure records."""
+    """Each run in this process, one after the other, within its limit; returns the failure records."""
     failures: list[str] = []
     for run in todo:
         tmp = temp_dir(out, run.run_id)
         tmp.mkdir(parents=True)
-        try:
-            with _alarm(_limit(run, timeout)):
-                error = _attempt(execute, run, tmp)
-        except RunTimeout as exc:
-            error = failure_record(run.run_id, "RunTimeout", str(exc))
-        _count(bar, failures, _settle(run, out, tmp, error))
+        count_finished(bar, failures, settle(run, out, tmp, attempt_within(execute, run, tmp,
+                                                                           run_limit(run, timeout))))
     return failures
+
+
+def attempt_within(execute: RunExecutor, run: CampaignRun, tmp: Path, limit_s: float) -> str | None:
+    """`attempt` in this process under `_alarm(limit_s)`; a run over the limit is a RunTimeout record."""
+    try:
+        with _alarm(limit_s):
+            return attempt(execute, run, tmp)
+    except RunTimeout as exc:
+        return failure_record(run.run_id, "RunTimeout", str(exc))
 
 
 # ---- workers > 1: spawned worker processes --------------------------------------------------------------
@@ -283,9 +324,18 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(1)
 
 
+def _one_thread() -> None:
+    """One OpenMP/MKL thread in this worker (torch's lane detector included), as Ray gives its workers: a
+    worker is one core's worth of work beside the others."""
+    os.environ.update({name: "1" for name in WORKER_THREAD_VARIABLES})
+    if "torch" in sys.modules:  # already loaded (a parent's __main__ that imports it): the variables came late
+        sys.modules["torch"].set_num_threads(1)
+
+
 def _worker_main(conn: Connection, parent_pid: int) -> None:
     """A worker: run each (run, temporary folder, executor) received and answer its failure record or None."""
     _die_with_parent(parent_pid)
+    _one_thread()
     while True:
         try:
             job = conn.recv()
@@ -294,7 +344,7 @@ def _worker_main(conn: Connection, parent_pid: int) -> None:
         if job is None:
             return
         run, tmp, execute = job
-        conn.send(_attempt(execute, run, tmp))
+        conn.send(attempt(execute, run, tmp))
 
 
 @dataclass(frozen=True)
@@ -377,7 +427,7 @@ def _run_in_workers(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor
             for worker in pool:
                 if pending and worker.job is None:
                     run = pending.pop()
-                    worker.give(run, out, execute, _limit(run, timeout))
+                    worker.give(run, out, execute, run_limit(run, timeout))
             busy = [(w, w.job) for w in pool if w.job is not None]
             if not busy:
                 return failures
@@ -388,7 +438,7 @@ def _run_in_workers(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor
                 finished, error = worker.outcome(job, ready, now)
                 if finished:
                     worker.job = None
-                    _count(bar, failures, _settle(job.run, out, job.tmp, error))
+                    count_finished(bar, failures, settle(job.run, out, job.tmp, error))
     finally:
         for worker in pool:
             worker.stop()

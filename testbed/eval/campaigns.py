@@ -348,11 +348,12 @@ for _spec in (
     CAMPAIGNS.add(_spec)
 
 
-def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 2, progress: bool = True,
-              select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None) -> Path:
+def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
+              select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
+              backend: str = "local", address: str | None = None) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None),
     `settings` are `--set KEY=VALUE` overrides applied to every run's scenario, `timeout` the time limit of
-    each run in seconds (default `run_timeout`)."""
+    each run in seconds (default `run_timeout`); `workers`, `backend` and `address` as `run_campaign`'s."""
     spec = CAMPAIGNS.get(name)
     runs = spec.build(detector)
     if select is not None:
@@ -361,7 +362,8 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int = 
             raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
     if settings:
         runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
-    done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout)
+    done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
+                        backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
     overrides = f" Every run with `--set {' '.join(settings)}`." if settings else ""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import multiprocessing as mp
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -29,11 +30,14 @@ def _log(path: Path, line: str) -> None:
 def slow_writer(run: CampaignRun, run_dir: Path) -> dict:
     """Writes `part-0` … `part-19` 0.05 s apart, then summary.json, then logs the run id in
     `completed.log` beside the run folders. Tags: `fail` raises, `die` ends the process, `hang` sleeps
-    (after logging its pid in `pids.log`)."""
+    (after logging its pid in `pids.log`), `deaf` sleeps with SIGALRM blocked (no in-process alarm ends it)."""
     if run.tags.get("fail"):
         raise RuntimeError("boom\nsecond line")
     if run.tags.get("die"):
         os._exit(3)
+    if run.tags.get("deaf"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+        time.sleep(120.0)
     if run.tags.get("hang"):
         _log(run_dir.parent / "pids.log", str(os.getpid()))
         time.sleep(120.0)
@@ -49,6 +53,15 @@ def slow_writer(run: CampaignRun, run_dir: Path) -> dict:
 def process_probe(run: CampaignRun, run_dir: Path) -> dict:
     """Records the process it runs in and how many child processes that process has."""
     summary = {"pid": os.getpid(), "children": len(mp.active_children())}
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    return summary
+
+
+def thread_probe(run: CampaignRun, run_dir: Path) -> dict:
+    """Records how many threads torch computes on in the process it runs in."""
+    import torch
+
+    summary = {"torch_threads": torch.get_num_threads()}
     (run_dir / "summary.json").write_text(json.dumps(summary))
     return summary
 
