@@ -20,7 +20,7 @@ from testbed.eval.ablation import IN_LANE, VARIANTS, is_default
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
-from testbed.eval.paper import EXPERIMENTS, CampaignResult, PaperOptions
+from testbed.eval.paper import CampaignResult, PaperOptions
 from testbed.eval.paper_figures import Stat, paper_vs_ours
 from testbed.eval.roc import roc_table
 from testbed.eval.stealthy_bound import LD_NOISE_STD, STEALTHY_TRACKS, fluctuation_stats, paper_bound
@@ -370,8 +370,7 @@ def write_paper_report(options: PaperOptions, results: dict[str, CampaignResult]
             f"one. Paper values: `testbed/eval/paper_values.toml` (each under its label in ld3_paper.tex). "
             f"Regenerate everything: `ld3 paper{' --quick' if options.quick else ''} --out {out}`.", "",
             "| campaign | runs done | command |", "|---|---|---|"]
-    head += [f"| {e.campaign} | {len(results[e.campaign].done)}/{len(results[e.campaign].planned)} "
-             f"| `{results[e.campaign].command}` |" for e in EXPERIMENTS]
+    head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | `{r.command}` |" for r in results.values()]
     body = [section(results, values, out) for section in SECTIONS]
     report = out / "report.md"
     report.write_text("\n".join(head) + "\n\n" + "\n\n".join(body) + "\n")
