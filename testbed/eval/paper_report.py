@@ -225,9 +225,10 @@ def grid_section(results: dict[str, CampaignResult], values: dict[str, Any], out
         at_text = f"{100 * np.mean(at):.0f}% ({len(at)})" if at else "–"
         best_text = (f"{best[1]:g}, {best[2]:g} | {100 * np.mean(mine[best]):.0f}%" if best is not None else "– | –")
         drives = sorted({len(v) for v in mine.values()})
+        drives_text = "–" if not drives else str(drives[0]) if drives[0] == drives[-1] else f"{drives[0]}–{drives[-1]}"
         lines.append(f"| {row['trace']} | {road} | {row['best_d']:g}, {row['best_f']:g} "
                      f"| {100 * row['success_rate']:.1f}% | {at_text} | {best_text} "
-                     f"| {'–'.join(str(d) for d in (drives[0], drives[-1])) if drives else '–'} |")
+                     f"| {drives_text} |")
     lines += ["", f"![success rate per d × f cell]({_rel(res.folder / 'fusionripper_grid.png', out)})"]
     return "\n".join(lines)
 
@@ -362,7 +363,7 @@ def write_paper_report(options: PaperOptions, results: dict[str, CampaignResult]
     """`OUT/report.md` and its figures from the campaigns' finished runs."""
     values = load_paper_values()
     out = options.out
-    scale = "quick (`--quick`: fewer start times, seeds and layouts)" if options.quick else "full"
+    scale = "quick set: fewer start times, seeds and layouts" if options.quick else "full set"
     planned = sum(len(r.planned) for r in results.values())
     done = sum(len(r.done) for r in results.values())
     head = [f"# LD3: the paper's results beside ours ({scale})", "",

@@ -12,7 +12,7 @@ from testbed.eval.campaign import CampaignRun
 from testbed.eval.campaigns import CAMPAIGNS
 from testbed.eval.paper import EXPERIMENTS, CampaignResult, PaperOptions, announce_plan, campaign_command, planned_runs
 from testbed.eval.paper_report import ar_deceleration, load_paper_values, residual_max, write_paper_report
-from testbed.eval.scenario import load_scenario
+from testbed.eval.scenario import ScenarioError, load_scenario
 
 TRAJECTORY = ("t", "speed", "mode", "phys_dev", "msf_dev", "ld_dev", "ld_fresh")
 
@@ -37,8 +37,8 @@ def chassis_registered(tmp_path_factory, monkeypatch):
 
 
 def test_quick_set_is_a_proper_subset_that_fills_every_table(chassis_registered, tmp_path):
-    quick = planned_runs(PaperOptions(tmp_path, quick=True, detector="oracle"))
-    full = planned_runs(PaperOptions(tmp_path, quick=False, detector="oracle"))
+    quick = planned_runs(PaperOptions(tmp_path, quick=True))
+    full = planned_runs(PaperOptions(tmp_path, quick=False))
     assert list(quick) == [e.campaign for e in EXPERIMENTS]
     for name, runs in quick.items():
         assert 0 < len(runs) < len(full[name]), name
@@ -54,13 +54,13 @@ def test_quick_set_is_a_proper_subset_that_fills_every_table(chassis_registered,
 
 
 def test_plan_announces_runs_to_do_and_commands_regenerate_the_selection(chassis_registered, tmp_path):
-    options = PaperOptions(tmp_path / "out", quick=True, detector="oracle")
+    options = PaperOptions(tmp_path / "out", quick=True, detector="classical")
     text = announce_plan(planned_runs(options), options)
     total = sum(len(r) for r in planned_runs(options).values())
     assert text.startswith(f"ld3 paper (quick): {total} runs to do, estimated ≤ ")
     assert "  sim-table             16 of    16 runs to do" in text
     command = campaign_command(EXPERIMENTS[0], options)
-    assert command == (f"ld3 campaign sim-table --out {tmp_path / 'out' / 'sim-table'} --detector oracle "
+    assert command == (f"ld3 campaign sim-table --out {tmp_path / 'out' / 'sim-table'} --detector classical "
                        "--runs '*-start10,*/benign-seed0'")
 
 
@@ -68,6 +68,11 @@ def test_unregistered_campaign_is_refused_naming_the_fix(monkeypatch, tmp_path):
     monkeypatch.setattr(paper, "EXPERIMENTS", (paper.Experiment("no-such-campaign", "*"),))
     with pytest.raises(ValueError, match=r"no-such-campaign not registered.*pip install -e \."):
         planned_runs(PaperOptions(tmp_path))
+
+
+def test_a_detector_some_experiment_cannot_use_is_refused_naming_the_fix(chassis_registered, tmp_path):
+    with pytest.raises(ScenarioError, match=r"drp-ar run drp-patch/urban-straight-at62-seed1: .*--detector neural"):
+        planned_runs(PaperOptions(tmp_path, quick=True, detector="oracle"))
 
 
 def write_run(folder: Path, run_id: str, rows: list[dict]) -> None:
