@@ -226,6 +226,21 @@ def _campaign_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_paper(args: argparse.Namespace) -> int:
+    from testbed.eval.campaign import CampaignBusyError
+    from testbed.eval.paper import PaperOptions, run_paper
+
+    options = PaperOptions(args.out, quick=args.quick, workers=args.workers, detector=args.detector,
+                           timeout=args.timeout, progress=sys.stderr.isatty(), backend=args.backend,
+                           address=args.address)
+    try:
+        report = run_paper(options, announce=lambda line: print(line, flush=True))
+    except CampaignBusyError as exc:
+        raise UserError(str(exc)) from None
+    print(f"report: {report}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
@@ -284,10 +299,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, metavar="SECONDS",
                    help="time limit of each run (default 120 s + 10 × its simulated duration); a run over it is "
                         "stopped and listed in failures.txt")
-    p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB, e.g. 'local@101-*'")
+    p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB (or one of comma-separated "
+                                                  "GLOBs), e.g. 'local@101-*'")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")
     p.set_defaults(func=cmd_campaign)
+
+    p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "
+                                     "values beside ours")
+    p.add_argument("--quick", action="store_true", help="a reduced set (fewer start times, seeds and layouts) that "
+                                                        "still fills every table")
+    p.add_argument("--out", type=Path, default=Path("paper"), help="output directory: one folder per campaign, "
+                                                                    "report.md and figures (default ./paper)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (1: every run in this process)")
+    p.add_argument("--detector", default="neural", help="camera lane detector of the experiments that use one")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each run (default 120 s + 10 × its "
+                                                                     "simulated duration)")
+    p.add_argument("--backend", choices=BACKENDS, default="local", help="where the runs execute: local (default) or "
+                                                                        "ray (needs pip install '.[ray]')")
+    p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto); without it a local Ray instance")
+    p.set_defaults(func=cmd_paper)
 
     p = sub.add_parser("patch-figure", help="before/after camera frames of a dirty-road patch (drp-patch) with the "
                                             "detected lines and D_LD")

@@ -21,9 +21,12 @@ from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
+from testbed.eval.drp_response import drp_runs, drp_table
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import apply_settings, load_scenario
+from testbed.eval.sim_table import sim_table, sim_table_runs
+from testbed.eval.stealthy_bound import stealthy_runs, stealthy_table
 from testbed.registry import Capability, Registry
 
 
@@ -344,24 +347,42 @@ for _spec in (
                  ablation_runs, ablation_table),
     CampaignSpec("roc", "LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
                  "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
+    CampaignSpec("sim-table", "paper simulator table: default trace injection × LD3 / NaiveAR / none, 10 start "
+                 "times, and benign LD3, 10 seeds, on slr (10 and 20 m/s), urban-straight and urban-curvy",
+                 sim_table_runs, sim_table),
+    CampaignSpec("stealthy", "stealthy attacker against LD3's CUSUM with each lane detector (oracle, classical, "
+                 "neural), margins 0, 1 and 3 σ of that detector's LD noise, on local and highway",
+                 stealthy_runs, stealthy_table),
+    CampaignSpec("drp-ar", "DRP during the attack response, LD3: the DRP deviation trace on local, highway, "
+                 "urban-straight and a painted road patch on urban-straight", drp_runs, drp_table),
 ):
     CAMPAIGNS.add(_spec)
+
+
+def selected_runs(name: str, detector: str = "neural", select: str | None = None,
+                  settings: Sequence[str] = ()) -> list[CampaignRun]:
+    """The runs of campaign `name` whose id matches one of the comma-separated globs `select` (all when None),
+    with the `--set KEY=VALUE` `settings` applied to every run's scenario."""
+    runs = CAMPAIGNS.get(name).build(detector)
+    if select is not None:
+        globs = [g.strip() for g in select.split(",") if g.strip()]
+        runs = [r for r in runs if any(fnmatch.fnmatchcase(r.run_id, g) for g in globs)]
+        if not runs:
+            raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
+    if settings:
+        runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
+    return runs
 
 
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
               backend: str = "local", address: str | None = None) -> Path:
-    """Run campaign `name` into `out` and write its report; `select` is a glob over run ids (all when None),
-    `settings` are `--set KEY=VALUE` overrides applied to every run's scenario, `timeout` the time limit of
-    each run in seconds (default `run_timeout`); `workers`, `backend` and `address` as `run_campaign`'s."""
+    """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
+    run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
+    `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
+    `address` as `run_campaign`'s."""
     spec = CAMPAIGNS.get(name)
-    runs = spec.build(detector)
-    if select is not None:
-        runs = [r for r in runs if fnmatch.fnmatchcase(r.run_id, select)]
-        if not runs:
-            raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
-    if settings:
-        runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
+    runs = selected_runs(name, detector, select, settings)
     done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
                         backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
