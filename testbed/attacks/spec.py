@@ -16,21 +16,20 @@ import numpy as np
 from testbed.attacks.base import Attack
 from testbed.attacks.registry import ATTACKS
 from testbed.errors import UserError
+from testbed.params import Params
 from testbed.registry import Component
 
 
-def build_attack(
-    kind: str, params: Mapping[str, Any], rng: np.random.Generator | None = None, defense: Any = None
-) -> Attack:
-    """Build the attack `kind` from its parameters (validated by its `params` model: unknown, missing, bad
-    values raise ParamsError, a ValueError).
-
-    `rng` (the scenario's attack stream) seeds FusionRipper's observation noise; `defense` is anything
-    with CUSUM `b` and `tau` attributes (DefenseConfig or CusumKnowledge), what the stealthy attacker knows.
-    """
+def attack_settings(table: Mapping[str, Any]) -> tuple[Component, Params]:
+    """The attack component a scenario's [attack] table names (`kind`) and its validated parameters
+    (UserError for a missing or unknown kind; ParamsError for unknown, missing or bad parameters)."""
+    if not isinstance(table, Mapping) or "kind" not in table:
+        raise UserError(f"attack table needs a 'kind' (one of {', '.join(ATTACKS.names())}), got {table!r}")
+    kind = table["kind"]
+    if not isinstance(kind, str):
+        raise UserError(f"attack kind must be a string, got {kind!r}")
     component = ATTACKS.get(kind)
-    settings = component.settings(params, f"attack {kind}")
-    return component.factory(settings.model_dump(exclude_unset=True), rng, defense)
+    return component, component.settings({k: v for k, v in table.items() if k != "kind"}, f"attack {kind}")
 
 
 def _is_text(component: Component, key: str) -> bool:
@@ -77,10 +76,10 @@ def parse_attack(spec: str, rng: np.random.Generator | None = None, defense: Any
 def attack_from_dict(
     table: Mapping[str, Any], rng: np.random.Generator | None = None, defense: Any = None
 ) -> Attack:
-    """Build an attack from a scenario's [attack] table: `kind` plus the parameters of that kind."""
-    if not isinstance(table, Mapping) or "kind" not in table:
-        raise UserError(f"attack table needs a 'kind' (one of {', '.join(ATTACKS.names())}), got {table!r}")
-    kind = table["kind"]
-    if not isinstance(kind, str):
-        raise UserError(f"attack kind must be a string, got {kind!r}")
-    return build_attack(kind, {k: v for k, v in table.items() if k != "kind"}, rng, defense)
+    """Build an attack from a scenario's [attack] table: `kind` plus the parameters of that kind.
+
+    `rng` (the scenario's attack stream) seeds FusionRipper's observation noise; `defense` is anything
+    with CUSUM `b` and `tau` attributes (DefenseConfig or CusumKnowledge), what the stealthy attacker knows.
+    """
+    component, settings = attack_settings(table)
+    return component.factory(settings.model_dump(exclude_unset=True), rng, defense)

@@ -39,7 +39,7 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts, TickRecord
-from testbed.perception.registry import DETECTORS, make_detector, tracks_lines
+from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
@@ -128,8 +128,11 @@ class SimRun:
         self.detector = detector if detector is not None else make_detector(
             sc.detector, track=self.track, rig=self.rig, rng=rng_detector, params=sc.detector_params)
         self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
+        self.detector_settings = (DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
+                                  if detector is None else None)
+        """The scenario's detector's `[detector]` parameters, defaults filled in (None for an injected detector)."""
         if tracking is None:
-            tracking = (tracks_lines(sc.detector, sc.detector_params) if detector is None
+            tracking = (getattr(self.detector_settings, "tracking", False) if detector is None
                         else detector.reads_camera)
         if tracking and self.detector is None:
             raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
@@ -163,12 +166,6 @@ class SimRun:
         self._still_since: float | None = None
         self.wall_time = 0.0
         self.done = False
-
-    def _detector_params(self) -> dict[str, Any]:
-        """The scenario's detector's parameters with their defaults filled in (none for an injected detector)."""
-        if self.detector_name != self.sc.detector:
-            return {}
-        return DETECTORS.get(self.sc.detector).settings(self.sc.detector_params, "detector").model_dump()
 
     def _localization_config(self) -> LocalizationConfig:
         """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
@@ -272,7 +269,8 @@ class SimRun:
         defense_params = self.defense_config.model_dump()
         return {
             **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params,
-                                                 "detector_params": self._detector_params()},
+                                                 "detector_params": self.detector_settings.model_dump()
+                                                 if self.detector_settings is not None else {}},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
             "defense": self.defense.name, "defense_params": defense_params,

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
+from testbed.attacks.spec import attack_settings
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
@@ -85,17 +86,10 @@ def validate(sc: Scenario) -> Scenario:
         DefenseConfig.from_dict(sc.defense_params)
         DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
         if sc.attack:
-            attack_from_table(sc.attack)
+            attack_settings(sc.attack)
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
     return sc
-
-
-def attack_from_table(table: dict[str, Any]) -> None:
-    """Validate an [attack] table: a known `kind` and that attack's parameters (ParamsError otherwise)."""
-    kind = table.get("kind")
-    _check(isinstance(kind, str), f"[attack] needs a 'kind', one of {', '.join(ATTACKS.names())}")
-    ATTACKS.get(kind).settings({k: v for k, v in table.items() if k != "kind"}, f"attack {kind}")
 
 
 def check_needs(sc: Scenario) -> frozenset[Capability]:

@@ -95,8 +95,3 @@ def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = No
                                                                               exclude={"tracking"})
     return component.factory(track, rig, rng if rng is not None else np.random.default_rng(0), **settings)
 
-
-def tracks_lines(name: str, params: dict[str, Any]) -> bool:
-    """Whether the loop tracks the lines of the detector `name` with these `[detector]` parameters (the
-    `tracking` key of detectors that read the camera; never for the others)."""
-    return bool(getattr(DETECTORS.get(name).settings(params, f"detector {name}"), "tracking", False))
