@@ -102,8 +102,15 @@ class FrontCamera:
         self.rng = rng
         self.effects = ImageEffects(rig, condition)
         self.projection = rig.projection_matrix(NEAR_M, FAR_M)
+        self._empty_scene: tuple[np.ndarray, np.ndarray] | None = None
 
-    def render(self, pose: Pose) -> np.ndarray:
+    def _scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """TinyRenderer's picture of the render client (RGB, and where nothing was drawn). A client without a
+        body draws the same empty picture from every pose: that one is rendered once and reused."""
+        bodiless = pb.getNumBodies(physicsClientId=self.client) == 0
+        if bodiless and self._empty_scene is not None:
+            rgb, empty = self._empty_scene
+            return rgb.copy(), empty
         c = self.condition
         _, _, rgba, depth, _ = pb.getCameraImage(
             self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
@@ -114,6 +121,13 @@ class FrontCamera:
         shape = (self.rig.height, self.rig.width)
         rgb = cv2.cvtColor(np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4)), cv2.COLOR_RGBA2RGB)
         empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
+        if bodiless:
+            empty.flags.writeable = False
+            self._empty_scene = (rgb.copy(), empty)
+        return rgb, empty
+
+    def render(self, pose: Pose) -> np.ndarray:
+        rgb, empty = self._scene(pose)
         below = self.effects.below_horizon
         canvas = self.streamer.canvas
         ground = (below & empty).view(np.uint8)
