@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 from hil.profile import DEFAULT_PROFILE
-from hil.scenario_run import LinkConfig, run_hil_scenario
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.campaigns import CampaignSpec
 from testbed.eval.scenario import load_scenario
@@ -49,7 +48,10 @@ def chassis_runs(detector: str) -> list[CampaignRun]:
 
 
 def run_over_can(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
-    """Executor: the run over the virtual CAN bus against the in-process ECU emulator (lockstep)."""
+    """Executor: the run over the virtual CAN bus against the in-process ECU emulator (lockstep). The simulator
+    is imported here, on a worker, so that listing campaigns loads no physics engine."""
+    from hil.scenario_run import LinkConfig, run_hil_scenario
+
     return run_hil_scenario(run.scenario, run_dir, LinkConfig("virtual", profile=DEFAULT_PROFILE)).summary
 
 

@@ -8,81 +8,20 @@ contrast, blur, noise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 import pybullet as pb
 
-from testbed.errors import UserError
-from testbed.ground import OPEN_GROUND_RGB, Lighting
+from testbed.conditions import Condition
+from testbed.ground import OPEN_GROUND_RGB
 from testbed.lane_detection import CameraFrame
 from testbed.world import TileStreamer
-from tracks.paint import ShadowPainter, WearPainter
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
 NEAR_M, FAR_M = 0.3, 250.0
 EMPTY_DEPTH = 0.9999
 """TinyRenderer depth at or beyond which nothing was drawn."""
-
-
-@dataclass(frozen=True)
-class Condition:
-    """Lighting, sky and sensor model of one driving condition."""
-
-    name: str
-    ambient: float
-    diffuse: float
-    light_dir: tuple[float, float, float]
-    light_rgb: tuple[float, float, float]
-    sky_top: tuple[int, int, int]
-    sky_horizon: tuple[int, int, int]
-    exposure: float = 1.0
-    contrast: float = 1.0
-    blur_sigma: float = 0.0
-    noise_std: float = 2.0
-    headlights: bool = False
-    wear: float = 0.0
-    shadows: bool = False
-
-    @property
-    def lighting(self) -> Lighting:
-        return Lighting(self.ambient, self.diffuse, self.light_dir, self.light_rgb)
-
-    def track_painters(self, seed: int) -> list:
-        """Painters the condition adds to the road texture (worn markings, shadow bands)."""
-        painters: list = []
-        if self.wear > 0:
-            painters.append(WearPainter(self.wear))
-        if self.shadows:
-            painters.append(ShadowPainter())
-        return painters
-
-
-CONDITIONS: dict[str, Condition] = {
-    c.name: c
-    for c in (
-        Condition("day", 0.65, 0.45, (0.4, 0.3, 1.0), (1.0, 1.0, 0.97), (110, 160, 220), (200, 220, 240)),
-        Condition("dusk", 0.45, 0.35, (-1.0, 0.2, 0.25), (1.0, 0.75, 0.55), (60, 60, 110), (230, 140, 90),
-                  exposure=0.75, contrast=0.85, noise_std=4.0),
-        Condition("night", 0.30, 0.15, (0.0, 0.0, 1.0), (0.6, 0.65, 0.8), (5, 8, 18), (15, 18, 30),
-                  exposure=0.22, contrast=1.0, noise_std=5.0, headlights=True),
-        Condition("rain", 0.55, 0.25, (0.2, 0.2, 1.0), (0.85, 0.87, 0.9), (120, 125, 130), (150, 155, 160),
-                  exposure=0.85, contrast=0.6, blur_sigma=1.1, noise_std=6.0),
-        Condition("worn", 0.65, 0.45, (0.4, 0.3, 1.0), (1.0, 1.0, 0.97), (110, 160, 220), (200, 220, 240),
-                  wear=0.65),
-        Condition("shadows", 0.65, 0.45, (0.4, 0.3, 1.0), (1.0, 1.0, 0.97), (110, 160, 220), (200, 220, 240),
-                  shadows=True),
-    )
-}
-
-
-def get_condition(name: str) -> Condition:
-    try:
-        return CONDITIONS[name]
-    except KeyError:
-        raise UserError(f"unknown condition {name!r}; choose one of {', '.join(CONDITIONS)}") from None
 
 
 class ImageEffects:
@@ -163,8 +102,15 @@ class FrontCamera:
         self.rng = rng
         self.effects = ImageEffects(rig, condition)
         self.projection = rig.projection_matrix(NEAR_M, FAR_M)
+        self._empty_scene: tuple[np.ndarray, np.ndarray] | None = None
 
-    def render(self, pose: Pose) -> np.ndarray:
+    def _scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """TinyRenderer's picture of the render client (RGB, and where nothing was drawn). A client without a
+        body draws the same empty picture from every pose: that one is rendered once and reused."""
+        bodiless = pb.getNumBodies(physicsClientId=self.client) == 0
+        if bodiless and self._empty_scene is not None:
+            rgb, empty = self._empty_scene
+            return rgb.copy(), empty
         c = self.condition
         _, _, rgba, depth, _ = pb.getCameraImage(
             self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
@@ -175,6 +121,13 @@ class FrontCamera:
         shape = (self.rig.height, self.rig.width)
         rgb = cv2.cvtColor(np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4)), cv2.COLOR_RGBA2RGB)
         empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
+        if bodiless:
+            empty.flags.writeable = False
+            self._empty_scene = (rgb.copy(), empty)
+        return rgb, empty
+
+    def render(self, pose: Pose) -> np.ndarray:
+        rgb, empty = self._scene(pose)
         below = self.effects.below_horizon
         canvas = self.streamer.canvas
         ground = (below & empty).view(np.uint8)

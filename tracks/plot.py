@@ -12,6 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.collections import PolyCollection
 
 from tracks.obstacles import road_obstacles
 from tracks.road import Track
@@ -55,10 +56,12 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
     s = np.linspace(s0, s1, max(2, int((s1 - s0) / step) + 1))
     lo, hi = track.paved_range
     t_min, t_max = track.lateral_range
-    s_fill = np.linspace(s0, s1, min(len(s), 800))  # matplotlib's patch-limit update is slow on long polygons
-    ax.fill(*_strip(track, s_fill, t_min, lo).T, color=GROUND_COLOUR[track.right.ground], lw=0)
-    ax.fill(*_strip(track, s_fill, hi, t_max).T, color=GROUND_COLOUR[track.left.ground], lw=0)
-    ax.fill(*_strip(track, s_fill, lo, hi).T, color="#6b6b70", lw=0, zorder=1)
+    s_fill = np.linspace(s0, s1, min(len(s), 800))
+    surfaces = PolyCollection([_strip(track, s_fill, t_min, lo), _strip(track, s_fill, hi, t_max),
+                               _strip(track, s_fill, lo, hi)], linewidths=0, zorder=1,
+                              facecolors=[GROUND_COLOUR[track.right.ground], GROUND_COLOUR[track.left.ground],
+                                          GROUND_COLOUR["asphalt"]])
+    ax.add_collection(surfaces)  # one collection: a patch per polygon updates the limits segment by segment
     for a, b in track.intersections:
         if b > s0 and a < s1:
             band = np.linspace(max(a, s0), min(b, s1), 20)

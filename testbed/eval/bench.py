@@ -217,11 +217,12 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
     detected `repeats` times."""
     import numpy as np
 
-    from testbed.camera import CONDITIONS
+    from testbed.conditions import CONDITIONS
     from testbed.lane_detection import CameraFrame
     from testbed.perception.classical import ClassicalLaneDetector
-    from testbed.perception.dataset import HELD_OUT_SEEDS, Episode, render_episode
+    from testbed.perception.dataset import Episode, render_episode
     from testbed.perception.neural import NeuralLaneDetector
+    from testbed.perception.seeds import HELD_OUT_SEEDS
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
 

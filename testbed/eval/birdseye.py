@@ -16,6 +16,10 @@ import numpy as np
 from testbed.loop import TickRecord
 from tracks.plot import draw_track
 
+_MARGINS = {"left": 0.08, "right": 0.98, "bottom": 0.05, "top": 0.96, "hspace": 0.22}
+"""Fixed margins (fractions of the figure) that fit the axis labels: a campaign writes one figure per run, and
+an automatic layout draws the figure twice."""
+
 
 def _col(rows: Sequence[TickRecord], name: str) -> np.ndarray:
     return np.array([np.nan if getattr(r, name) is None else getattr(r, name) for r in rows], dtype=float)
@@ -43,6 +47,7 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
     cusum = _col(rows, "cusum")
     fig, (ax_map, ax_dev, ax_cusum) = plt.subplots(3, 1, figsize=(10, 11), gridspec_kw={"height_ratios": [3, 2, 1]})
+    fig.subplots_adjust(**_MARGINS)
     draw_track(ax_map, track)
     _frame_equal(ax_map, x, y, pad=25.0)
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
@@ -90,6 +95,5 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     if ax_cusum.get_legend_handles_labels()[0]:
         ax_cusum.legend(loc="upper left", fontsize=8)
     ax_cusum.grid(alpha=0.3)
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

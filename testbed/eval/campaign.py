@@ -58,6 +58,8 @@ WATCHDOG_PERIOD_S = 0.2
 BACKENDS = ("local", "ray")
 WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 DEFAULT_WORKERS = 2
+STARTED = "started"
+"""What a worker answers first on receiving a run (its imports done): the run's time limit counts from here."""
 
 
 @dataclass(frozen=True)
@@ -344,11 +346,15 @@ def _worker_main(conn: Connection, parent_pid: int) -> None:
         if job is None:
             return
         run, tmp, execute = job
+        conn.send(STARTED)
         conn.send(attempt(execute, run, tmp))
 
 
-@dataclass(frozen=True)
+@dataclass
 class _Job:
+    """A run given to a worker: its limit counts from the worker's STARTED answer; until then (spawning,
+    imports) the deadline allows SETUP_ALLOWANCE_S more."""
+
     run: CampaignRun
     tmp: Path
     limit_s: float
@@ -372,20 +378,26 @@ class _Worker:
         return cls(process, conn)
 
     def give(self, run: CampaignRun, out: Path, execute: RunExecutor, limit_s: float) -> None:
-        self.job = _Job(run, temp_dir(out, run.run_id), limit_s, time.monotonic() + limit_s)
+        self.job = _Job(run, temp_dir(out, run.run_id), limit_s, time.monotonic() + SETUP_ALLOWANCE_S + limit_s)
         self.job.tmp.mkdir(parents=True)
         with suppress(OSError):  # a worker that is gone is reported by its sentinel
             self.conn.send((run, self.job.tmp, execute))
 
     def outcome(self, job: _Job, ready: list[Any], now: float) -> tuple[bool, str | None]:
         """(finished, failure record) of `job`: the worker's answer, its death, or its timeout (the worker is
-        killed then)."""
-        if self.conn in ready or self.conn.poll():
+        killed then). The STARTED answer moves the deadline to its arrival plus the run's limit."""
+        gone = self.process.sentinel in ready
+        while self.conn in ready or self.conn.poll():
             try:
-                return True, self.conn.recv()
+                answer = self.conn.recv()
             except EOFError:
-                pass
-        elif self.process.sentinel not in ready:
+                gone = True
+                break
+            if answer != STARTED:
+                return True, answer
+            job.deadline = time.monotonic() + job.limit_s
+            ready = [r for r in ready if r is not self.conn]
+        if not gone:
             if now < job.deadline:
                 return False, None
             self.kill()

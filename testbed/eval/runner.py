@@ -18,8 +18,9 @@ from tqdm import tqdm
 
 from testbed.attacks.base import Attack
 from testbed.attacks.spec import attack_from_dict
-from testbed.camera import FrontCamera, get_condition
+from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort
+from testbed.conditions import get_condition
 from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner

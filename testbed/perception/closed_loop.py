@@ -13,22 +13,20 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from testbed.camera import CONDITIONS
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.eval.runner import END_MARGIN_M, SimRun
 from testbed.eval.scenario import load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.perception.dataset import HELD_OUT_SEEDS
 from testbed.perception.registry import make_detector
+from testbed.perception.seeds import Cell, cells
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
-from tracks.presets import PRESETS, load_track
+from tracks.presets import load_track
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -36,26 +34,6 @@ MEAN_TARGET_M = {"day": 0.05}
 """Mean |D_LD error| target with tracking per condition (`MEAN_TARGET_OTHER_M` elsewhere)."""
 MEAN_TARGET_OTHER_M = 0.08
 P99_TARGET_M = 0.20
-
-
-@dataclass(frozen=True)
-class Cell:
-    preset: str
-    condition: str
-    track_seed: int
-
-
-def cells(presets: list[str], conditions: list[str]) -> list[Cell]:
-    """One held-out track seed per preset and condition (distinct layouts across conditions)."""
-    for p in presets:
-        if p not in PRESETS:
-            raise ValueError(f"unknown preset {p!r}; known: {', '.join(PRESETS)}")
-    for c in conditions:
-        if c not in CONDITIONS:
-            raise ValueError(f"unknown condition {c!r}; known: {', '.join(CONDITIONS)}")
-    all_conditions = list(CONDITIONS)
-    return [Cell(p, c, HELD_OUT_SEEDS[10 * list(PRESETS).index(p) + all_conditions.index(c)])
-            for p in presets for c in conditions]
 
 
 class _RawTap(LaneDetector):

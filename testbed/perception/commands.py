@@ -114,7 +114,7 @@ def _export_onnx(args: argparse.Namespace) -> int:
 
 
 def _closed_loop(args: argparse.Namespace) -> int:
-    from testbed.camera import CONDITIONS
+    from testbed.conditions import CONDITIONS
     from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 

@@ -23,8 +23,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from testbed.camera import CONDITIONS, FrontCamera, get_condition
+from testbed.camera import FrontCamera
+from testbed.conditions import CONDITIONS, get_condition
 from testbed.perception.labels import FrameVisibility, PaintLayout, ego_lines
+from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from testbed.world import TileStreamer
 from tracks.layout import Boundary, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
@@ -34,8 +36,6 @@ from tracks.texture import TileFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
-TRAIN_SEEDS = range(1, 9000)
-HELD_OUT_SEEDS = range(9000, 9100)
 MAX_LATERAL_OFFSET = 1.5  # m
 MAX_YAW_OFFSET = math.radians(5.0)
 PITCH_JITTER = math.radians(0.5)

@@ -2,6 +2,7 @@
 same bytes) and its failure handling; `ld3 campaign list`."""
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -83,6 +84,16 @@ def test_campaign_list_shows_runs_simulated_and_estimated_time_of_every_campaign
     grid = campaign_cost(CAMPAIGNS.get("fusionripper-grid").build("neural"))
     assert rows["fusionripper-grid"][1:4] == ["640", "8.9", "h"]  # 640 runs × 50 s
     assert " ".join(rows["fusionripper-grid"][4:6]) == human_duration(grid.wall_s(4))
+
+
+def test_campaign_list_prints_only_its_table_and_loads_no_physics_engine():
+    """pybullet writes its build time to stdout when it loads: listing campaigns must not load it."""
+    probe = ("import sys; from testbed import cli; code = cli.main(['campaign', 'list']); "
+             "sys.exit(code if 'pybullet' not in sys.modules else 99)")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          cwd=Path(__file__).resolve().parents[2])
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[0].split()[:3] == ["campaign", "runs", "simulated"]
 
 
 def test_campaign_list_refuses_options_it_would_ignore(capsys):

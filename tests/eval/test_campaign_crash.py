@@ -166,3 +166,15 @@ def test_ld3_campaign_passes_timeout_and_refuses_a_busy_folder(tmp_path, monkeyp
     with _folder_lock(tmp_path):
         assert cli.main(argv) == cli.EXIT_USAGE
     assert capsys.readouterr().err == f"ld3: error: campaign folder {tmp_path} is in use by another campaign process\n"
+
+
+def test_a_run_limit_counts_from_the_run_start_not_the_worker_start_up(tmp_path):
+    """The executor's module sleeps longer than the limit at import; its runs (about 0.1 s each) are done."""
+    from tests.eval.slow_import_executor import IMPORT_DELAY_S, quick_writer
+
+    sc = load_scenario("slr")
+    runs = [CampaignRun(f"ok{i}", sc, {"parts": 2}) for i in range(3)]
+    done = run_campaign(runs, tmp_path, workers=2, progress=False, execute=quick_writer,
+                        timeout=IMPORT_DELAY_S / 2)
+    assert [r.run_id for r, _ in done] == ["ok0", "ok1", "ok2"]
+    assert not (tmp_path / "failures.txt").exists()

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from testbed.perception.closed_loop import Cell, cells, drive, error_stats, markdown_table, write_report
+from testbed.perception.closed_loop import drive, error_stats, markdown_table, write_report
+from testbed.perception.seeds import Cell, cells
 
 
 def test_cells_use_distinct_held_out_layouts_and_refuse_unknown_names():

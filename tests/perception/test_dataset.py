@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from testbed.camera import CONDITIONS
-from testbed.perception.dataset import HELD_OUT_SEEDS, TRAIN_SEEDS, episodes, erase_stretches
+from testbed.conditions import CONDITIONS
+from testbed.perception.dataset import episodes, erase_stretches
+from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from tracks.layout import MARKING_KINDS
 from tracks.presets import PRESETS
 

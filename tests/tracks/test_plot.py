@@ -1,7 +1,8 @@
+import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from tracks.plot import draw_track, save_track_png
+from tracks.plot import GROUND_COLOUR, draw_track, save_track_png
 from tracks.presets import load_track
 
 
@@ -16,7 +17,9 @@ def test_draw_track_draws_on_the_given_axes():
     track = load_track("urban-curvy")
     fig, ax = plt.subplots()
     draw_track(ax, track, s_range=(200.0, 400.0))
-    assert ax.lines and ax.patches
+    assert ax.lines  # lane lines and edges
+    (surfaces,) = [c for c in ax.collections if len(c.get_paths()) == 3]  # right ground, left ground, asphalt
+    assert matplotlib.colors.to_hex(surfaces.get_facecolors()[2]) == GROUND_COLOUR["asphalt"]
     x0, x1 = ax.get_xlim()
     xs = track.reference.points(np.array([200.0, 400.0]))[:, 0]
     assert x0 <= xs.min() and x1 >= xs.max()

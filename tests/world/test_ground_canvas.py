@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from testbed.camera import FrontCamera, get_condition
+from testbed.camera import FrontCamera
+from testbed.conditions import get_condition
 from testbed.ground import OPEN_GROUND_RGB, GroundCanvas
 from testbed.world import TileStreamer
 from tracks.pose import Pose
