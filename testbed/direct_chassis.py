@@ -33,8 +33,9 @@ class DirectChassis(ChassisPort):
 
     def read(self) -> ChassisState:
         v = self.vehicle
-        return ChassisState(t=self.t, speed=v.speed(), steer=v.steer_angle(), accel=v.accel(),
-                            true_pose=v.pose(), yaw_rate=v.yaw_rate())
+        pose, speed, yaw_rate = v.kinematics()
+        return ChassisState(t=self.t, speed=speed, steer=v.steer_angle(), accel=v.accel(), true_pose=pose,
+                            yaw_rate=yaw_rate)
 
     def send(self, cmd: ChassisCommand) -> None:
         self._pending = cmd

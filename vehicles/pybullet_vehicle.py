@@ -42,6 +42,12 @@ def _yaw_of(q: tuple[float, float, float, float]) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
+def _longitudinal(lin: tuple[float, ...], orn: tuple[float, ...]) -> float:
+    """The world-frame velocity `lin` along the heading of orientation `orn`."""
+    yaw = _yaw_of(orn)
+    return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw)
+
+
 class PyBulletVehicle:
     """A `VehicleParams` car loaded into an existing PyBullet client; reports the reference-point pose."""
 
@@ -172,7 +178,10 @@ class PyBulletVehicle:
 
     def pose(self) -> Pose:
         """Reference point (footprint centre projected on the ground) and heading, world frame."""
-        (px, py, _), (x, y, z, w) = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
+        return self._pose(*p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid))
+
+    def _pose(self, pos: tuple[float, ...], orn: tuple[float, ...]) -> Pose:
+        (px, py, _), (x, y, z, w) = pos, orn
         ox, _, oz = self._cg_offset
         ref_x = px - ((1.0 - 2.0 * (y * y + z * z)) * ox + 2.0 * (x * z + y * w) * oz)
         ref_y = py - (2.0 * (x * y + z * w) * ox + 2.0 * (y * z - x * w) * oz)
@@ -182,12 +191,17 @@ class PyBulletVehicle:
         """Signed longitudinal speed (m/s, + forward)."""
         _, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
         lin, _ = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
-        yaw = _yaw_of(orn)
-        return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw)
+        return _longitudinal(lin, orn)
 
     def yaw_rate(self) -> float:
         """Yaw rate (rad/s, + counter-clockwise)."""
         return p.getBaseVelocity(self.body_id, physicsClientId=self._cid)[1][2]
+
+    def kinematics(self) -> tuple[Pose, float, float]:
+        """`pose()`, `speed()` and `yaw_rate()` from one read of the base's state."""
+        pos, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
+        lin, ang = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
+        return self._pose(pos, orn), _longitudinal(lin, orn), ang[2]
 
     def accel(self) -> float:
         """Measured longitudinal acceleration (m/s²), low-pass filtered with a 50 ms time constant."""

@@ -7,6 +7,7 @@ leftover temporary folder, or a run folder whose summary.json is missing or unre
 is redone) and named on stderr and in `redone.txt`. A run that fails or exceeds its time limit (`timeout`,
 default `run_timeout`) is named on stderr and in `failures.txt` (first line `run_id: ErrorType: message`,
 the traceback tail indented below it) and the campaign goes on; both files describe the latest invocation.
+Warnings a run logs go to its own `run.log`, not the console.
 
 On the `local` backend with workers > 1, runs go to spawned worker processes (one OpenMP thread each, as on
 Ray) that die with the campaign process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so
@@ -22,6 +23,7 @@ from __future__ import annotations
 import csv
 import ctypes
 import json
+import logging
 import multiprocessing as mp
 import os
 import shutil
@@ -48,6 +50,7 @@ except ImportError:  # not POSIX: no folder lock
     fcntl = None  # type: ignore[assignment]
 
 TMP_MARK = ".tmp-"
+RUN_LOG = "run.log"
 LOCK_NAME = ".campaign.lock"
 SETUP_ALLOWANCE_S = 120.0
 SIM_TIME_FACTOR = 10.0
@@ -135,10 +138,28 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def attempt(execute: RunExecutor, run: CampaignRun, tmp: Path) -> str | None:
-    """Run the executor into `tmp`; None on success, else its failure record (no Exception escapes)."""
+@contextmanager
+def _run_log(run_dir: Path) -> Iterator[None]:
+    """Send the warnings logged while a run executes to `run_dir`/RUN_LOG (created on the first one) instead of
+    the console, where a campaign's runs would interleave them with its progress bar."""
+    handler = logging.FileHandler(run_dir / RUN_LOG, delay=True)
+    handler.setLevel(logging.WARNING)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    root = logging.getLogger()
+    root.addHandler(handler)
     try:
-        execute(run, tmp)
+        yield
+    finally:
+        root.removeHandler(handler)
+        handler.close()
+
+
+def attempt(execute: RunExecutor, run: CampaignRun, tmp: Path) -> str | None:
+    """Run the executor into `tmp` (its warnings into RUN_LOG there); None on success, else its failure record
+    (no Exception escapes)."""
+    try:
+        with _run_log(tmp):
+            execute(run, tmp)
         return None
     except Exception as exc:  # a failing run is reported, never allowed to sink the campaign
         frames = traceback.StackSummary.from_list(traceback.extract_tb(exc.__traceback__)[-3:]).format()

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import tomllib
+from collections import Counter
 from collections.abc import Callable, Sequence
 from importlib import resources
 from pathlib import Path
@@ -359,6 +360,13 @@ SECTIONS: tuple[Section, ...] = (sim_section, chassis_section, fr_section, grid_
                                  stealthy_section, drp_section, benign_section, ablation_section)
 
 
+def _sources(done: Done) -> str:
+    """The git commits (short; `-dirty`: uncommitted changes) that produced `done`, with their run counts."""
+    counts = Counter(s.get("git_commit") or "unknown" for _, s in done)
+    return ", ".join(f"{c.split('-')[0][:9]}{'-dirty' if c.endswith('-dirty') else ''}: {n}"
+                     for c, n in counts.most_common()) or "–"
+
+
 def write_paper_report(options: PaperOptions, results: dict[str, CampaignResult]) -> Path:
     """`OUT/report.md` and its figures from the campaigns' finished runs."""
     values = load_paper_values()
@@ -370,8 +378,13 @@ def write_paper_report(options: PaperOptions, results: dict[str, CampaignResult]
             f"{done} of {planned} runs done; camera lane detector `{options.detector}` where the experiment uses "
             f"one. Paper values: `testbed/eval/paper_values.toml` (each under its label in ld3_paper.tex). "
             f"Regenerate everything: `ld3 paper{' --quick' if options.quick else ''} --out {out}`.", "",
-            "| campaign | runs done | command |", "|---|---|---|"]
-    head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | `{r.command}` |" for r in results.values()]
+            "| campaign | runs done | source (git commit: runs) | command |", "|---|---|---|---|"]
+    head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | {_sources(r.done)} | `{r.command}` |"
+             for r in results.values()]
+    commits = {s.get("git_commit") for r in results.values() for _, s in r.done}
+    if len(commits) > 1:
+        head += ["", f"**The runs come from {len(commits)} source trees**: a rerun after a code change resumes "
+                     "with the new code, so these results mix versions; start from an empty folder to compare one."]
     body = [section(results, values, out) for section in SECTIONS]
     report = out / "report.md"
     report.write_text("\n".join(head) + "\n\n" + "\n\n".join(body) + "\n")

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import multiprocessing as mp
 import os
 import signal
@@ -25,6 +26,13 @@ def _log(path: Path, line: str) -> None:
         os.write(fd, f"{line}\n".encode())
     finally:
         os.close(fd)
+
+
+def warning_writer(run: CampaignRun, run_dir: Path) -> dict:
+    """Logs a warning naming the run (as the loop's fault log does), then writes its summary."""
+    logging.getLogger("testbed.defense.faults").warning("t=1.000 no-lane-lines: %s", run.run_id)
+    (run_dir / "summary.json").write_text(json.dumps({"run": run.run_id}))
+    return {"run": run.run_id}
 
 
 def slow_writer(run: CampaignRun, run_dir: Path) -> dict:

@@ -13,7 +13,7 @@ import pytest
 
 from testbed.eval.campaign import CampaignBusyError, CampaignRun, _folder_lock, run_campaign
 from testbed.eval.scenario import load_scenario
-from tests.eval.campaign_helpers import PARTS, crash_runs, process_probe, slow_writer
+from tests.eval.campaign_helpers import PARTS, crash_runs, process_probe, slow_writer, warning_writer
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -178,3 +178,15 @@ def test_a_run_limit_counts_from_the_run_start_not_the_worker_start_up(tmp_path)
                         timeout=IMPORT_DELAY_S / 2)
     assert [r.run_id for r, _ in done] == ["ok0", "ok1", "ok2"]
     assert not (tmp_path / "failures.txt").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_warnings_a_run_logs_go_to_its_run_log_not_the_console(tmp_path, capfd, workers):
+    runs = [CampaignRun(f"w{i}", load_scenario("slr"), {}) for i in range(2)]
+    done = run_campaign(runs, tmp_path, workers=workers, progress=False, execute=warning_writer)
+    assert len(done) == 2
+    for i in range(2):
+        assert (tmp_path / f"w{i}" / "run.log").read_text() == (
+            f"WARNING testbed.defense.faults: t=1.000 no-lane-lines: w{i}\n")
+    out, err = capfd.readouterr()
+    assert "no-lane-lines" not in out + err

@@ -124,7 +124,8 @@ def test_report_puts_the_papers_values_beside_ours(tmp_path):
                         consequence="reach_destination")))
     write_run(tmp_path / "sim-table", "slr-low/benign-seed0", braking_rows(0.0, 1.0)[:5])
     chassis = [(CampaignRun(f"4mps/ld3-rep{k}", sc, {"speed": 4.0, "setting": "ld3", "rep": k}),
-                summary(detection_dev_m=0.1, ar_max_dev_m=0.3 + 0.1 * k, ar_stop_dev_m=0.2)) for k in range(2)]
+                summary(detection_dev_m=0.1, ar_max_dev_m=0.3 + 0.1 * k, ar_stop_dev_m=0.2,
+                        git_commit=("abcdef0123456789", "0123456789abcdef-dirty")[k])) for k in range(2)]
     for run, _ in chassis:
         write_run(tmp_path / "chassis", run.run_id, braking_rows(4.0, 2.5))
     stealthy = [(CampaignRun("neural/local-margin0sigma-seed1", sc,
@@ -156,6 +157,9 @@ def test_report_puts_the_papers_values_beside_ours(tmp_path):
     assert "| slr-low (sim-table) | 1 | 0 | 0.20 | 0.05 | reach_destination ×1 |" in report
     assert "No fit drive finished" in report
     assert "2 of 2 runs of campaign `chassis`" in report
+    assert "| chassis | 2/2 | abcdef012: 1, 012345678-dirty: 1 | `ld3 campaign chassis` |" in report
+    assert "| sim-table | 3/3 | unknown: 3 |" in report
+    assert "**The runs come from 3 source trees**" in report
     for figure in ("sim_table.png", "chassis_table.png", "trace_replay.png", "drp_ar.png"):
         assert (tmp_path / figure).stat().st_size > 10_000
         assert f"]({figure})" in report
