@@ -6,7 +6,8 @@ import itertools
 import numpy as np
 import pytest
 
-from testbed.camera import FrontCamera, get_condition
+from testbed.camera import FrontCamera
+from testbed.conditions import get_condition
 from testbed.perception.labels import (
     VISIBLE_CONTRAST,
     FrameVisibility,
