@@ -10,7 +10,8 @@ applied when a tile is composited. Pixels beyond the tiles are open ground (`OPE
 Tile i covers the arc-length band [s_i, s_i+1); its texture is straight in (s, t) and the road's
 curvature lives in the mesh. Each mesh segment (a quad between two cross sections `spacing` m apart) is
 warped from the texture into the canvas with its own perspective transform, as the rasteriser maps
-each pair of triangles.
+each pair of triangles; on curves the segment is cut into lateral strips first, so the warp keeps the
+lane lines where the map has them.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from vehicles.camera_rig import CameraRig
 
 OPEN_GROUND_RGB = (84, 107, 66)
 SEGMENT_SPACING_M = 2.0
+MAX_WARP_ERROR_M = 0.005  # m: largest lateral misplacement of the road texture by a segment's warp
 
 
 @dataclass(frozen=True)
@@ -110,18 +112,26 @@ class GroundCanvas:
         self.rebuilds += 1
 
     def _tile_segments(self, i: int) -> list[tuple[np.ndarray, np.ndarray, slice]]:
-        """Per mesh segment: texture corners (4, 2) in texture pixels, world corners (4, 2), texture rows."""
+        """Per mesh segment and lateral strip: texture corners (4, 2) in texture pixels, world corners (4, 2),
+        texture rows. A perspective warp puts a strip of width w on an arc of curvature k up to k·w²/4 off its
+        true place across the road (its cross-sections meet at the arc's centre), so strips are narrow enough
+        to keep that under `MAX_WARP_ERROR_M`."""
         f = tile_frame(self.track, i)
         n = max(1, math.ceil((f.s1 - f.s0) / SEGMENT_SPACING_M))
         s = np.linspace(f.s0, f.s1, n + 1)
         out = []
         for k in range(n):
-            quad_s = np.array([s[k + 1], s[k + 1], s[k], s[k]])
-            quad_t = np.array([f.t_max, f.t_min, f.t_min, f.t_max])
-            tex = np.column_stack([(f.t_max - quad_t) * f.px_per_m_t, (f.s1 - quad_s) * f.px_per_m_s]) - 0.5
-            world = self.track.reference.points(quad_s, quad_t)
-            rows = slice(max(0, math.floor(tex[:, 1].min()) - 1), min(f.height, math.ceil(tex[:, 1].max()) + 2))
-            out.append((tex, np.asarray(world, dtype=float), rows))
+            curvature = max(abs(self.track.reference.curvature_at(float(v))) for v in np.linspace(s[k], s[k + 1], 5))
+            strips = max(1, math.ceil((f.t_max - f.t_min) * math.sqrt(curvature / (4.0 * MAX_WARP_ERROR_M))))
+            t = np.linspace(f.t_max, f.t_min, strips + 1)
+            for j in range(strips):
+                quad_s = np.array([s[k + 1], s[k + 1], s[k], s[k]])
+                quad_t = np.array([t[j], t[j + 1], t[j + 1], t[j]])
+                tex = np.column_stack([(f.t_max - quad_t) * f.px_per_m_t, (f.s1 - quad_s) * f.px_per_m_s]) - 0.5
+                world = self.track.reference.points(quad_s, quad_t)
+                rows = slice(max(0, math.floor(tex[:, 1].min()) - 1),
+                             min(f.height, math.ceil(tex[:, 1].max()) + 2))
+                out.append((tex, np.asarray(world, dtype=float), rows))
         return out
 
     def texture(self, i: int) -> np.ndarray:

@@ -2,11 +2,12 @@
 
 An episode is one preset track at one seed under one condition: the camera is placed at a run of poses
 along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera pitch and height jitter),
-the frame rendered and labelled from the map and the painted textures (`labels.ego_lines`: worn-away paint
-is a missing line). On top of the preset's own look the episode randomises asphalt tone, marking
-brightness, exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges,
-gaps, and the one-sided lines of lane splits and merges) so missing lines are common; the run of poses
-starts anywhere along the track (bends, intersections). Track seeds for training come from `TRAIN_SEEDS`;
+the frame rendered and labelled from the map and from that frame itself (`labels.ego_lines` with
+`labels.FrameVisibility`: a line whose paint the frame does not show standing out from both sides of it is a
+missing line). On top of the preset's own look the episode randomises asphalt tone, marking brightness,
+exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges, gaps, and the
+one-sided lines of lane splits and merges) so missing lines are common; the run of poses starts anywhere
+along the track (bends, intersections). Track seeds for training come from `TRAIN_SEEDS`;
 `HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files:
 images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
 """
@@ -17,7 +18,6 @@ import json
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 import cv2
@@ -25,14 +25,14 @@ import numpy as np
 
 from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS, get_condition
-from testbed.perception.labels import PaintVisibility, ego_lines
+from testbed.perception.labels import FrameVisibility, PaintLayout, ego_lines
 from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from testbed.world import TileStreamer
 from tracks.layout import Boundary, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
-from tracks.texture import TileFrame, tile_texture
+from tracks.texture import TileFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -131,8 +131,7 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
     ]
     base_rig = CameraRig(get_vehicle(vehicle).camera)
     streamer = TileStreamer(track, condition.lighting, ahead_m=70.0, behind_m=5.0)
-    texture = streamer.canvas.texture if streamer.canvas is not None else partial(tile_texture, track)
-    visibility = PaintVisibility(track, texture)
+    layout = PaintLayout(track)
     try:
         lane = track.lanes[int(rng.integers(len(track.lanes)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
@@ -141,14 +140,14 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
         for i in range(n_frames):
             if s > track.length - 2.0:
                 break
-            yield _render_pose(track, lane, s, streamer, visibility, base_rig, condition, rng, ep)
+            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep)
             if i % POSES_PER_STATION == POSES_PER_STATION - 1:
                 s += float(rng.uniform(0.4, 1.6)) * mean_step
     finally:
         streamer.close()
 
 
-def _render_pose(track, lane, s: float, streamer: TileStreamer, visibility: PaintVisibility, base_rig: CameraRig,
+def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLayout, base_rig: CameraRig,
                  condition, rng: np.random.Generator, ep: Episode) -> tuple[np.ndarray, dict]:
     x, y = lane.position(s, float(rng.uniform(-MAX_LATERAL_OFFSET, MAX_LATERAL_OFFSET)))
     pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
@@ -156,7 +155,7 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, visibility: Pain
     rig = base_rig.with_jitter(pitch, height)
     streamer.update(pose)
     image = sensor_randomise(FrontCamera(streamer, rig, condition, rng).render(pose), rng)
-    truth = ego_lines(track, pose, visibility)
+    truth = ego_lines(track, pose, FrameVisibility(image, rig, layout))
     label = {
         "left": truth.left.coeffs, "right": truth.right.coeffs,
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,

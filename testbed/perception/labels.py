@@ -4,16 +4,17 @@ The ego lane is the lane the true pose projects onto (`map.project(pose).lane`);
 boundary `lane`, its left line boundary `lane + 1`. Each line is sampled along the road ahead, taken
 into the vehicle frame and fitted with a cubic y(x) over x in [0, X_MAX]. A line *exists* when it is
 painted (kind other than 'none') on at least half of its samples in the camera's view window
-[X_VIEW_NEAR, X_VIEW_FAR]: unmarked edges and intersections give a missing line. Given the painted road
-textures (`PaintVisibility`), a line also counts as missing when wear has left less than
-`VISIBLE_FRACTION` of its paint in that window standing out from the asphalt beside it: the camera cannot
-see it either.
+[X_VIEW_NEAR, X_VIEW_FAR]: unmarked edges and intersections give a missing line. Given the rendered frame
+(`FrameVisibility`), a line also counts as missing unless its paint stands out against the surfaces on
+both sides of it in at least `VISIBLE_FRACTION` of the image rows of that window where paint was laid:
+paint worn to the asphalt, or faded to the shade of the kerb beside it, is a line the camera cannot see.
+Paint stands out from a surface where their colours differ by `VISIBLE_CONTRAST` of the surface's
+brightness (RGB distance over the surface's RGB norm): yellow stands out from a grey kerb by its hue.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,56 +24,105 @@ from tracks.paint import marking_coverage
 from tracks.pose import Pose
 from tracks.semantic_map import TrackMap
 from tracks.texture import tile_frame
+from vehicles.camera_rig import CameraRig
 
 X_MAX = 40.0  # m: the fitted range ahead of the reference point
 X_VIEW_NEAR, X_VIEW_FAR = 5.0, 25.0  # m: where a line must be painted to count as present
 SAMPLE_STEP = 1.0  # m between samples along the line
-VISIBLE_CONTRAST = 0.2  # a row's mean paint over the asphalt beside it, relative, channel-averaged (fresh ≈ 1.7)
-VISIBLE_FRACTION = 0.25  # of a line's painted texture rows in the view window that must keep that contrast
-PAINT_BAND_M = 0.25  # |t - line| of the line's own paint (double yellow included)
-ASPHALT_BAND_M = (0.3, 0.7)  # |t - line| of the bare surface either side; the darker side is the reference
+VISIBLE_CONTRAST = 0.15  # RGB distance of a row's paint from a side's surface over that surface's RGB norm
+# (fresh white paint, row mean in a day frame: about 1.4 over asphalt, 0.1-0.3 over a kerb)
+VISIBLE_FRACTION = 0.25  # of a line's painted image rows in the view window that must show that contrast
+PAINT_BAND_M = 0.25  # |offset| from the line within which its own paint lies (double yellow included)
+PAINT_CORE = 0.9  # marking coverage at a pixel centre for it to show the paint (not its anti-aliased edge)
+SIDE_BAND_M = (0.05, 0.25)  # beyond the outermost paint of the row: the surface beside the line, each side
 
 
-class PaintVisibility:
-    """How much of a lane line's paint still stands out in the painted tile textures (`texture_of(i)`, lit
-    or not: the test is a ratio to the asphalt of the same texture row, so shadows and lighting cancel), row
-    by row (1/25 m) where the map's marking mask says paint was laid."""
+class PaintLayout:
+    """Where lane-line paint was laid on a track: the tiles' marking coverage (`tracks.paint.marking_coverage`)
+    at reference arc length s and lateral offset t, nearest texel; 0 off the tiles."""
 
-    def __init__(self, track, texture_of: Callable[[int], np.ndarray]) -> None:
+    def __init__(self, track) -> None:
         self.track = track
-        self.texture_of = texture_of
         self._coverage: dict[int, np.ndarray] = {}
 
-    def visible_fraction(self, t_line: float, s_lo: float, s_hi: float) -> float | None:
-        """Fraction of the painted texture rows of the line at lateral offset `t_line` over s ∈ [s_lo, s_hi]
-        whose paint is on average `VISIBLE_CONTRAST` brighter than the asphalt of the row; None where no paint
-        was laid."""
-        track = self.track
-        first = max(0, math.floor(s_lo / track.tile_length))
-        last = min(track.n_tiles - 1, math.floor(s_hi / track.tile_length))
-        laid = seen = 0
-        for i in range(first, last + 1):
-            frame = tile_frame(track, i)
+    def coverage(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+        s, t = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(t, dtype=float))
+        out = np.zeros(s.shape)
+        on_road = (s >= 0.0) & (s < self.track.length)
+        tile = np.where(on_road, s // self.track.tile_length, -1).astype(int)
+        for i in np.unique(tile[on_road]):
+            frame = tile_frame(self.track, int(i))
             if i not in self._coverage:
                 self._coverage[i] = marking_coverage(frame)
-            rows = frame.rows_between(max(s_lo, frame.s0), min(s_hi, frame.s1))
-            off = frame.t_of_cols() - t_line
-            band = np.abs(off) < PAINT_BAND_M
-            sides = [(d * off > ASPHALT_BAND_M[0]) & (d * off < ASPHALT_BAND_M[1]) for d in (-1.0, 1.0)]
-            sides = [m for m in sides if m.any()]
-            if not band.any() or not sides:
-                continue
-            tex = self.texture_of(i)[rows].astype(np.float32)
-            # the darker side is the asphalt (beyond an edge line lies a bright shoulder or kerb)
-            asphalt = np.maximum(np.min([np.median(tex[:, m], axis=1) for m in sides], axis=0), 1.0)
-            paint = self._coverage[i][rows][:, band] > 0.5
-            n = paint.sum(axis=1)
-            painted_rows = n > 0
-            mean_paint = (tex[:, band] * paint[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
-            contrast = (mean_paint / asphalt).mean(axis=-1) - 1.0
-            laid += int(painted_rows.sum())
-            seen += int((painted_rows & (contrast >= VISIBLE_CONTRAST)).sum())
-        return seen / laid if laid else None
+            here = tile == i
+            row, col = (np.floor(v).astype(int) for v in frame.pixel(s[here], t[here]))
+            inside = (row >= 0) & (row < frame.height) & (col >= 0) & (col < frame.width)
+            values = np.zeros(len(row))
+            values[inside] = self._coverage[i][row[inside], col[inside]]
+            out[here] = values
+        return out
+
+
+class FrameVisibility:
+    """Where a lane line's paint stands out in one rendered frame (RGB, the rig's size), image row by image row.
+
+    The ground is flat and the rig has no roll, so each image row below the horizon looks at one distance x
+    ahead; at that x the line lies at a known y and each pixel of the row at a known offset from it. The row's
+    paint is the mean colour of its pixels within `PAINT_BAND_M` of the line where `layout` says paint was laid
+    (its core, `PAINT_CORE`); each side's surface is the median colour of the pixels `SIDE_BAND_M` beyond that
+    paint. A row is judged when it shows paint and both sides."""
+
+    def __init__(self, image: np.ndarray, rig: CameraRig, layout: PaintLayout) -> None:
+        if image.shape != (rig.height, rig.width, 3):
+            raise ValueError(f"frame of shape {image.shape} is not the rig's {rig.height}x{rig.width} RGB")
+        self.layout = layout
+        v = np.arange(rig.height, dtype=float)
+        row_x = rig.pixel_to_ground(np.column_stack([np.full_like(v, 0.5 * (rig.width - 1)), v]))[:, 0]
+        self.rows = np.flatnonzero((row_x >= X_VIEW_NEAR) & (row_x <= X_VIEW_FAR))
+        self.row_x = row_x[self.rows]
+        u = np.arange(rig.width, dtype=float)
+        uv = np.column_stack([np.tile(u, len(self.rows)), np.repeat(self.rows.astype(float), rig.width)])
+        self.pixel_y = rig.pixel_to_ground(uv)[:, 1].reshape(len(self.rows), rig.width)
+        self.colours = image[self.rows].astype(np.float32)
+
+    def visible_fraction(self, t_line: float, s: np.ndarray, x: np.ndarray, y: np.ndarray) -> float | None:
+        """Fraction of the judged rows of the view window in which the paint of the line at lateral offset
+        `t_line` stands out from both sides; None where no row is judged. The line is given by samples at arc
+        lengths `s` and vehicle-frame points (`x`, `y`) covering the window."""
+        order = np.argsort(x)
+        x, y, s = x[order], y[order], s[order]
+        on_line = (self.row_x >= x[0]) & (self.row_x <= x[-1])
+        rx = self.row_x[on_line]
+        if len(rx) == 0:
+            return None
+        heading = np.arctan(np.interp(rx, x, np.gradient(y, x)))
+        dy = self.pixel_y[on_line] - np.interp(rx, x, y)[:, None]
+        offset = dy * np.cos(heading)[:, None]  # across the line, + left
+        along = dy * np.sin(heading)[:, None]
+        band = np.abs(offset) < PAINT_BAND_M
+        paint = np.zeros(offset.shape, dtype=bool)
+        row_s = np.interp(rx, x, s)[:, None] + along
+        paint[band] = self.layout.coverage(row_s[band], (t_line + offset)[band]) >= PAINT_CORE
+        laid = paint.any(axis=1)
+        if not laid.any():
+            return None
+        colours = self.colours[on_line]
+        extent = np.where(paint, np.abs(offset), 0.0).max(axis=1, keepdims=True)
+        n_paint = np.maximum(paint.sum(axis=1), 1)[:, None]
+        paint_rgb = (colours * paint[..., None]).sum(axis=1) / n_paint
+        seen = laid.copy()
+        judged = laid.copy()
+        for sign in (-1.0, 1.0):
+            beyond = sign * offset - extent
+            side = (beyond > SIDE_BAND_M[0]) & (beyond < SIDE_BAND_M[1]) & laid[:, None]
+            shown = side.any(axis=1)
+            judged &= shown
+            surface = np.zeros_like(paint_rgb)
+            surface[shown] = np.nanmedian(np.where(side[shown][..., None], colours[shown], np.nan), axis=1)
+            diff = np.linalg.norm(paint_rgb - surface, axis=1)
+            seen &= diff >= VISIBLE_CONTRAST * np.maximum(np.linalg.norm(surface, axis=1), 1.0)
+        n = int(judged.sum())
+        return int((seen & judged).sum()) / n if n else None
 
 
 @dataclass(frozen=True)
@@ -96,7 +146,7 @@ class EgoLines:
 
 
 def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
-                visibility: PaintVisibility | None = None) -> LineTruth:
+                visibility: FrameVisibility | None = None) -> LineTruth:
     boundary = track.boundaries[boundary_index]
     ref = track.reference
     s = np.arange(s0 - 5.0, s0 + X_MAX * 1.5 + 5.0, SAMPLE_STEP)
@@ -114,15 +164,15 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     painted = sum(k != "none" for k in kinds)
     exists = bool(kinds) and painted >= 0.5 * len(kinds)
     if exists and visibility is not None:
-        seen = visibility.visible_fraction(boundary.t, float(s[view].min()), float(s[view].max()))
+        seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
     kind = max(set(kinds), key=kinds.count) if kinds else "none"
     return LineTruth(coeffs=coeffs, exists=exists, kind=kind)
 
 
-def ego_lines(track, pose: Pose, visibility: PaintVisibility | None = None) -> EgoLines:
-    """True ego lines at `pose` (existence also by visible paint when `visibility` is given); raises
-    `OffMapError` when the pose is on no lane of the track."""
+def ego_lines(track, pose: Pose, visibility: FrameVisibility | None = None) -> EgoLines:
+    """True ego lines at `pose` (existence also by paint visible in the frame rendered there when `visibility`
+    is given); raises `OffMapError` when the pose is on no lane of the track."""
     if not pose.is_finite():
         raise OffMapError(f"pose {pose} is not finite")
     coord = TrackMap(track).project(pose)

@@ -81,3 +81,26 @@ def test_canvas_holds_exactly_the_wanted_tiles_while_it_recentres():
 def test_unknown_ground_mode_is_a_clear_error():
     with pytest.raises(ValueError, match="ground mode"):
         TileStreamer(load_track("slr"), get_condition("day").lighting, ground="voxels")
+
+
+@pytest.mark.parametrize("preset", ["urban-curvy", "local", "highway"])
+def test_canvas_keeps_the_lane_lines_where_the_map_has_them_on_the_sharpest_bend(preset):
+    """Each lane line, composited on the canvas, lies on the map's line (within a few centimetres, the chords
+    of the 2 m mesh segments included) where the road bends most."""
+    track = load_track(preset)
+    ref = track.reference
+    s_bend = float(ref.s[int(np.argmax(np.abs(ref.curvature)))])
+    canvas = GroundCanvas(track, get_condition("day").lighting)
+    tile = int(s_bend // track.tile_length)
+    canvas.set_tiles({tile})
+    marked = [b for b in track.boundaries if b.kind_at(s_bend) in ("solid_white", "solid_yellow")]
+    assert marked
+    s = np.linspace(tile * track.tile_length + 0.5, (tile + 1) * track.tile_length - 0.5, 40)
+    for boundary in marked:
+        across = np.linspace(-0.25, 0.25, 51)  # m, sampled across the line (short of the kerbs)
+        xy = ref.points(np.repeat(s, len(across)), np.tile(boundary.t + across, len(s)))
+        col, row = ((xy - np.asarray(canvas.origin)) * canvas.ppm - 0.5).T
+        rgb = canvas.image[np.round(row).astype(int), np.round(col).astype(int)].astype(float)
+        bright = rgb[:, 0].reshape(len(s), len(across))  # red: white and yellow paint alike
+        paint_centre = across[np.argmax(bright, axis=1)]
+        assert np.abs(paint_centre).max() <= 0.06
