@@ -127,17 +127,21 @@ class _Fade:
         img[:] = np.clip(img * (1.0 - a) + base * a + 0.5, 0, 255).astype(np.uint8)
 
 
-def _rendered_fractions(track, pose: Pose, condition: str, *painters) -> tuple[float | None, float | None]:
-    """(left, right) visible fractions of the ego lines in the frame the camera renders at `pose`."""
+def _render(track, pose: Pose, condition: str, *painters) -> np.ndarray:
+    """The frame the camera renders at `pose` in `condition`, the track painted with `painters` too."""
     cond = get_condition(condition)
     track.painters = [AsphaltPainter(), MarkingPainter(), *painters, *cond.track_painters(track.seed)]
     streamer = TileStreamer(track, cond.lighting, ahead_m=70.0, behind_m=5.0)
     try:
         streamer.update(pose)
-        image = FrontCamera(streamer, RIG, cond, np.random.default_rng(5)).render(pose)
+        return FrontCamera(streamer, RIG, cond, np.random.default_rng(5)).render(pose)
     finally:
         streamer.close()
-    vis = FrameVisibility(image, RIG, PaintLayout(track))
+
+
+def _rendered_fractions(track, pose: Pose, condition: str, *painters) -> tuple[float | None, float | None]:
+    """(left, right) visible fractions of the ego lines in the frame the camera renders at `pose`."""
+    vis = FrameVisibility(_render(track, pose, condition, *painters), RIG, PaintLayout(track))
     lines = ego_lines(track, pose, vis)
     out = []
     for boundary in (track.boundaries[lines.lane + 1], track.boundaries[lines.lane]):
@@ -182,14 +186,6 @@ def test_preset_frames_worn_against_day():
 
 
 def _labels_rendered(track, pose: Pose, condition: str) -> tuple[bool, bool]:
-    cond = get_condition(condition)
-    track.painters = [AsphaltPainter(), MarkingPainter(), *cond.track_painters(track.seed)]
-    streamer = TileStreamer(track, cond.lighting, ahead_m=70.0, behind_m=5.0)
-    try:
-        streamer.update(pose)
-        image = FrontCamera(streamer, RIG, cond, np.random.default_rng(5)).render(pose)
-    finally:
-        streamer.close()
-    lines = _labels(track, image, pose)
+    lines = _labels(track, _render(track, pose, condition), pose)
     return lines.left.exists, lines.right.exists
 
