@@ -124,13 +124,13 @@ class GroundCanvas:
             curvature = max(abs(self.track.reference.curvature_at(float(v))) for v in np.linspace(s[k], s[k + 1], 5))
             strips = max(1, math.ceil((f.t_max - f.t_min) * math.sqrt(curvature / (4.0 * MAX_WARP_ERROR_M))))
             t = np.linspace(f.t_max, f.t_min, strips + 1)
+            quad_s = np.array([s[k + 1], s[k + 1], s[k], s[k]])
+            tex_v = (f.s1 - quad_s) * f.px_per_m_s - 0.5
+            rows = slice(max(0, math.floor(tex_v.min()) - 1), min(f.height, math.ceil(tex_v.max()) + 2))
             for j in range(strips):
-                quad_s = np.array([s[k + 1], s[k + 1], s[k], s[k]])
                 quad_t = np.array([t[j], t[j + 1], t[j + 1], t[j]])
-                tex = np.column_stack([(f.t_max - quad_t) * f.px_per_m_t, (f.s1 - quad_s) * f.px_per_m_s]) - 0.5
+                tex = np.column_stack([(f.t_max - quad_t) * f.px_per_m_t - 0.5, tex_v])
                 world = self.track.reference.points(quad_s, quad_t)
-                rows = slice(max(0, math.floor(tex[:, 1].min()) - 1),
-                             min(f.height, math.ceil(tex[:, 1].max()) + 2))
                 out.append((tex, np.asarray(world, dtype=float), rows))
         return out
 
