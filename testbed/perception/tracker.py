@@ -12,7 +12,10 @@ probability, c0's variance (and the others in proportion) replaced by the detect
 `right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
 a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
 innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
-(accepted at once), one line off for `confirm_frames` frames in a row is a real change (accepted then).
+(accepted at once), one line off for `confirm_frames` frames in a row is a real change (accepted then); either
+only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
+the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
+not count as seen.
 Lines are re-associated when the car crosses one (left becomes right, and the next line over is predicted
 one lane width further). A line not seen for `max_coast` seconds is no longer output; an output line carries
 its last detected existence probability, and the filter's c0 variance where the detector reports its own.
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from filterpy.kalman import KalmanFilter
@@ -112,6 +116,15 @@ def transition(dx: float) -> np.ndarray:
     return f
 
 
+class Measurement(NamedTuple):
+    """One detected line as the filter takes it: its cubic z (c0..c3), its noise R and its existence
+    probability."""
+
+    z: np.ndarray
+    r: np.ndarray
+    prob: float
+
+
 @dataclass
 class LineMemory:
     """What the tracker remembers of one line beside its state: when it was last seen (s), its last existence
@@ -152,7 +165,7 @@ class LaneTracker:
                       p.curvature_std**2 * dx, p.curvature_rate_std**2 * dx])
         return q
 
-    def _measurement(self, ld: LaneDetection, side: int) -> tuple[np.ndarray, np.ndarray] | None:
+    def _measurement(self, ld: LaneDetection, side: int) -> Measurement | None:
         """(z, R) of a detected line that may update the filter, else None."""
         coeffs, prob = (ld.left, ld.left_prob) if side == LEFT else (ld.right, ld.right_prob)
         var = ld.left_var if side == LEFT else ld.right_var
@@ -169,9 +182,9 @@ class LaneTracker:
             r = r * (var / r[0])
         elif adapted is not None:
             r = r * (max(adapted, self.params.min_offset_std**2) / r[0])
-        return z, np.diag(r / min(prob, 1.0))
+        return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0))
 
-    def _start(self, meas: list[tuple[np.ndarray, np.ndarray] | None]) -> None:
+    def _start(self, meas: list[Measurement | None]) -> None:
         p = self.params
         seen = [m for m in meas if m is not None]
         x = np.zeros(DIM)
@@ -207,7 +220,7 @@ class LaneTracker:
         self.lines[kept], self.lines[new] = self.lines[new], LineMemory()
         self.swaps += direction
 
-    def _associate(self, meas: list[tuple[np.ndarray, np.ndarray] | None]) -> None:
+    def _associate(self, meas: list[Measurement | None]) -> None:
         """Swap the lines when the car has crossed one: by the detections where there are any (the
         hypothesis whose offsets are nearest them), else by the predicted offsets' signs."""
         x = self.kf.x[:, 0]
@@ -222,7 +235,7 @@ class LaneTracker:
         if best:
             self._swap(best)
 
-    def _gate(self, meas: list[tuple[np.ndarray, np.ndarray] | None]) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    def _gate(self, meas: list[Measurement | None]) -> list[Measurement | None]:
         """Outlier handling on the offsets: returns the measurements without the outliers, after opening the
         state's offset covariance where a jump is accepted as real."""
         p = self.params
@@ -238,6 +251,8 @@ class LaneTracker:
         if both and out[LEFT] and out[RIGHT]:
             diff_var = s[LEFT] + s[RIGHT] - 2 * cov[LEFT, RIGHT]
             if abs(nu[LEFT] - nu[RIGHT]) <= p.gate * math.sqrt(max(diff_var, 1e-12)):
+                if not self._heading_agrees(meas, (LEFT, RIGHT)):
+                    return [None, None]  # both lines moved and turned at once: neither is the lane seen before
                 self._open(_COMMON_OFFSET, 0.5 * (nu[LEFT] + nu[RIGHT]))  # the car moved: both lines jump
                 for line in self.lines:
                     line.outliers = 0
@@ -251,7 +266,7 @@ class LaneTracker:
                 line.outliers = 0
                 continue
             line.outliers += 1
-            if line.outliers >= p.confirm_frames:
+            if line.outliers >= p.confirm_frames and self._heading_agrees(meas, (side,)):
                 other_agrees = meas[1 - side] is not None and not out[1 - side]
                 self._open(_E[side] if other_agrees else _COMMON_OFFSET, nu[side])
                 line.outliers = 0
@@ -259,11 +274,20 @@ class LaneTracker:
                 gated[side] = None
         return gated
 
+    def _heading_agrees(self, meas: list[Measurement | None], sides: tuple[int, ...]) -> bool:
+        """Whether the mean heading c1 of these detected lines is within `gate` of the tracked heading, with
+        each line's c1 noise `measurement_std[1]`² over its existence probability: a lateral jump of the car
+        leaves its heading to the lane as the gyro carried it, a line read off the wrong paint rarely does."""
+        p = self.params
+        z = np.mean([meas[side].z[1] for side in sides])
+        r = sum(p.measurement_std[1] ** 2 / meas[side].prob for side in sides) / len(sides) ** 2
+        return abs(z - self.kf.x[2, 0]) <= p.gate * math.sqrt(self.kf.P[2, 2] + r)
+
     def _open(self, direction: np.ndarray, jump: float) -> None:
         """Add variance along `direction` of the state so the next update takes a jump of this size."""
         self.kf.P = self.kf.P + (jump**2 + 1.0) * 100.0 * np.outer(direction, direction)
 
-    def _update(self, meas: list[tuple[np.ndarray, np.ndarray] | None]) -> None:
+    def _update(self, meas: list[Measurement | None]) -> None:
         rows = [side for side in (LEFT, RIGHT) if meas[side] is not None]
         if not rows:
             return
@@ -282,14 +306,16 @@ class LaneTracker:
     # ---- interface -------------------------------------------------------------------------------------
     def update(self, ld: LaneDetection, speed: float, yaw_rate: float) -> LaneDetection:
         """Predict to `ld.timestamp` with the odometry (speed m/s, yaw rate rad/s, now), update with `ld`, and
-        return the tracked lines (a line last seen more than `max_coast` s ago is None, probability 0)."""
+        return the tracked lines (a line last seen more than `max_coast` s ago is None, probability 0; a
+        detection the gate leaves out does not count as seen)."""
         p = self.params
         meas = [self._measurement(ld, side) for side in (LEFT, RIGHT)]
         if self.started and any(line.last_seen is not None and ld.timestamp - line.last_seen <= p.max_coast
                                 for line in self.lines):
             self._predict(max(0.0, ld.timestamp - self.t), speed, yaw_rate)
             self._associate(meas)
-            self._update(self._gate(meas))
+            meas = self._gate(meas)
+            self._update(meas)
         elif any(m is not None for m in meas):
             self.reset()
             self._start(meas)

@@ -93,6 +93,61 @@ def test_a_one_frame_glitch_on_one_line_is_rejected():
     assert d_ld(glitch) == pytest.approx(d_ld(ld) + 0.9)  # what LD3 would have used without the tracker
 
 
+def turned(ld: LaneDetection, shift: float, dc1: float, left: bool = True, right: bool = True) -> LaneDetection:
+    """`ld` with its lines moved `shift` m to the left and turned by `dc1` (heading); `left` / `right` False
+    drops that line."""
+    d = np.array([shift, dc1, 0.0, 0.0])
+    return LaneDetection(ld.timestamp, ld.left + d if left else None, ld.right + d if right else None,
+                         1.0 if left else 0.0, 1.0 if right else 0.0, ld.x_range)
+
+
+def test_both_lines_jumping_with_a_turn_are_rejected():
+    """Both lines read 0.9 m to the left and 0.15 rad turned for one frame (paint misread across the image):
+    not the car moving, whose heading to the lane the gyro carries; a jump without the turn is taken."""
+    scene = Scene()
+    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    glitch = turned(scene.detect(), 0.9, 0.15)
+    assert d_ld(tracker.update(glitch, scene.speed, scene.yaw_rate)) == pytest.approx(d_ld(scene.detect()),
+                                                                                         abs=0.03)
+    scene.step()
+    moved = turned(scene.detect(), 0.9, 0.0)
+    assert d_ld(tracker.update(moved, scene.speed, scene.yaw_rate)) == pytest.approx(d_ld(moved), abs=0.03)
+
+
+def test_one_line_jumping_with_a_turn_is_not_confirmed():
+    """The only seen line reads 1.1 m further out and 0.18 rad turned for several frames (worn paint, the
+    detector on the next marking): the tracked lane stays where the odometry carries it."""
+    scene = Scene()
+    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    for _ in range(6):
+        tracked = tracker.update(turned(scene.detect(), 1.1, -0.18, right=False), scene.speed, scene.yaw_rate)
+        assert d_ld(tracked) == pytest.approx(d_ld(scene.detect()), abs=0.03)
+        scene.step()
+
+
+def test_a_turned_jump_that_persists_takes_over_after_max_coast():
+    """Detections that keep disagreeing in place and heading with the tracked lane are not seen lines: once
+    none has been taken for `max_coast`, the tracker starts again from what the detector sees (here a car 0.9 m
+    further right and turned 0.1 rad to the right, its lines drifting away as that heading implies), so it
+    cannot lock itself out."""
+    params = TrackerParams(max_coast=0.5)
+    scene = Scene()
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(), LaneTracker(params))
+    seen = Scene(lateral=-0.9, yaw=-0.1)
+    seen.t = scene.t
+    outputs = []
+    for _ in range(14):
+        ld = seen.detect()
+        outputs.append((tracker.update(ld, scene.speed, scene.yaw_rate), ld, d_ld(scene.detect())))
+        scene.step()
+        seen.step()
+    # frames 0.05 s apart, the last taken 0.05 s before the first: 0.5 s of coasting is frames 0..9
+    for tracked, _, truth in outputs[:10]:
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.03)
+    for tracked, ld, _ in outputs[10:]:
+        assert d_ld(tracked) == pytest.approx(d_ld(ld), abs=0.03)
+
+
 def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
     """The right line is seen 0.4 m further right for 10 frames (a dark patch along it), the left one is fine:
     the tracked right line takes the shift only once it persists (`confirm_frames`) and drops it as late."""
