@@ -12,7 +12,8 @@ probability, c0's variance (and the others in proportion) replaced by the detect
 `right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
 a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
 innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
-(accepted at once), one line off for `confirm_frames` frames in a row is a real change (accepted then); either
+(accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
+while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); each
 only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
 the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
 not count as seen.
@@ -59,7 +60,10 @@ class TrackerParams:
     gate: float = 3.5
     """Offset innovations beyond this many standard deviations are outliers."""
     confirm_frames: int = 2
-    """Consecutive outlier frames after which a line's jump is taken as real."""
+    """Consecutive outlier frames after which the only seen line's jump is taken as the car's motion."""
+    width_confirm_frames: int = 4
+    """Consecutive outlier frames after which one line's jump, the other line seen where it was, is taken as
+    the lane's width changing."""
     max_coast: float = 1.0
     """s a line is output after it was last seen."""
     min_existence: float = 0.05
@@ -76,7 +80,8 @@ class TrackerParams:
             (min(self.lateral_std, self.yaw_rate_std, self.curvature_std, self.curvature_rate_std,
                  self.width_std) >= 0, "process noise stds must be >= 0"),
             (self.unseen_std > 0 and self.gate > 0, "unseen_std and gate must be > 0"),
-            (self.confirm_frames >= 1, "confirm_frames must be >= 1"),
+            (self.confirm_frames >= 1 and self.width_confirm_frames >= 1,
+             "confirm_frames and width_confirm_frames must be >= 1"),
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
             (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
@@ -136,7 +141,8 @@ class LineMemory:
     outliers: int = 0
     reported: bool = False
     residual_var: float | None = None
-    """Running mean of the squared c0 residual after each update (m²): how far the line sits from the rest."""
+    """Running mean of the squared c0 residual after each update (m²), its first value at most
+    measurement_std[0]²: how far the line sits from the rest."""
 
 
 class LaneTracker:
@@ -266,8 +272,9 @@ class LaneTracker:
                 line.outliers = 0
                 continue
             line.outliers += 1
-            if line.outliers >= p.confirm_frames and self._heading_agrees(meas, (side,)):
-                other_agrees = meas[1 - side] is not None and not out[1 - side]
+            other_agrees = meas[1 - side] is not None and not out[1 - side]
+            needed = p.width_confirm_frames if other_agrees else p.confirm_frames
+            if line.outliers >= needed and self._heading_agrees(meas, (side,)):
                 self._open(_E[side] if other_agrees else _COMMON_OFFSET, nu[side])
                 line.outliers = 0
             else:
@@ -301,7 +308,10 @@ class LaneTracker:
         for side in rows:
             line = self.lines[side]
             spread = (meas[side][0][0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
-            line.residual_var = spread if line.residual_var is None else (1 - a) * line.residual_var + a * spread
+            if line.residual_var is None:  # one frame cannot say the line is noisier than the nominal model
+                line.residual_var = min(spread, self.params.measurement_std[0] ** 2)
+            else:
+                line.residual_var = (1 - a) * line.residual_var + a * spread
 
     # ---- interface -------------------------------------------------------------------------------------
     def update(self, ld: LaneDetection, speed: float, yaw_rate: float) -> LaneDetection:

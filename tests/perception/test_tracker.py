@@ -150,7 +150,7 @@ def test_a_turned_jump_that_persists_takes_over_after_max_coast():
 
 def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
     """The right line is seen 0.4 m further right for 10 frames (a dark patch along it), the left one is fine:
-    the tracked right line takes the shift only once it persists (`confirm_frames`) and drops it as late."""
+    the tracked right line takes the shift only once it persists (`width_confirm_frames`) and drops it as late."""
     params = TrackerParams()
     shifted = range(40, 50)
 
@@ -163,8 +163,8 @@ def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
     _, out = track(Scene(lateral=-0.3), 70, detect)
     true_right = [fed.right[0] + (0.4 if k in shifted else 0.0) for k, (_, _, fed) in enumerate(out)]
     off = [k for k, (tracked, _, _) in enumerate(out) if abs(tracked.right[0] - true_right[k]) > 0.2]
-    assert off[0] == shifted.start + params.confirm_frames - 1
-    assert off[-1] == shifted.stop + params.confirm_frames - 2
+    assert off[0] == shifted.start + params.width_confirm_frames - 1
+    assert off[-1] == shifted.stop + params.width_confirm_frames - 2
     assert len(off) == len(shifted)
 
 
@@ -244,7 +244,8 @@ def test_non_finite_or_improbable_lines_do_not_update():
 
 
 @pytest.mark.parametrize("bad", [dict(measurement_std=(0.1, 0.0, 1e-3, 1e-5)), dict(gate=0.0),
-                                 dict(confirm_frames=0), dict(max_coast=-1.0), dict(lateral_std=-0.1)])
+                                 dict(confirm_frames=0), dict(width_confirm_frames=0), dict(max_coast=-1.0),
+                                 dict(lateral_std=-0.1)])
 def test_bad_parameters_are_refused(bad):
     with pytest.raises(ValueError, match="tracker"):
         TrackerParams(**bad)
