@@ -66,6 +66,8 @@ class GroundCanvas:
         self.rebuilds = 0
         self.origin = (0.0, 0.0)
         self.image = np.empty((0, 0, 4), np.uint8)
+        self._spare = np.empty(0, np.uint8)
+        """The buffer of the canvas before the last recentre, reused by the next one (no fresh pages to fault)."""
         self._segments: dict[int, list[tuple[np.ndarray, np.ndarray, slice]]] = {}
         self._textures: dict[int, np.ndarray] = {}
 
@@ -105,7 +107,8 @@ class GroundCanvas:
         if old.size:
             lo = old_origin + np.round((lo - old_origin) * self.ppm) / self.ppm  # on the old pixel grid
         w, h = (int(v) for v in np.ceil((hi - lo) * self.ppm))
-        image = np.empty((h, w, 4), np.uint8)
+        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(h * w * 4, np.uint8)
+        image = spare[: h * w * 4].reshape(h, w, 4)
         x0 = y0 = x1 = y1 = 0
         if old.size:
             dx, dy = (int(v) for v in np.round((old_origin - lo) * self.ppm))
@@ -119,6 +122,7 @@ class GroundCanvas:
         for rows, cols in ((slice(0, y0), slice(None)), (slice(y1, h), slice(None)), (slice(y0, y1), slice(0, x0)),
                            (slice(y0, y1), slice(x1, w))):
             pixels[rows, cols] = open_ground  # open ground around what was carried over
+        self._spare = old.base if old.base is not None else old.reshape(-1)
         self.image, self.origin = image, (float(lo[0]), float(lo[1]))
         self.rebuilds += 1
 
