@@ -109,14 +109,13 @@ class GroundCanvas:
         w, h = (int(v) for v in np.ceil((hi - lo) * self.ppm))
         spare = self._spare if self._spare.size >= h * w * 4 else np.empty(h * w * 4, np.uint8)
         image = spare[: h * w * 4].reshape(h, w, 4)
-        x0 = y0 = x1 = y1 = 0
+        x0 = y0 = x1 = y1 = 0  # the region carried over
         if old.size:
             dx, dy = (int(v) for v in np.round((old_origin - lo) * self.ppm))
-            x0, y0, x1, y1 = max(0, dx), max(0, dy), min(w, dx + old.shape[1]), min(h, dy + old.shape[0])
-            if x1 > x0 and y1 > y0:
+            cx0, cy0, cx1, cy1 = max(0, dx), max(0, dy), min(w, dx + old.shape[1]), min(h, dy + old.shape[0])
+            if cx1 > cx0 and cy1 > cy0:
+                x0, y0, x1, y1 = cx0, cy0, cx1, cy1
                 image[y0:y1, x0:x1] = old[y0 - dy : y1 - dy, x0 - dx : x1 - dx]
-            else:
-                x0 = y0 = x1 = y1 = 0
         pixels = image.view(np.uint32)[..., 0]
         open_ground = np.array(OPEN_GROUND_RGBA, np.uint8).view(np.uint32)[0]
         for rows, cols in ((slice(0, y0), slice(None)), (slice(y1, h), slice(None)), (slice(y0, y1), slice(0, x0)),
