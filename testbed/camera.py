@@ -13,7 +13,7 @@ import numpy as np
 import pybullet as pb
 
 from testbed.conditions import Condition
-from testbed.ground import OPEN_GROUND_RGB
+from testbed.ground import OPEN_GROUND_RGBA
 from testbed.lane_detection import CameraFrame
 from testbed.world import TileStreamer
 from tracks.pose import Pose
@@ -76,18 +76,19 @@ class ImageEffects:
         if c.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), c.blur_sigma)
         if c.noise_std > 0:
-            noise = self._noise(rng)
-            img = cv2.scaleAdd(cv2.merge([noise, noise, noise]), c.noise_std, img)
+            img = cv2.scaleAdd(self._noise(rng), c.noise_std, img)
         return np.clip(img, 0, 255, out=img).astype(np.uint8)
 
     def _noise(self, rng: np.random.Generator) -> np.ndarray:
-        """Unit luma noise for one frame: a random window of a bank drawn once (2× the frame each way) from
-        `rng`, so each frame costs one offset draw instead of a fresh normal per pixel."""
+        """Unit luma noise for one frame (the same value in the three channels): a random window of a bank
+        drawn once (2× the frame each way) from `rng`, so each frame costs one offset draw instead of a fresh
+        normal per pixel."""
         h, w = self.sky.shape[:2]
         if self._noise_bank is None:
-            self._noise_bank = rng.standard_normal((2 * h, 2 * w), dtype=np.float32)
+            luma = rng.standard_normal((2 * h, 2 * w), dtype=np.float32)
+            self._noise_bank = cv2.merge([luma, luma, luma])
         oy, ox = (int(v) for v in rng.integers(0, (h, w)))
-        return np.ascontiguousarray(self._noise_bank[oy : oy + h, ox : ox + w])
+        return self._noise_bank[oy : oy + h, ox : ox + w]
 
 
 class FrontCamera:
@@ -105,12 +106,12 @@ class FrontCamera:
         self._empty_scene: tuple[np.ndarray, np.ndarray] | None = None
 
     def _scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
-        """TinyRenderer's picture of the render client (RGB, and where nothing was drawn). A client without a
+        """TinyRenderer's picture of the render client (RGBA, and where nothing was drawn). A client without a
         body draws the same empty picture from every pose: that one is rendered once and reused."""
         bodiless = pb.getNumBodies(physicsClientId=self.client) == 0
         if bodiless and self._empty_scene is not None:
-            rgb, empty = self._empty_scene
-            return rgb.copy(), empty
+            rgba, empty = self._empty_scene
+            return rgba.copy(), empty
         c = self.condition
         _, _, rgba, depth, _ = pb.getCameraImage(
             self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
@@ -119,24 +120,24 @@ class FrontCamera:
             renderer=pb.ER_TINY_RENDERER, flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client,
         )
         shape = (self.rig.height, self.rig.width)
-        rgb = cv2.cvtColor(np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4)), cv2.COLOR_RGBA2RGB)
+        rgba = np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4))
         empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
         if bodiless:
             empty.flags.writeable = False
-            self._empty_scene = (rgb.copy(), empty)
-        return rgb, empty
+            self._empty_scene = (rgba.copy(), empty)
+        return rgba, empty
 
     def render(self, pose: Pose) -> np.ndarray:
-        rgb, empty = self._scene(pose)
+        rgba, empty = self._scene(pose)
         below = self.effects.below_horizon
         canvas = self.streamer.canvas
         ground = (below & empty).view(np.uint8)
         if canvas is not None:
             top = self.effects.first_ground_row
-            cv2.copyTo(canvas.view(self.rig, pose, top), ground[top:], rgb[top:])
+            cv2.copyTo(canvas.view(self.rig, pose, top), ground[top:], rgba[top:])
         else:
-            rgb[ground.view(bool)] = OPEN_GROUND_RGB
-        return self.effects.apply(rgb, empty & ~below, self.rng)
+            rgba[ground.view(bool)] = OPEN_GROUND_RGBA
+        return self.effects.apply(cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB), empty & ~below, self.rng)
 
     def capture(self, t: float, pose: Pose) -> CameraFrame:
         return CameraFrame(t=t, image=self.render(pose), true_pose=pose)

@@ -5,7 +5,9 @@ The world is flat (the road lies at z = 0) and the camera is a pinhole, so the i
 projective map of the ground plane: drawing the canvas through `K·[r1 r2 t]` gives what a rasteriser
 draws from the same textured mesh, at a fraction of the cost. Lighting is TinyRenderer's Lambert model
 (ambient + diffuse·max(0, n·l)·light colour) for the surface normal +z, one gain per colour channel,
-applied when a tile is composited. Pixels beyond the tiles are open ground (`OPEN_GROUND_RGB`).
+applied when a tile is composited. Pixels beyond the tiles are open ground (`OPEN_GROUND_RGB`). The canvas
+holds four channels (RGB and an unused fourth): OpenCV warps four-channel pixels with the same per-channel
+arithmetic as three-channel ones, and faster.
 
 Tile i covers the arc-length band [s_i, s_i+1); its texture is straight in (s, t) and the road's
 curvature lives in the mesh. Each mesh segment (a quad between two cross sections `spacing` m apart) is
@@ -27,6 +29,7 @@ from tracks.texture import tile_frame, tile_texture
 from vehicles.camera_rig import CameraRig
 
 OPEN_GROUND_RGB = (84, 107, 66)
+OPEN_GROUND_RGBA = (*OPEN_GROUND_RGB, 255)
 SEGMENT_SPACING_M = 2.0
 MAX_WARP_ERROR_M = 0.005  # m: largest lateral misplacement of the road texture by a segment's warp
 
@@ -47,7 +50,8 @@ class Lighting:
 
 
 class GroundCanvas:
-    """World-aligned canvas (RGB uint8, `px_per_m` px per metre) holding the lit textures of a set of tiles.
+    """World-aligned canvas (RGBA uint8, alpha unused, `px_per_m` px per metre) holding the lit textures of a
+    set of tiles.
 
     `set_tiles` composites newly wanted tiles and erases dropped ones; when a wanted tile falls outside
     the canvas, it is re-centred on them (with `margin_m` around them), carrying over what it already holds.
@@ -61,7 +65,9 @@ class GroundCanvas:
         self.tiles: set[int] = set()
         self.rebuilds = 0
         self.origin = (0.0, 0.0)
-        self.image = np.empty((0, 0, 3), np.uint8)
+        self.image = np.empty((0, 0, 4), np.uint8)
+        self._spare = np.empty(0, np.uint8)
+        """The buffer of the canvas before the last recentre, reused by the next one (no fresh pages to fault)."""
         self._segments: dict[int, list[tuple[np.ndarray, np.ndarray, slice]]] = {}
         self._textures: dict[int, np.ndarray] = {}
 
@@ -101,13 +107,21 @@ class GroundCanvas:
         if old.size:
             lo = old_origin + np.round((lo - old_origin) * self.ppm) / self.ppm  # on the old pixel grid
         w, h = (int(v) for v in np.ceil((hi - lo) * self.ppm))
-        image = np.empty((h, w, 3), np.uint8)
-        cv2.rectangle(image, (0, 0), (w, h), OPEN_GROUND_RGB, thickness=-1)
+        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(h * w * 4, np.uint8)
+        image = spare[: h * w * 4].reshape(h, w, 4)
+        x0 = y0 = x1 = y1 = 0  # the region carried over
         if old.size:
             dx, dy = (int(v) for v in np.round((old_origin - lo) * self.ppm))
-            x0, y0, x1, y1 = max(0, dx), max(0, dy), min(w, dx + old.shape[1]), min(h, dy + old.shape[0])
-            if x1 > x0 and y1 > y0:
+            cx0, cy0, cx1, cy1 = max(0, dx), max(0, dy), min(w, dx + old.shape[1]), min(h, dy + old.shape[0])
+            if cx1 > cx0 and cy1 > cy0:
+                x0, y0, x1, y1 = cx0, cy0, cx1, cy1
                 image[y0:y1, x0:x1] = old[y0 - dy : y1 - dy, x0 - dx : x1 - dx]
+        pixels = image.view(np.uint32)[..., 0]
+        open_ground = np.array(OPEN_GROUND_RGBA, np.uint8).view(np.uint32)[0]
+        for rows, cols in ((slice(0, y0), slice(None)), (slice(y1, h), slice(None)), (slice(y0, y1), slice(0, x0)),
+                           (slice(y0, y1), slice(x1, w))):
+            pixels[rows, cols] = open_ground  # open ground around what was carried over
+        self._spare = old.base if old.base is not None else old.reshape(-1)
         self.image, self.origin = image, (float(lo[0]), float(lo[1]))
         self.rebuilds += 1
 
@@ -135,11 +149,11 @@ class GroundCanvas:
         return out
 
     def texture(self, i: int) -> np.ndarray:
-        """Tile i's texture as lit on this canvas (cached while the tile is held)."""
+        """Tile i's texture as lit on this canvas, RGBA (cached while the tile is held)."""
         if i not in self._textures:
             # TinyRenderer truncates the lit colour to an integer: the -0.5 offset turns cv2's rounding into that.
             light = np.column_stack([np.diag(self.gain), [-0.5] * 3])
-            self._textures[i] = cv2.transform(tile_texture(self.track, i), light)
+            self._textures[i] = cv2.cvtColor(cv2.transform(tile_texture(self.track, i), light), cv2.COLOR_RGB2RGBA)
         return self._textures[i]
 
     def _paint(self, i: int) -> None:
@@ -161,20 +175,21 @@ class GroundCanvas:
         if x1 <= x0 or y1 <= y0:
             return
         local = dst - np.array([x0, y0])
-        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        cv2.fillConvexPoly(mask, np.round(local * 16).astype(np.int32), 1, lineType=cv2.LINE_8, shift=4)
+        corners = np.round(local * 16).astype(np.int32)
         roi = self.image[y0:y1, x0:x1]
         if src is None:
-            roi[mask.astype(bool)] = OPEN_GROUND_RGB
+            cv2.fillConvexPoly(roi, corners, OPEN_GROUND_RGBA, lineType=cv2.LINE_8, shift=4)
             return
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.fillConvexPoly(mask, corners, 1, lineType=cv2.LINE_8, shift=4)
         m = cv2.getPerspectiveTransform(src_quad.astype(np.float32), local.astype(np.float32))
         warped = cv2.warpPerspective(src, m, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_REPLICATE)
         cv2.copyTo(warped, mask, roi)
 
     def view(self, rig: CameraRig, pose: Pose, top_row: int = 0) -> np.ndarray:
-        """The canvas as the rig sees it from `pose`: image rows `top_row`.. (RGB uint8). Only pixels below
-        the horizon mean anything; rows above the first such row need not be drawn."""
+        """The canvas as the rig sees it from `pose`: image rows `top_row`.. (RGBA uint8, alpha unused). Only
+        pixels below the horizon mean anything; rows above the first such row need not be drawn."""
         c, s = math.cos(pose.yaw), math.sin(pose.yaw)
         vehicle_from_world = np.array([[c, s, -(c * pose.x + s * pose.y)], [-s, c, s * pose.x - c * pose.y],
                                        [0.0, 0.0, 1.0]])
@@ -183,4 +198,4 @@ class GroundCanvas:
         shift_rows = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -top_row], [0.0, 0.0, 1.0]])
         m = shift_rows @ rig.H @ vehicle_from_world @ world_from_canvas
         return cv2.warpPerspective(self.image, m, (rig.width, rig.height - top_row), flags=cv2.INTER_LINEAR,
-                                   borderMode=cv2.BORDER_CONSTANT, borderValue=OPEN_GROUND_RGB)
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=OPEN_GROUND_RGBA)

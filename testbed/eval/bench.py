@@ -51,8 +51,11 @@ def one_core() -> None:
 
 
 LOOP_SECTIONS = ("physics", "vehicle actuation", "localization", "map", "control", "defense", "attack",
-                 "logging", "consequence monitor", "render", "tile streaming", "detector")
-"""The parts `bench loop` splits the loop's wall time into (plus `rest`: the loop's own glue)."""
+                 "logging", "consequence monitor", "render", "ground canvas", "image effects", "tile streaming",
+                 "detector")
+"""The parts `bench loop` splits the loop's wall time into (plus `rest`: the loop's own glue). The camera's
+frame is `render` (TinyRenderer's picture of the roadside bodies, and compositing), `ground canvas` (the road
+drawn from the canvas) and `image effects` (the condition's sky, exposure and noise)."""
 
 
 def _instrument(sim, timer: SectionTimer) -> None:
@@ -81,7 +84,10 @@ def _instrument(sim, timer: SectionTimer) -> None:
     timer.wrap(sim.world, "contact_kinds", "consequence monitor")
     if sim.camera is not None:
         timer.wrap(sim.camera, "capture", "render")
+        timer.wrap(sim.camera.effects, "apply", "image effects")
         timer.wrap(sim.streamer, "update", "tile streaming")
+        if sim.streamer.canvas is not None:
+            timer.wrap(sim.streamer.canvas, "view", "ground canvas")
     if sim.detector is not None:
         timer.wrap(sim.detector, "detect", "detector")
     if sim.tracker is not None:

@@ -30,6 +30,15 @@ def test_loop_bench_without_camera_reports_both_real_time_factors_and_a_complete
     assert result["time_fraction"]["render"] == 0 and result["time_fraction"]["detector"] == 0
 
 
+def test_loop_bench_with_camera_splits_the_frame_into_bodies_ground_and_effects(capsys):
+    assert main(["bench", "loop", "--camera", "on", "--detector", "oracle", "--seconds", "0.5", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["camera"] is True and result["resolution"] == "320x160"
+    assert set(result["time_fraction"]) == {*LOOP_SECTIONS, "rest"}
+    for section in ("render", "ground canvas", "image effects", "tile streaming", "detector"):
+        assert result["time_fraction"][section] > 0, section
+
+
 def test_loop_bench_refuses_a_camera_detector_without_camera_and_loop_options_elsewhere(capsys):
     assert main(["bench", "loop", "--camera", "off", "--detector", "neural", "--seconds", "0.5"]) == EXIT_USAGE
     assert "--camera on" in capsys.readouterr().err

@@ -66,7 +66,7 @@ def test_canvas_holds_exactly_the_wanted_tiles_while_it_recentres():
         x, y = track.reference.points(np.array([s]), np.array([t]))[0]
         col, row = (np.array([x, y]) - np.asarray(canvas.origin)) * canvas.ppm - 0.5
         assert 0 <= row < canvas.image.shape[0] and 0 <= col < canvas.image.shape[1]
-        return canvas.image[round(row), round(col)].astype(int)
+        return canvas.image[round(row), round(col), :3].astype(int)
 
     L = track.tile_length
     assert (canvas_rgb(10.5 * L, 0.0) == OPEN_GROUND_RGB).all()  # dropped when the window moved on
@@ -100,7 +100,7 @@ def test_canvas_keeps_the_lane_lines_where_the_map_has_them_on_the_sharpest_bend
         across = np.linspace(-0.25, 0.25, 51)  # m, sampled across the line (short of the kerbs)
         xy = ref.points(np.repeat(s, len(across)), np.tile(boundary.t + across, len(s)))
         col, row = ((xy - np.asarray(canvas.origin)) * canvas.ppm - 0.5).T
-        rgb = canvas.image[np.round(row).astype(int), np.round(col).astype(int)].astype(float)
+        rgb = canvas.image[np.round(row).astype(int), np.round(col).astype(int), :3].astype(float)
         bright = rgb[:, 0].reshape(len(s), len(across))  # red: white and yellow paint alike
         paint_centre = across[np.argmax(bright, axis=1)]
         assert np.abs(paint_centre).max() <= 0.06
