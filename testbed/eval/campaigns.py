@@ -21,7 +21,7 @@ from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
-from testbed.eval.cusum_fit import cusum_fit_runs, cusum_fit_table
+from testbed.eval.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_table
 from testbed.eval.drp_response import drp_runs, drp_table
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
@@ -351,6 +351,9 @@ for _spec in (
     CampaignSpec("cusum-fit", "LD3's CUSUM (b, τ) refit for the lane detector: benign drives of every preset × "
                  "condition (held-out layouts, 3 seeds) and the Table 4 trace injection, recorded once, swept "
                  "offline", cusum_fit_runs, cusum_fit_table, record_detection_run),
+    CampaignSpec("cusum-check", "the cusum-fit drives on layouts and noise seeds it never drove (a second held-out "
+                 "layout per preset × condition, seeds 3–5; the trace injection with seeds 1–2): whether a (b, τ) "
+                 "chosen there holds", cusum_check_runs, cusum_fit_table, record_detection_run),
     CampaignSpec("sim-table", "paper simulator table: default trace injection × LD3 / NaiveAR / none, 10 start "
                  "times, and benign LD3, 10 seeds, on slr (10 and 20 m/s), urban-straight and urban-curvy",
                  sim_table_runs, sim_table),

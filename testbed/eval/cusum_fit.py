@@ -7,6 +7,7 @@ trace injection on urban-straight at 12 m/s, 5 start times). The table then repl
 for every b of the grid: the largest benign CUSUM (any τ at or above it has no false alarm), the false
 alarms at the shipped τ, and on the attacked drives the detections and the detection deviation (the
 largest true |lateral deviation| up to the first alarm; a recorder drive is the LD3 drive up to there).
+`ld3 campaign cusum-check` drives the same on layouts and noise seeds the fit never saw, with the same table.
 """
 
 from __future__ import annotations
@@ -28,10 +29,12 @@ from testbed.eval.campaign import CampaignRun
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import LD3_BS, LOG_NAME
 from testbed.eval.scenario import load_scenario
-from testbed.perception.seeds import cells
+from testbed.perception.seeds import Cell, cells, check_cells
 
 FIT_PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 FIT_SEEDS = (0, 1, 2)
+CHECK_SEEDS = (3, 4, 5)
+CHECK_ATTACK_SEEDS = (1, 2)
 BENIGN_DURATION_S = 60.0
 ATTACK_STARTS = (6.0, 8.0, 10.0, 12.0, 14.0)
 TABLE_MAX_B = 1.0  # b shown in report.md (every b of the grid is in cusum_fit.csv)
@@ -39,25 +42,38 @@ TABLE_MAX_B = 1.0  # b shown in report.md (every b of the grid is in cusum_fit.c
 _SHIPPED = DefenseConfig()
 
 
-def cusum_fit_runs(detector: str) -> list[CampaignRun]:
-    """Benign drives (preset × condition × seed, held-out layouts) and the Table 4 trace injection, recorded."""
+def _runs(detector: str, layouts: list[Cell], seeds: tuple[int, ...], attack_seeds: tuple[int, ...],
+          name: str) -> list[CampaignRun]:
     runs = []
-    for cell in cells(list(FIT_PRESETS), list(CONDITIONS)):
+    for cell in layouts:
         base = load_scenario(cell.preset)
         sc = base.with_overrides(track=f"{cell.preset}@{cell.track_seed}", condition=cell.condition,
                                  duration=min(BENIGN_DURATION_S, base.duration), detector=detector,
-                                 localization="msf", defense="none", name=f"cusum-fit-{cell.preset}")
-        for seed in FIT_SEEDS:
+                                 localization="msf", defense="none", name=f"{name}-{cell.preset}")
+        for seed in seeds:
             runs.append(CampaignRun(f"benign/{cell.preset}-{cell.condition}-seed{seed}", sc.with_overrides(seed=seed),
                                     {"role": "benign", "preset": cell.preset, "condition": cell.condition,
-                                     "seed": seed}))
+                                     "seed": seed, "track": sc.track}))
     attacked = load_scenario("urban-straight").with_overrides(speed=12.0, duration=40.0, detector=detector,
                                                               localization="msf", defense="none")
-    for start in ATTACK_STARTS:
-        runs.append(CampaignRun(f"trace/start{start:g}", attacked.with_overrides(
-            attack={"kind": "trace", "trace": "default", "start": start}, name="cusum-fit-trace"),
-            {"role": "attacked", "start": start}))
+    for seed in attack_seeds:
+        for start in ATTACK_STARTS:
+            runs.append(CampaignRun(f"trace/start{start:g}" + (f"-seed{seed}" if seed else ""), attacked.with_overrides(
+                attack={"kind": "trace", "trace": "default", "start": start}, name=f"{name}-trace", seed=seed),
+                {"role": "attacked", "start": start, "seed": seed}))
     return runs
+
+
+def cusum_fit_runs(detector: str) -> list[CampaignRun]:
+    """Benign drives (preset × condition × seed, held-out layouts) and the Table 4 trace injection, recorded."""
+    return _runs(detector, cells(list(FIT_PRESETS), list(CONDITIONS)), FIT_SEEDS, (0,), "cusum-fit")
+
+
+def cusum_check_runs(detector: str) -> list[CampaignRun]:
+    """The same drives on layouts and seeds the refit never drove (`check_cells`, noise seeds 3–5; the trace
+    injection with noise seeds 1 and 2): whether a (b, τ) chosen on `cusum_fit_runs` holds beyond them."""
+    return _runs(detector, check_cells(list(FIT_PRESETS), list(CONDITIONS)), CHECK_SEEDS, CHECK_ATTACK_SEEDS,
+                 "cusum-check")
 
 
 def detection_dev(series: ResidualSeries, t: np.ndarray, phys_dev: np.ndarray, b: float, tau: float) -> float:

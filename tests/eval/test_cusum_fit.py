@@ -10,6 +10,7 @@ from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.cusum_fit import (
     FIT_PRESETS,
     FIT_SEEDS,
+    cusum_check_runs,
     cusum_fit_runs,
     cusum_fit_table,
     detection_dev,
@@ -18,6 +19,7 @@ from testbed.eval.cusum_fit import (
     sweep,
 )
 from testbed.eval.roc import record_detection_run
+from testbed.perception.seeds import HELD_OUT_SEEDS
 
 
 def series(r, t0=0.0, attack_start=None, dt=0.05):
@@ -71,6 +73,21 @@ def test_the_campaign_drives_every_preset_and_condition_on_held_out_layouts():
     attacked = [r for r in runs if r.tags["role"] == "attacked"]
     assert [r.scenario.attack["start"] for r in attacked] == [6.0, 8.0, 10.0, 12.0, 14.0]
     assert len({r.run_id for r in runs}) == len(runs)
+
+
+def test_the_check_campaign_drives_what_the_fit_never_drove():
+    fit, check = cusum_fit_runs("neural"), cusum_check_runs("neural")
+    benign = [r for r in check if r.tags["role"] == "benign"]
+    assert {(r.tags["preset"], r.tags["condition"]) for r in benign} == {(p, c) for p in FIT_PRESETS
+                                                                        for c in CONDITIONS}
+    fit_tracks = {r.scenario.track for r in fit if r.tags["role"] == "benign"}
+    check_tracks = {r.scenario.track for r in benign}
+    assert len(check_tracks) == len(FIT_PRESETS) * len(CONDITIONS) and not fit_tracks & check_tracks
+    assert all(int(t.split("@")[1]) in HELD_OUT_SEEDS for t in check_tracks)
+    assert not {r.scenario.seed for r in benign} & set(FIT_SEEDS)
+    attacked = [r for r in check if r.tags["role"] == "attacked"]
+    assert len(attacked) == 10 and not {r.scenario.seed for r in attacked} & {0}
+    assert len({r.run_id for r in check}) == len(check)
 
 
 def test_the_campaign_end_to_end_on_two_short_drives(tmp_path):
