@@ -61,7 +61,7 @@ class TrackerParams:
     """Offset innovations beyond this many standard deviations are outliers."""
     confirm_frames: int = 2
     """Consecutive outlier frames after which the only seen line's jump is taken as the car's motion."""
-    width_confirm_frames: int = 4
+    width_confirm_frames: int = 6
     """Consecutive outlier frames after which one line's jump, the other line seen where it was, is taken as
     the lane's width changing."""
     max_coast: float = 1.0
