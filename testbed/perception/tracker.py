@@ -13,7 +13,7 @@ probability, c0's variance (and the others in proportion) replaced by the detect
 a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
 innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
 (accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
-while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); each
+while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); any jump
 only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
 the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
 not count as seen.
@@ -172,7 +172,7 @@ class LaneTracker:
         return q
 
     def _measurement(self, ld: LaneDetection, side: int) -> Measurement | None:
-        """(z, R) of a detected line that may update the filter, else None."""
+        """A detected line that may update the filter, else None."""
         coeffs, prob = (ld.left, ld.left_prob) if side == LEFT else (ld.right, ld.right_prob)
         var = ld.left_var if side == LEFT else ld.right_var
         if coeffs is None or not prob >= self.params.min_existence:
@@ -194,15 +194,15 @@ class LaneTracker:
         p = self.params
         seen = [m for m in meas if m is not None]
         x = np.zeros(DIM)
-        x[_SHARED] = np.mean([m[0][1:] for m in seen], axis=0)
+        x[_SHARED] = np.mean([m.z[1:] for m in seen], axis=0)
         var = np.zeros(DIM)
-        var[_SHARED] = np.mean([np.diag(m[1])[1:] for m in seen], axis=0) / len(seen)
+        var[_SHARED] = np.mean([np.diag(m.r)[1:] for m in seen], axis=0) / len(seen)
         for side in (LEFT, RIGHT):
             m = meas[side]
             if m is not None:
-                x[side], var[side] = m[0][0], m[1][0, 0]
+                x[side], var[side] = m.z[0], m.r[0, 0]
             else:
-                x[side] = seen[0][0][0] + (1.0 if side == LEFT else -1.0) * NOMINAL_LANE_WIDTH
+                x[side] = seen[0].z[0] + (1.0 if side == LEFT else -1.0) * NOMINAL_LANE_WIDTH
                 var[side] = p.unseen_std**2
         self.kf.x = x[:, None]
         self.kf.P = np.diag(var)
@@ -234,7 +234,7 @@ class LaneTracker:
             costs = {}
             for direction, t in ((0, _E), (1, _SWAP_LEFT), (-1, _SWAP_RIGHT)):
                 h = t @ x
-                costs[direction] = sum(abs(m[0][0] - h[side]) for side, m in enumerate(meas) if m is not None)
+                costs[direction] = sum(abs(m.z[0] - h[side]) for side, m in enumerate(meas) if m is not None)
             best = min(costs, key=costs.get)
         else:
             best = 1 if x[LEFT] < 0.0 else (-1 if x[RIGHT] > 0.0 else 0)
@@ -249,8 +249,8 @@ class LaneTracker:
         nu, s = [0.0, 0.0], [1.0, 1.0]
         for side, m in enumerate(meas):
             if m is not None:
-                nu[side] = m[0][0] - x[side]
-                s[side] = cov[side, side] + m[1][0, 0]
+                nu[side] = m.z[0] - x[side]
+                s[side] = cov[side, side] + m.r[0, 0]
         z = [nu[k] / math.sqrt(s[k]) if meas[k] is not None else 0.0 for k in (LEFT, RIGHT)]
         out = [abs(v) > p.gate for v in z]
         both = meas[LEFT] is not None and meas[RIGHT] is not None
@@ -298,16 +298,16 @@ class LaneTracker:
         rows = [side for side in (LEFT, RIGHT) if meas[side] is not None]
         if not rows:
             return
-        z = np.concatenate([meas[side][0] for side in rows])[:, None]
+        z = np.concatenate([meas[side].z for side in rows])[:, None]
         h = np.vstack([_SELECT[side] for side in rows])
         r = np.zeros((len(z), len(z)))
         for k, side in enumerate(rows):
-            r[k * N : (k + 1) * N, k * N : (k + 1) * N] = meas[side][1]
+            r[k * N : (k + 1) * N, k * N : (k + 1) * N] = meas[side].r
         self.kf.update(z, R=r, H=h)
         a = self.params.adapt_rate
         for side in rows:
             line = self.lines[side]
-            spread = (meas[side][0][0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
+            spread = (meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
             if line.residual_var is None:  # one frame cannot say the line is noisier than the nominal model
                 line.residual_var = min(spread, self.params.measurement_std[0] ** 2)
             else:
