@@ -53,7 +53,7 @@ def _runs(detector: str, layouts: list[Cell], seeds: tuple[int, ...], attack_see
         for seed in seeds:
             runs.append(CampaignRun(f"benign/{cell.preset}-{cell.condition}-seed{seed}", sc.with_overrides(seed=seed),
                                     {"role": "benign", "preset": cell.preset, "condition": cell.condition,
-                                     "seed": seed, "track": sc.track}))
+                                     "seed": seed}))
     attacked = load_scenario("urban-straight").with_overrides(speed=12.0, duration=40.0, detector=detector,
                                                               localization="msf", defense="none")
     for seed in attack_seeds:
