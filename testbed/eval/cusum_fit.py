@@ -163,8 +163,37 @@ def cusum_fit_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -
               f"| {r['detected']}/{r['attacked']} | {_f(r['detection_dev_mean'])} | {_f(r['detection_dev_max'])} |"
               for r in rows if r["b"] <= TABLE_MAX_B + 1e-9]
     lines += ["", f"Largest benign CUSUM (m) at the shipped b = {b0:g}, per preset and condition (τ = {tau:g}):",
-              "", _condition_table(benign, b0), "", "![refit](cusum_fit.png)"]
+              "", _condition_table(benign, b0), ""]
+    clean = smallest_clean_b(rows, tau)
+    below = [r["b"] for r in rows if clean is not None and r["b"] < clean["b"]]
+    lines += [_alarm_table(benign, sorted({b0, *below[-1:]}), tau), "", "![refit](cusum_fit.png)"]
     _plot(rows, tau, out / "cusum_fit.png")
+    return "\n".join(lines)
+
+
+def benign_alarms(benign: list[tuple[CampaignRun, ResidualSeries]], b: float, tau: float
+                  ) -> list[tuple[CampaignRun, float, float, float]]:
+    """The benign drives CUSUM(b, τ) alarms on: (run, time of the first alarm, largest |residual| and its
+    time)."""
+    out = []
+    for run, s in benign:
+        (alarm,) = first_alarm_times(s, b, np.array([tau]))
+        if np.isfinite(alarm):
+            k = int(np.nanargmax(np.abs(s.r)))
+            out.append((run, float(alarm), float(abs(s.r[k])), float(s.t[k])))
+    return out
+
+
+def _alarm_table(benign: list[tuple[CampaignRun, ResidualSeries]], bs: list[float], tau: float) -> str:
+    """The benign alarms at the shipped b and at the grid b just under the smallest clean one: the drives that
+    keep b from coming down."""
+    lines = [f"Benign drives that alarm (τ = {tau:g}):", "",
+             "| b (m) | run | track | first alarm (s) | largest \\|residual\\| (m) | at (s) |",
+             "|---|---|---|---|---|---|"]
+    for b in bs:
+        hits = benign_alarms(benign, b, tau)
+        lines += [f"| {b:g} | {run.run_id} | {run.scenario.track} | {alarm:.2f} | {r:.3f} | {t:.2f} |"
+                  for run, alarm, r, t in hits] or [f"| {b:g} | none | | | | |"]
     return "\n".join(lines)
 
 

@@ -10,6 +10,7 @@ from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.cusum_fit import (
     FIT_PRESETS,
     FIT_SEEDS,
+    benign_alarms,
     cusum_check_runs,
     cusum_fit_runs,
     cusum_fit_table,
@@ -63,6 +64,16 @@ def test_sweep_and_the_smallest_clean_b():
     assert smallest_clean_b(rows[:3], tau=0.1) is None
 
 
+def test_benign_alarms_name_the_drive_the_alarm_time_and_the_largest_residual():
+    quiet, loud = cusum_fit_runs("oracle")[:2]
+    benign = [(quiet, series([0.1] * 10)), (loud, series([0.1] * 5 + [0.9, 0.95, 0.2]))]
+    # b = 0.6: S = 0.3 at index 5 (t = 0.25 s) is over τ = 0.1; the largest |r| is 0.95 at index 6
+    ((run, alarm, largest, at),) = benign_alarms(benign, 0.6, 0.1)
+    assert run is loud
+    assert alarm == pytest.approx(0.25) and largest == pytest.approx(0.95) and at == pytest.approx(0.30)
+    assert benign_alarms(benign, 1.0, 0.1) == []
+
+
 def test_the_campaign_drives_every_preset_and_condition_on_held_out_layouts():
     runs = cusum_fit_runs("neural")
     benign = [r for r in runs if r.tags["role"] == "benign"]
@@ -103,3 +114,4 @@ def test_the_campaign_end_to_end_on_two_short_drives(tmp_path):
     assert header.split(",")[:3] == ["b", "largest_benign_cusum", "false_alarms"]
     assert len(rows) > 20
     assert "| urban-straight | " in text
+    assert "Benign drives that alarm (τ = 0.1)" in text and "| 0.6 | " in text
