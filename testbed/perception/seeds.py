@@ -21,29 +21,25 @@ class Cell:
     track_seed: int
 
 
-def _check(presets: list[str], conditions: list[str]) -> None:
+def _cells(presets: list[str], conditions: list[str], first: int, per_preset: int) -> list[Cell]:
+    """Cells whose track seed is HELD_OUT_SEEDS[first + per_preset · preset index + condition index]."""
     for p in presets:
         if p not in PRESETS:
             raise ValueError(f"unknown preset {p!r}; known: {', '.join(PRESETS)}")
     for c in conditions:
         if c not in CONDITIONS:
             raise ValueError(f"unknown condition {c!r}; known: {', '.join(CONDITIONS)}")
+    all_presets, all_conditions = list(PRESETS), list(CONDITIONS)
+    return [Cell(p, c, HELD_OUT_SEEDS[first + per_preset * all_presets.index(p) + all_conditions.index(c)])
+            for p in presets for c in conditions]
 
 
 def cells(presets: list[str], conditions: list[str]) -> list[Cell]:
     """One held-out track seed per preset and condition (distinct layouts across conditions)."""
-    _check(presets, conditions)
-    all_conditions = list(CONDITIONS)
-    return [Cell(p, c, HELD_OUT_SEEDS[10 * list(PRESETS).index(p) + all_conditions.index(c)])
-            for p in presets for c in conditions]
+    return _cells(presets, conditions, 0, 10)
 
 
 def check_cells(presets: list[str], conditions: list[str]) -> list[Cell]:
     """A second held-out track seed per preset and condition, none of them in `cells`: layouts for checking
     what was fitted on the `cells` ones."""
-    _check(presets, conditions)
-    first = 10 * len(PRESETS)
-    all_conditions = list(CONDITIONS)
-    return [Cell(p, c, HELD_OUT_SEEDS[first + len(all_conditions) * list(PRESETS).index(p)
-                                      + all_conditions.index(c)])
-            for p in presets for c in conditions]
+    return _cells(presets, conditions, 10 * len(PRESETS), len(CONDITIONS))
