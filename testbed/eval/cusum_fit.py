@@ -185,8 +185,8 @@ def benign_alarms(benign: list[tuple[CampaignRun, ResidualSeries]], b: float, ta
 
 
 def _alarm_table(benign: list[tuple[CampaignRun, ResidualSeries]], bs: list[float], tau: float) -> str:
-    """The benign alarms at the shipped b and at the grid b just under the smallest clean one: the drives that
-    keep b from coming down."""
+    """The benign drives that alarm at each b of `bs` (the report passes the shipped b and the grid b just under
+    the smallest clean one: the drives that keep b from coming down)."""
     lines = [f"Benign drives that alarm (τ = {tau:g}):", "",
              "| b (m) | run | track | first alarm (s) | largest \\|residual\\| (m) | at (s) |",
              "|---|---|---|---|---|---|"]
