@@ -94,6 +94,35 @@ def _instrument(sim, timer: SectionTimer) -> None:
         timer.wrap(sim.tracker, "update", "detector")
 
 
+class StepSimulationClock:
+    """Within the block, every `pybullet.stepSimulation` call's wall time is summed into `seconds`: the physics of
+    the loop's own world (its streamed roadside bodies and the car as driven), without the loop around it."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def __enter__(self) -> StepSimulationClock:
+        import pybullet as pb
+
+        self._step = step = pb.stepSimulation
+        clock = time.perf_counter
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = clock()
+            try:
+                return step(*args, **kwargs)
+            finally:
+                self.seconds += clock() - t0
+
+        pb.stepSimulation = timed
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import pybullet as pb
+
+        pb.stepSimulation = self._step
+
+
 def _bare_physics(sc, steps: int) -> dict[str, float]:
     """`stepSimulation` alone, `steps` times, in a fresh world of the scenario with its car rolling at the
     scenario speed under a constant command: wall and CPU seconds."""
@@ -125,7 +154,10 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     """The closed loop on one core, with the camera rendered at its rate or without a camera: its real-time
     factor (wall clock, and process CPU time, which a busy machine disturbs less), the bare-physics
     real-time factor of the same world and car (`stepSimulation` alone, as many steps), their ratio, and
-    the split of wall time between the loop's parts (LOOP_SECTIONS) from a second, instrumented run."""
+    the split of wall time between the loop's parts (LOOP_SECTIONS) from a second, instrumented run. That run
+    also times `stepSimulation` inside the loop (`in_loop_physics_real_time_factor`): the fresh world of the
+    bare figure has none of the roadside bodies the loop streams around the car, so its steps are cheaper;
+    `ratio_to_in_loop_physics` is the loop's real-time factor over the in-loop one."""
     from testbed.eval.runner import SimRun
     from testbed.eval.scenario import ScenarioError, load_scenario
     from testbed.perception.registry import DETECTORS
@@ -156,7 +188,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     timed, timer = build(), SectionTimer()
     _instrument(timed, timer)
     try:
-        timed_wall = timed.run().summary["wall_time_s"]
+        with StepSimulationClock() as in_loop:
+            timed_wall = timed.run().summary["wall_time_s"]
     finally:
         timed.close()
     split = {k: round(timer.seconds.get(k, 0.0) / timed_wall, 4) for k in LOOP_SECTIONS}
@@ -171,6 +204,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
         "bare_physics_real_time_factor_cpu": round(sim_time / bare["cpu_s"], 2),
         "ratio_to_bare_physics": round(rtf / bare_rtf, 3),
         "ratio_to_bare_physics_cpu": round(bare["cpu_s"] / cpu, 3),
+        "in_loop_physics_real_time_factor": round(sim_time / in_loop.seconds, 2),
+        "ratio_to_in_loop_physics": round(in_loop.seconds / wall, 3),
         "instrumented_real_time_factor": round(sim_time / timed_wall, 2), "time_fraction": split,
     }
     if camera:

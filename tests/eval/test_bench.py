@@ -4,7 +4,7 @@ import importlib.util
 import json
 
 from testbed.cli import EXIT_USAGE, main
-from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, bench_lane_detectors
+from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
 
 
 def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
@@ -25,6 +25,7 @@ def test_loop_bench_without_camera_reports_both_real_time_factors_and_a_complete
     result = json.loads(capsys.readouterr().out)
     assert result["camera"] is False and result["sim_time_s"] == 0.5 and result["physics_steps"] == 120
     assert result["real_time_factor"] > 0 and result["bare_physics_real_time_factor"] > 0
+    assert 0 < result["ratio_to_in_loop_physics"] < 1 and result["in_loop_physics_real_time_factor"] > 0
     assert set(result["time_fraction"]) == {*LOOP_SECTIONS, "rest"}
     assert result["time_fraction"]["physics"] > 0 and result["time_fraction"]["localization"] > 0
     assert result["time_fraction"]["render"] == 0 and result["time_fraction"]["detector"] == 0
@@ -44,6 +45,24 @@ def test_loop_bench_refuses_a_camera_detector_without_camera_and_loop_options_el
     assert "--camera on" in capsys.readouterr().err
     assert main(["bench", "map", "--camera", "off"]) == EXIT_USAGE
     assert "only apply to `ld3 bench loop`" in capsys.readouterr().err
+
+
+def test_step_simulation_clock_times_the_steps_inside_it_and_restores_pybullet():
+    import pybullet as pb
+
+    original = pb.stepSimulation
+    client = pb.connect(pb.DIRECT)
+    try:
+        with StepSimulationClock() as clock:
+            assert pb.stepSimulation is not original
+            for _ in range(5):
+                pb.stepSimulation(physicsClientId=client)
+        assert clock.seconds > 0
+        seconds = clock.seconds
+        pb.stepSimulation(physicsClientId=client)
+        assert pb.stepSimulation is original and clock.seconds == seconds
+    finally:
+        pb.disconnect(client)
 
 
 def test_section_timer_counts_nested_calls_once():
