@@ -14,6 +14,7 @@ from tracks.pose import Pose
 from tracks.road import Track
 
 OFF_MAP_MARGIN = 3.0  # m beyond a lane's half width that still counts as on that lane's map
+_MEMO_SIZE = 8  # recent (pose, lane) answers kept: a control tick asks about the same pose several times
 
 
 class TrackMap:
@@ -26,8 +27,21 @@ class TrackMap:
         self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
         self._reach = (self._bounds[0][0] - OFF_MAP_MARGIN, self._bounds[-1][1] + OFF_MAP_MARGIN)
         self._length = track.length
+        self._memo: dict[tuple[Pose, int | None], LaneCoord] = {}
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
+        """The pose on `lane` (default: the lane containing it); the last few answers are returned again for
+        the same pose and lane, errors are not kept."""
+        key = (pose, lane)
+        memo = self._memo
+        found = memo.get(key)
+        if found is None:
+            found = memo[key] = self._project(pose, lane)
+            if len(memo) > _MEMO_SIZE:
+                del memo[next(iter(memo))]
+        return found
+
+    def _project(self, pose: Pose, lane: int | None) -> LaneCoord:
         if not pose.is_finite():
             raise OffMapError(f"non-finite pose {pose}")
         x, y = pose.x, pose.y

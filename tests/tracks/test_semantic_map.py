@@ -110,3 +110,16 @@ def test_query_benchmark_reports_fast_queries():
     result = map_query_benchmark(load_track("urban-curvy"), n=3000)
     assert set(result) >= {"median_us", "p99_us"}
     assert 0.0 < result["median_us"] < 60.0  # target 20 µs on an idle core; loose bound for a shared CI box
+
+
+def test_repeated_queries_answer_as_a_cold_map_and_errors_are_not_kept(two_lane_arc):
+    warm, poses = TrackMap(two_lane_arc), [Pose(30.0 + 3.0 * k, 1.0 + 0.2 * k, 0.1) for k in range(12)]
+    answers = [warm.project(poses[k % 12], lane) for k in range(60) for lane in (None, 0, 1)]
+    cold = [TrackMap(two_lane_arc).project(poses[k % 12], lane) for k in range(60) for lane in (None, 0, 1)]
+    assert answers == cold
+    nan = Pose(30.0, 1.0, math.nan)
+    for _ in range(2):
+        with pytest.raises(OffMapError):
+            warm.project(nan)
+    with pytest.raises(ValueError):
+        warm.project(poses[0], 7)
