@@ -6,7 +6,8 @@ preset and condition, as `ld3 ld closed-loop` drives), 3 noise seeds each; and t
 trace injection on urban-straight at 12 m/s, 5 start times). The table then replays LD3's CUSUM offline
 for every b of the grid: the largest benign CUSUM (any τ at or above it has no false alarm), the false
 alarms at the shipped τ, and on the attacked drives the detections and the detection deviation (the
-largest true |lateral deviation| up to the first alarm; a recorder drive is the LD3 drive up to there).
+largest true |lateral deviation| up to the first alarm; a recorder drive is the LD3 drive up to there), at
+the shipped τ and at that smallest clean τ, whose best b is the earliest clean (b, τ) pair.
 `ld3 campaign cusum-check` drives the same on layouts and noise seeds the fit never saw, with the same table.
 """
 
@@ -96,19 +97,37 @@ def largest_benign_cusum(series: list[ResidualSeries], b: float) -> float:
     return float(benign_peaks(series, b).max())
 
 
+def _detections(attacked: list[tuple[ResidualSeries, np.ndarray, np.ndarray]], b: float, tau: float
+                ) -> tuple[int, float, float]:
+    """Detections of CUSUM(b, τ) among the attacked drives, and their detection deviations' mean and max (m)."""
+    devs = np.array([detection_dev(s, t, d, b, tau) for s, t, d in attacked])
+    hit = devs[np.isfinite(devs)]
+    return len(hit), float(hit.mean()) if len(hit) else float("nan"), float(hit.max()) if len(hit) else float("nan")
+
+
 def sweep(benign: list[ResidualSeries], attacked: list[tuple[ResidualSeries, np.ndarray, np.ndarray]],
           bs: np.ndarray, tau: float) -> list[dict[str, float]]:
-    """Per b: the largest benign CUSUM, false alarms at τ, detections at τ and their deviations (m)."""
+    """Per b: the largest benign CUSUM, false alarms at τ, detections at τ and their deviations (m); and at the
+    smallest τ free of benign alarms (`clean_tau`, the largest benign CUSUM) the same detections."""
     rows = []
     for b in bs:
         peaks = benign_peaks(benign, float(b))
-        devs = np.array([detection_dev(s, t, d, float(b), tau) for s, t, d in attacked])
-        hit = devs[np.isfinite(devs)]
-        rows.append({"b": float(b), "largest_benign_cusum": float(peaks.max()),
-                     "false_alarms": int((peaks > tau).sum()), "detected": len(hit), "attacked": len(devs),
-                     "detection_dev_mean": float(hit.mean()) if len(hit) else float("nan"),
-                     "detection_dev_max": float(hit.max()) if len(hit) else float("nan")})
+        detected, mean, worst = _detections(attacked, float(b), tau)
+        clean_tau = float(peaks.max())
+        clean_detected, clean_mean, clean_worst = _detections(attacked, float(b), clean_tau)
+        rows.append({"b": float(b), "largest_benign_cusum": clean_tau,
+                     "false_alarms": int((peaks > tau).sum()), "detected": detected, "attacked": len(attacked),
+                     "detection_dev_mean": mean, "detection_dev_max": worst,
+                     "clean_tau_detected": clean_detected, "clean_tau_detection_dev_mean": clean_mean,
+                     "clean_tau_detection_dev_max": clean_worst})
     return rows
+
+
+def earliest_clean_pair(rows: list[dict[str, float]]) -> dict[str, float] | None:
+    """The row whose b, with τ at its smallest clean value, detects every attacked drive with the smallest
+    largest detection deviation: the (b, τ) pair that alarms earliest with no benign alarm; None if none."""
+    ok = [r for r in rows if r["clean_tau_detected"] == r["attacked"]]
+    return min(ok, key=lambda r: (r["clean_tau_detection_dev_max"], r["b"])) if ok else None
 
 
 def smallest_clean_b(rows: list[dict[str, float]], tau: float, headroom: float = 1.0) -> dict[str, float] | None:
@@ -152,15 +171,23 @@ def cusum_fit_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -
         lines.append(f"- Smallest b {what} at τ = {tau:g} that detects every attacked drive: " + (
             f"**b = {best['b']:g}**, detection deviation mean {_f(best['detection_dev_mean'])} m, max "
             f"{_f(best['detection_dev_max'])} m." if best else "none in the grid."))
+    pair = earliest_clean_pair(rows)
+    lines.append("- Earliest alarm over (b, τ) with no benign alarm (τ at the b's largest benign CUSUM): " + (
+        f"**b = {pair['b']:g}, τ = {pair['largest_benign_cusum']:.3f}**, detection deviation mean "
+        f"{_f(pair['clean_tau_detection_dev_mean'])} m, max {_f(pair['clean_tau_detection_dev_max'])} m."
+        if pair else "none in the grid."))
     shipped = min(rows, key=lambda r: abs(r["b"] - b0))
     lines += [f"- Shipped b = {b0:g}: largest benign CUSUM {_f(shipped['largest_benign_cusum'])} m, "
               f"{shipped['false_alarms']} false alarms, detected {shipped['detected']}/{shipped['attacked']}, "
               f"detection deviation mean {_f(shipped['detection_dev_mean'])} m, max "
               f"{_f(shipped['detection_dev_max'])} m.", "",
               f"| b (m) | largest benign CUSUM (m) | false alarms at τ = {tau:g} | detected "
-              "| detection dev mean (m) | detection dev max (m) |", "|---|---|---|---|---|---|"]
+              "| detection dev mean (m) | detection dev max (m) | detected at τ = largest benign CUSUM "
+              "| its detection dev mean / max (m) |", "|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['b']:g} | {_f(r['largest_benign_cusum'])} | {r['false_alarms']}/{len(benign)} "
-              f"| {r['detected']}/{r['attacked']} | {_f(r['detection_dev_mean'])} | {_f(r['detection_dev_max'])} |"
+              f"| {r['detected']}/{r['attacked']} | {_f(r['detection_dev_mean'])} | {_f(r['detection_dev_max'])} "
+              f"| {r['clean_tau_detected']}/{r['attacked']} | {_f(r['clean_tau_detection_dev_mean'])} / "
+              f"{_f(r['clean_tau_detection_dev_max'])} |"
               for r in rows if r["b"] <= TABLE_MAX_B + 1e-9]
     lines += ["", f"Largest benign CUSUM (m) at the shipped b = {b0:g}, per preset and condition (τ = {tau:g}):",
               "", _condition_table(benign, b0), ""]

@@ -15,6 +15,7 @@ from testbed.eval.cusum_fit import (
     cusum_fit_runs,
     cusum_fit_table,
     detection_dev,
+    earliest_clean_pair,
     largest_benign_cusum,
     smallest_clean_b,
     sweep,
@@ -62,6 +63,24 @@ def test_sweep_and_the_smallest_clean_b():
     assert smallest_clean_b(rows, tau=0.1)["b"] == 0.35
     assert smallest_clean_b(rows, tau=0.1, headroom=2.0)["b"] == 0.35
     assert smallest_clean_b(rows[:3], tau=0.1) is None
+
+
+def test_the_smallest_clean_tau_of_each_b_and_the_earliest_clean_pair():
+    benign = [series([0.35, 0.35, 0.35, 0.35])]  # largest CUSUM (0.35 - b) × 4 for b < 0.35, else 0
+    t = 0.05 * np.arange(8)
+    ramp = series([0.0, 0.0, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9], attack_start=0.1)
+    attacked = [(ramp, t, 0.1 * np.arange(8))]
+    rows = sweep(benign, attacked, np.array([0.0, 0.1, 0.3, 0.35, 3.0]), tau=0.1)
+    by_b = {r["b"]: r for r in rows}
+    # b = 0: τ = 1.4, S = 0.4, 0.9, 1.5 -> alarm at index 4 (|dev| 0.4); b = 0.1: τ = 1.0, S = 0.3, 0.7, 1.2 -> 4;
+    # b = 0.3: τ = 0.2, S = 0.1, 0.3 -> 3; b = 0.35: τ = 0, S = 0.05 -> 2; b = 3: never
+    assert [by_b[b]["clean_tau_detection_dev_max"] for b in (0.0, 0.1, 0.3, 0.35)] == pytest.approx(
+        [0.4, 0.4, 0.3, 0.2])
+    assert by_b[3.0]["clean_tau_detected"] == 0 and np.isnan(by_b[3.0]["clean_tau_detection_dev_max"])
+    assert by_b[0.1]["detection_dev_max"] == pytest.approx(0.2)  # at τ = 0.1 it alarms at index 2
+    assert earliest_clean_pair(rows)["b"] == 0.35
+    assert earliest_clean_pair(rows[:3])["b"] == 0.3
+    assert earliest_clean_pair(rows[4:]) is None
 
 
 def test_benign_alarms_name_the_drive_the_alarm_time_and_the_largest_residual():
@@ -115,3 +134,4 @@ def test_the_campaign_end_to_end_on_two_short_drives(tmp_path):
     assert len(rows) > 20
     assert "| urban-straight | " in text
     assert "Benign drives that alarm (τ = 0.1)" in text and "| 0.6 | " in text
+    assert "Earliest alarm over (b, τ) with no benign alarm" in text
