@@ -93,10 +93,12 @@ def fusion_update_benchmark(n: int = 5000) -> dict[str, float]:
     """One attack-response step: `on_lane_detection` in AR (deviations + Alg. 4 + Alg. 2) and the
     `pose_for_control` that places the fused deviation on the lane."""
     smap = StraightRoadMap()
-    defense = Ld3Defense(DefenseConfig())
+    config = DefenseConfig()
+    defense = Ld3Defense(config)
     ld, msf = _inputs(0)
-    # MSF 1 m left of what LD sees: S = |1.0 - 0.0| - 0.6 = 0.4 > 0.1, so AR starts here.
-    defense.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), msf.cov), smap)
+    # MSF b + τ + 1 m left of what LD sees: S = τ + 1 > τ, so AR starts here.
+    offset = config.b + config.tau + 1.0
+    defense.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, offset, 0.0), msf.cov), smap)
     if defense.mode != "ar":
         raise RuntimeError("fusion bench: the seeding detection did not start attack response")
     inputs = [_inputs(i) for i in range(1, n + 1)]

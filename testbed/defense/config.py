@@ -82,6 +82,9 @@ class DefenseConfig(Params):
         return validate_params(cls, d, "defense")
 
 
-PAPER_MODE: dict[str, Any] = {"heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}
-"""The `[defense]` overrides that give LD3 as the paper specifies it: Alg. 2 with the MSF yaw, Alg. 4 with
-constant P and f to the first power, over a 1-s window."""
+PAPER_CUSUM: dict[str, float] = {"b": 0.6, "tau": 0.1}
+"""LD3's CUSUM weight and threshold as the paper sets them (§5.2)."""
+
+PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}
+"""The `[defense]` overrides that give LD3 as the paper specifies it: its CUSUM (b, τ), Alg. 2 with the MSF yaw,
+Alg. 4 with constant P and f to the first power, over a 1-s window."""

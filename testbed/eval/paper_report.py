@@ -24,7 +24,7 @@ from testbed.eval.outputs import read_trajectory
 from testbed.eval.paper import CampaignResult, PaperOptions
 from testbed.eval.paper_figures import Stat, paper_vs_ours
 from testbed.eval.roc import roc_table
-from testbed.eval.stealthy_bound import LD_NOISE_STD, STEALTHY_TRACKS, fluctuation_stats, paper_bound
+from testbed.eval.stealthy_bound import LD_NOISE_STD, STEALTHY_TRACKS, fluctuation_stats, run_bound
 from testbed.eval.summary_stats import (
     abs_or_none,
     consequences,
@@ -262,7 +262,7 @@ def stealthy_section(results: dict[str, CampaignResult], values: dict[str, Any],
             if not cell:
                 continue
             stats = fluctuation_stats(res.folder, [r for r, _ in cell])
-            bound = " / ".join(f"{v:.2f}" for v in paper_bound(*stats)) if stats else "–"
+            bound = " / ".join(f"{v:.2f}" for v in run_bound(*stats, cell[0][0])) if stats else "–"
             reached = max(cell, key=lambda rs: undetected_dev(rs[1]) or 0.0)
             alarms = sum(bool(s["detected"]) for _, s in cell)
             lines.append(f"| ours {det} {track} | {_f(stats, 3)} | {bound} "

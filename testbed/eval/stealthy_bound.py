@@ -67,11 +67,15 @@ def fluctuation_stats(out: Path, runs: list[CampaignRun]) -> tuple[float, float]
     return (float(pooled.mean()), float(pooled.std())) if pooled.size else None
 
 
-def paper_bound(mu: float, sigma: float) -> tuple[float, float, float]:
-    """The paper's undetected maximum τ + b + F for F = 0, μ and μ + 3σ, with LD3's default b and τ."""
-    config = DefenseConfig()
+def paper_bound(mu: float, sigma: float, config: DefenseConfig) -> tuple[float, float, float]:
+    """The paper's undetected maximum τ + b + F for F = 0, μ and μ + 3σ, with the CUSUM (b, τ) of `config`."""
     base = config.tau + config.b
     return base, base + mu, base + mu + 3.0 * sigma
+
+
+def run_bound(mu: float, sigma: float, run: CampaignRun) -> tuple[float, float, float]:
+    """`paper_bound` with the CUSUM (b, τ) the run's LD3 used."""
+    return paper_bound(mu, sigma, DefenseConfig.from_dict(run.scenario.defense_params))
 
 
 def stealthy_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
@@ -87,7 +91,7 @@ def stealthy_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
                 continue
             stats = fluctuation_stats(out, [r for r, _ in cell])
             fluct = "–" if stats is None else f"{stats[0]:.3f}, {stats[1]:.3f}"
-            bound = "–" if stats is None else " / ".join(f"{v:.2f}" for v in paper_bound(*stats))
+            bound = "–" if stats is None else " / ".join(f"{v:.2f}" for v in run_bound(*stats, cell[0][0]))
             for k in MARGINS_SIGMA:
                 sums = [s for r, s in cell if r.tags["margin_sigma"] == k]
                 if not sums:

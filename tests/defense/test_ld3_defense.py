@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from testbed.defense.config import DefenseConfig
+from testbed.defense.config import PAPER_CUSUM, DefenseConfig
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.no_defense import NoDefense
@@ -35,7 +35,7 @@ def msf_at(t, x, y, yaw=0.0):
 
 def test_detection_index_on_a_drifting_msf():
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig())
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
     # vehicle physically centred (D_LD = 0); D_MSF = 0, 0.5, 0.7, 0.75
     # S = 0, 0, 0.1 (not > 0.1), 0.1 + 0.15 = 0.25 > 0.1 -> alarm at the 4th detection (t = 0.15)
     modes = []
@@ -52,7 +52,7 @@ def test_detection_index_on_a_drifting_msf():
 
 def test_intersection_disables_detection_and_resets_cusum():
     smap = FakeStraightMap(intersections=((100.0, 120.0),))
-    d = Ld3Defense(DefenseConfig())
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
     off = 0.7  # constant |D_MSF - D_LD| = 0.7: S grows by 0.1 per detection outside intersections
     d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 90.0, off), smap)  # S = 0.1
     d.on_lane_detection(lane_det(0.1, 0.0), msf_at(0.1, 110.0, off), smap)  # inside: skipped
@@ -64,7 +64,7 @@ def test_intersection_disables_detection_and_resets_cusum():
 
 
 def alarmed_ld3(smap):
-    d = Ld3Defense(DefenseConfig())
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
     d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 0.0, 1.0), smap)  # S = 1.0 - 0.6 = 0.4 -> alarm
     assert d.mode == "ar"
     return d
@@ -98,7 +98,7 @@ def test_ar_pose_when_msf_leaves_the_map_follows_msf_motion():
 
 def test_bad_inputs_never_raise_and_are_logged(caplog):
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig())
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
     with caplog.at_level(logging.DEBUG, logger="testbed.defense"):
         d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 0.0, math.nan), smap)  # NaN pose
         d.on_lane_detection(lane_det(0.05, 0.0), msf_at(0.05, 0.0, 20.0), smap)  # off the map
@@ -114,7 +114,7 @@ def test_bad_inputs_never_raise_and_are_logged(caplog):
 
 def test_naive_ar_stops_at_max_decel_on_msf():
     smap = FakeStraightMap()
-    d = NaiveArDefense(DefenseConfig(max_decel=7.5))
+    d = NaiveArDefense(DefenseConfig(**PAPER_CUSUM, max_decel=7.5))
     msf = msf_at(0.0, 0.0, 1.0)
     d.on_lane_detection(lane_det(0.0, 0.0), msf, smap)
     assert d.mode == "ar" and d.stop_decel == 7.5
@@ -135,7 +135,7 @@ def test_reported_p_sources_feed_alg4():
     """p_source = reported: P^MSF = the MSF's lateral variance across the lane, P^LD = the c0 variance of the line
     Alg. 3 used; Alg. 4 then gives R = λ f + (1 − λ) P (hand-computed below, λ = 0.5, w = 3)."""
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(p_source="reported", lam=0.5, window=3))
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, p_source="reported", lam=0.5, window=3))
     cov = np.diag([0.04, 0.09, 0.01])  # lane heads +x: the lateral variance is cov[1, 1]
 
     def det(t, phys):
@@ -156,7 +156,7 @@ def test_reported_p_sources_feed_alg4():
 
 def test_constant_p_sources_ignore_what_the_sources_report():
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(lam=0.5, p_msf=0.2, p_ld=0.4))
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, lam=0.5, p_msf=0.2, p_ld=0.4))
     ld = dataclasses.replace(lane_det(0.0, 0.0), left_var=9.0, right_var=9.0)
     d.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), np.eye(3) * 5.0), smap)
     g = math.sqrt(1e-3)
@@ -167,7 +167,7 @@ def test_constant_p_sources_ignore_what_the_sources_report():
 def test_ar_pose_heading_sources(heading, expected_yaw):
     """The car is 0.01 rad right of the lane (the lines say so); the MSF yaw says 0.03 left."""
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(heading=heading))
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, heading=heading))
     slope = math.tan(0.01)
     ld = LaneDetection(0.0, np.array([HALF, slope, 0, 0.0]), np.array([-HALF, slope, 0, 0.0]), 0.9, 0.9, (0.0, 40.0))
     d.on_lane_detection(ld, msf_at(0.0, 0.0, 1.0, yaw=0.03), smap)

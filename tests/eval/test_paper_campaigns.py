@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from testbed.defense.config import PAPER_CUSUM, DefenseConfig
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.campaigns import CAMPAIGNS, selected_runs
 from testbed.eval.drp_response import PATCH_AT, TRACE_ROADS, drp_runs, drp_table
@@ -64,7 +65,8 @@ def test_stealthy_runs_use_each_detectors_noise_and_margins():
 
 def test_paper_bound_reproduces_the_papers_stealthy_table():
     for row in load_paper_values()["stealthy"]["rows"]:
-        assert paper_bound(*row["fluctuation"]) == pytest.approx(row["bound"], abs=0.006), row["trace"]
+        assert paper_bound(*row["fluctuation"], DefenseConfig(**PAPER_CUSUM)) == pytest.approx(
+            row["bound"], abs=0.006), row["trace"]
 
 
 def write_trajectory(run_dir: Path, rows: list[dict]) -> None:
