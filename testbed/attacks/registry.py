@@ -42,6 +42,7 @@ _DESCRIPTIONS = {
     "start": "time the attack starts (s)", "d": "spoofed lateral GNSS offset while profiling (m)",
     "f": "aggressive stage: the offset is multiplied by f every second", "direction": "left or right",
     "trigger": "victim's physical deviation that ends profiling (m)",
+    "spread": "stealthy: time over which the initial τ burst is spent (s; 0 = one CUSUM tick, as the paper)",
     "obs_std": "noise of the attacker's view of the deviation (m)",
     "trace": "a shipped trace name or a CSV path", "scale": "factor on the trace's deviation",
     "margin": "safety margin under the CUSUM bound (m); default 3 × the LD noise",

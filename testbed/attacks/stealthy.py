@@ -5,7 +5,10 @@ Under lane-centring control the MSF deviation settles at D_MSF ≈ 0 while the c
 residual the defense sees is |D_MSF − D_LD| = |o − n_LD|. The attacker cannot see the LD noise sample, so it
 bounds it by `margin` (default 3σ_LD) and tracks the worst case of the defender's statistic,
 Ŝ ← max(0, Ŝ + |o| + margin − b), choosing at each CUSUM tick the largest offset that keeps
-Ŝ + |o| + margin − b ≤ τ − ε. The sustained offset is b − margin after an initial τ-sized burst.
+Ŝ + |o| + margin − b ≤ τ − ε. The sustained offset is b − margin after an initial τ-sized burst. With
+`spread` > 0 s the burst's τ is spent evenly over that time instead of in one tick (offset b − margin + τ/n
+for the n ticks of `spread`): a rate-limited steering cannot follow a one-tick burst's height but can follow
+a held one, so with a large τ a spread burst may push the car further.
 """
 
 from __future__ import annotations
@@ -51,10 +54,15 @@ class StealthyAttack(Attack):
         start: float = 10.0,
         margin: float | None = None,
         direction: str = "left",
+        spread: float = 0.0,
     ) -> None:
         super().__init__(start)
         if direction not in ("left", "right"):
             raise UserError(f"stealthy direction must be 'left' or 'right', got {direction!r}")
+        if not (math.isfinite(spread) and spread >= 0):
+            raise UserError(f"stealthy spread must be a duration >= 0 s, got {spread}")
+        self.spread = spread
+        self._burst_ticks = max(1, round(spread * knowledge.rate_hz))
         self.margin = 3.0 * knowledge.ld_noise_std if margin is None else margin
         if not (math.isfinite(self.margin) and self.margin >= 0):
             raise UserError(f"stealthy margin must be a distance >= 0 m, got {margin}")
@@ -68,7 +76,7 @@ class StealthyAttack(Attack):
     def _cusum_tick(self) -> None:
         k = self.knowledge
         room = k.b + k.tau - _EPS - self.margin - self.s_hat
-        magnitude = max(0.0, room)
+        magnitude = max(0.0, min(room, k.b - self.margin + k.tau / self._burst_ticks))
         self.s_hat = max(0.0, self.s_hat + magnitude + self.margin - k.b)
         self.offset = self.sign * magnitude
 
@@ -94,6 +102,7 @@ class StealthyAttack(Attack):
             "start": self.start_time,
             "margin": self.margin,
             "direction": self.direction,
+            "spread": self.spread,
             "b": k.b,
             "tau": k.tau,
             "ld_std": k.ld_noise_std,

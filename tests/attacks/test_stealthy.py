@@ -12,7 +12,7 @@ from tracks.pose import Pose
 def simulate(attack: StealthyAttack, b: float, tau: float, ld_std: float, seed: int, seconds: float = 60.0):
     """100 Hz loop: the car follows the tampered MSF back to the lane centre (first-order, 1 s); LD sees it."""
     rng = np.random.default_rng(seed)
-    phys, s, s_max, alarm = 0.0, 0.0, 0.0, False
+    phys, s, s_max, alarm, peak = 0.0, 0.0, 0.0, False, 0.0
     for i in range(round(seconds * 100)):
         t = i * 0.01
         true = Pose(10.0 * t, phys, 0.0)
@@ -24,13 +24,14 @@ def simulate(attack: StealthyAttack, b: float, tau: float, ld_std: float, seed: 
             s_max = max(s_max, s)
             alarm = alarm or s > tau
         phys -= d_msf * 0.01  # lane centring on the MSF pulls its deviation to 0 with a 1 s lag
-    return phys, s_max, alarm
+        peak = max(peak, abs(phys))
+    return phys, s_max, alarm, peak
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_stays_under_tau_while_pushing_the_car(seed):
     attack = StealthyAttack(CusumKnowledge(b=0.6, tau=0.1, ld_noise_std=0.1), start=5.0, direction="left")
-    phys, s_max, alarm = simulate(attack, 0.6, 0.1, 0.1, seed)
+    phys, s_max, alarm, _ = simulate(attack, 0.6, 0.1, 0.1, seed)
     assert not alarm and s_max <= 0.1
     assert phys == pytest.approx(-(0.6 - 0.3), abs=0.02)  # car pushed right by b − margin
     assert attack.state()["stage"] == "stealthy"
@@ -38,8 +39,31 @@ def test_stays_under_tau_while_pushing_the_car(seed):
 
 def test_an_attacker_ignoring_ld_noise_gets_caught():
     attack = StealthyAttack(CusumKnowledge(b=0.6, tau=0.1, ld_noise_std=0.1), start=5.0, margin=0.0)
-    _, _, alarm = simulate(attack, 0.6, 0.1, 0.1, seed=0)
+    _, _, alarm, _ = simulate(attack, 0.6, 0.1, 0.1, seed=0)
     assert alarm
+
+
+def test_a_spread_burst_spends_tau_evenly_over_its_ticks_then_rides_at_b_minus_the_margin():
+    knowledge = CusumKnowledge(b=0.15, tau=4.0, ld_noise_std=0.05)
+    attack = StealthyAttack(knowledge, start=0.0, direction="right", spread=1.0)
+    pose, offsets = Pose(0, 0, 0), []
+    for i in range(40):  # the CUSUM ticks at 20 Hz
+        t = 0.05 * i
+        attack.tamper_msf(LocalizationEstimate(t, pose, np.eye(3)), AttackerView(t, pose, 0.0, 0.0, 10.0))
+        offsets.append(attack.state()["offset"])
+    burst = 0.15 - 0.15 + 4.0 / 20  # b − 3σ + τ / (1 s × 20 Hz)
+    assert offsets[:19] == pytest.approx([-burst] * 19)
+    assert offsets[19] == pytest.approx(-(burst - 1e-3))  # the last burst tick keeps ε under τ
+    assert offsets[20:] == pytest.approx([0.0] * 20, abs=1e-12)
+    assert attack.s_hat == pytest.approx(4.0 - 1e-3) and attack.describe()["spread"] == 1.0
+    _, s_max, alarm, _ = simulate(StealthyAttack(knowledge, start=5.0, spread=1.0), 0.15, 4.0, 0.05, seed=0)
+    assert not alarm and s_max <= 4.0
+
+
+def test_a_zero_spread_is_the_papers_one_tick_burst():
+    knowledge = CusumKnowledge(b=0.6, tau=0.1, ld_noise_std=0.1)
+    runs = [simulate(StealthyAttack(knowledge, start=5.0, spread=v), 0.6, 0.1, 0.1, seed=3) for v in (0.0, 0.01)]
+    assert runs[0] == runs[1]  # 0.01 s rounds to one tick at 20 Hz
 
 
 def test_idle_before_start_and_bad_parameters():
@@ -51,3 +75,5 @@ def test_idle_before_start_and_bad_parameters():
         StealthyAttack(CusumKnowledge(), direction="up")
     with pytest.raises(ValueError, match="tau"):
         CusumKnowledge(tau=-1)
+    with pytest.raises(ValueError, match="spread"):
+        StealthyAttack(CusumKnowledge(), spread=-0.5)
