@@ -10,6 +10,7 @@ from testbed.camera import FrontCamera
 from testbed.conditions import get_condition
 from testbed.perception.labels import (
     VISIBLE_CONTRAST,
+    VISIBLE_FRACTION,
     FrameVisibility,
     PaintLayout,
     ego_lines,
@@ -88,6 +89,32 @@ def test_fresh_edge_line_beside_a_kerb_is_present(track):
     for colour in (WHITE, YELLOW):  # white is brighter than the kerb; yellow differs from it in hue
         image, pose = _synthetic_frame(track, {0: colour, 1: WHITE}, kerb_gap=0.10)
         assert _labels(track, image, pose).right.exists
+
+
+def _fragmented(track, every: int) -> tuple[np.ndarray, Pose]:
+    """The fixture frame with a fresh white right edge line worn back to the asphalt in all but every `every`-th
+    image row of the view window: worn paint that survives in fragments."""
+    image, pose = _synthetic_frame(track, {0: WHITE, 1: WHITE})
+    rows = FrameVisibility(image, RIG, PaintLayout(track)).rows
+    right_half = image[:, RIG.width // 2 :]
+    for k, row in enumerate(rows):
+        if k % every:
+            right_half[row][(right_half[row] == WHITE).all(axis=-1)] = ASPHALT
+    return image, pose
+
+
+def test_a_worn_line_seen_in_fragments_is_present_and_one_seen_in_scattered_rows_is_not(track):
+    """Fragments of fresh contrast along a tenth of the window make a line a driver sees; a row in twenty does not."""
+    fragments, pose = _fragmented(track, 7)
+    vis = FrameVisibility(fragments, RIG, PaintLayout(track))
+    right = track.boundaries[0]
+    s = np.arange(S_CAR - 5.0, S_CAR + 45.0, 1.0)
+    seen = vis.visible_fraction(right.t, s, s - S_CAR, np.full_like(s, right.t - pose.y))
+    assert VISIBLE_FRACTION <= seen < 0.25
+    assert _labels(track, fragments, pose).right.exists
+    scattered, _ = _fragmented(track, 20)
+    assert not _labels(track, scattered, pose).right.exists
+    assert _labels(track, scattered, pose).left.exists
 
 
 def test_dash_gaps_are_not_judged_and_a_line_out_of_frame_is_not_seen(track):
@@ -173,19 +200,19 @@ def test_rendered_shadow_over_a_line_leaves_it_visible(track):
 
 def test_preset_frames_worn_against_day():
     """urban-straight's ego lane (a white edge line by a kerb, a dashed lane line), rendered in the day and the
-    worn condition at the same stations: every fresh line is seen; worn paint shows in fewer rows and lines go
-    missing."""
+    worn condition at the same stations: every fresh line is seen; worn paint shows in fewer rows, yet in
+    fragments a driver still follows; faded on top of the wear, lines go missing."""
     track = load_track("urban-straight@9003")
     lane = track.lanes[track.ego_lane]
     poses = [Pose(*lane.position(s, 0.0), lane.heading_at(s)) for s in (60.0, 100.0, 140.0, 180.0, 220.0, 300.0)]
     assert all(all(_labels_rendered(track, pose, "day")) for pose in poses)
-    assert sum(not v for pose in poses for v in _labels_rendered(track, pose, "worn")) >= 1
+    assert all(all(_labels_rendered(track, pose, "worn")) for pose in poses)
+    assert sum(not v for pose in poses for v in _labels_rendered(track, pose, "worn", _Fade(0.6))) >= 1
     day = np.mean([_rendered_fractions(track, pose, "day") for pose in poses])
     worn = np.mean([_rendered_fractions(track, pose, "worn") for pose in poses])
     assert day > 0.8 and worn < day - 0.2
 
 
-def _labels_rendered(track, pose: Pose, condition: str) -> tuple[bool, bool]:
-    lines = _labels(track, _render(track, pose, condition), pose)
+def _labels_rendered(track, pose: Pose, condition: str, *painters) -> tuple[bool, bool]:
+    lines = _labels(track, _render(track, pose, condition, *painters), pose)
     return lines.left.exists, lines.right.exists
-
