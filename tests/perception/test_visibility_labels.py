@@ -104,8 +104,8 @@ def _fragmented(track, every: int) -> tuple[np.ndarray, Pose]:
 
 
 def test_a_worn_line_seen_in_fragments_is_present_and_one_seen_in_scattered_rows_is_not(track):
-    """Fragments of fresh contrast along a tenth of the window make a line a driver sees; a row in twenty does not."""
-    fragments, pose = _fragmented(track, 7)
+    """Fragments of fresh contrast along a fifth of the window make a line a driver sees; a row in twenty does not."""
+    fragments, pose = _fragmented(track, 5)
     vis = FrameVisibility(fragments, RIG, PaintLayout(track))
     right = track.boundaries[0]
     s = np.arange(S_CAR - 5.0, S_CAR + 45.0, 1.0)
@@ -184,6 +184,15 @@ def test_rendered_repaved_paint_is_missing_and_half_faded_paint_is_not(track):
     assert max(_rendered_fractions(track, pose, "day", _Fade(1.0))) < 0.1
 
 
+def test_rendered_repaved_paint_stays_missing_in_the_noise_of_a_night_frame(track):
+    """Sensor noise and asphalt grain alone pass the contrast test in some rows of a dark frame: fewer than
+    `VISIBLE_FRACTION` of them."""
+    pose = pose_on(track, 0, S_CAR)
+    assert max(_rendered_fractions(track, pose, "night", _Fade(1.0))) < VISIBLE_FRACTION
+    lines = _labels(track, _render(track, pose, "night", _Fade(1.0)), pose)
+    assert not lines.left.exists and not lines.right.exists
+
+
 def test_rendered_wear_leaves_less_visible_paint_the_more_it_wears(track):
     pose = pose_on(track, 0, 20.0)
     right = [_rendered_fractions(track, pose, "day", WearPainter(a))[1] for a in (0.0, 0.4, 0.8, 1.0)]
@@ -200,19 +209,19 @@ def test_rendered_shadow_over_a_line_leaves_it_visible(track):
 
 def test_preset_frames_worn_against_day():
     """urban-straight's ego lane (a white edge line by a kerb, a dashed lane line), rendered in the day and the
-    worn condition at the same stations: every fresh line is seen; worn paint shows in fewer rows, yet in
-    fragments a driver still follows; faded on top of the wear, lines go missing."""
+    worn condition at the same stations: every fresh line is seen; worn paint shows in fewer rows and lines go
+    missing."""
     track = load_track("urban-straight@9003")
     lane = track.lanes[track.ego_lane]
     poses = [Pose(*lane.position(s, 0.0), lane.heading_at(s)) for s in (60.0, 100.0, 140.0, 180.0, 220.0, 300.0)]
     assert all(all(_labels_rendered(track, pose, "day")) for pose in poses)
-    assert all(all(_labels_rendered(track, pose, "worn")) for pose in poses)
-    assert sum(not v for pose in poses for v in _labels_rendered(track, pose, "worn", _Fade(0.6))) >= 1
+    assert sum(not v for pose in poses for v in _labels_rendered(track, pose, "worn")) >= 1
     day = np.mean([_rendered_fractions(track, pose, "day") for pose in poses])
     worn = np.mean([_rendered_fractions(track, pose, "worn") for pose in poses])
     assert day > 0.8 and worn < day - 0.2
 
 
-def _labels_rendered(track, pose: Pose, condition: str, *painters) -> tuple[bool, bool]:
-    lines = _labels(track, _render(track, pose, condition, *painters), pose)
+def _labels_rendered(track, pose: Pose, condition: str) -> tuple[bool, bool]:
+    lines = _labels(track, _render(track, pose, condition), pose)
     return lines.left.exists, lines.right.exists
+
