@@ -20,6 +20,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--frames-per-episode", type=int, default=30)
     p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--conditions", nargs="+", metavar="CONDITION",
+                   help="render episodes in these camera conditions only (default: all, cycled evenly)")
     p.set_defaults(func=_dataset)
 
     p = sub.add_parser("train", help="train LaneNet from scratch on CPU")
@@ -65,7 +67,7 @@ def _dataset(args: argparse.Namespace) -> int:
     from testbed.perception.dataset import build_dataset
 
     n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
-                      workers=args.workers, progress=True)
+                      workers=args.workers, progress=True, conditions=args.conditions)
     print(f"wrote {n} {args.split} frames to {args.out}")
     return 0
 

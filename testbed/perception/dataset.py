@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,13 +102,18 @@ class Episode:
     condition: str
 
 
-def episodes(split: str, count: int, seed: int) -> list[Episode]:
-    """`count` episodes cycling over every preset and condition, track seeds drawn from the split."""
+def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None) -> list[Episode]:
+    """`count` episodes cycling over every preset and over `conditions` (default: all), track seeds drawn from
+    the split."""
     seeds = TRAIN_SEEDS if split == "train" else HELD_OUT_SEEDS
     if split not in ("train", "heldout"):
         raise ValueError(f"split must be 'train' or 'heldout', got {split!r}")
+    conditions = list(CONDITIONS) if conditions is None else list(conditions)
+    unknown = [c for c in conditions if c not in CONDITIONS]
+    if unknown or not conditions or len(set(conditions)) != len(conditions):
+        raise ValueError(f"conditions must be distinct names among {', '.join(CONDITIONS)}; got {conditions}")
     rng = np.random.default_rng([seed, 0 if split == "train" else 1])
-    presets, conditions = list(PRESETS), list(CONDITIONS)
+    presets = list(PRESETS)
     out = []
     for i in range(count):
         preset = presets[i % len(presets)]
@@ -225,8 +230,9 @@ def _render_to_shard(job: tuple[Episode, int, Path]) -> int:
 
 
 def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
-                  workers: int = 1, progress: bool = False) -> int:
-    """Render about `frames` labelled frames into `out` (one shard per episode); returns the frame count."""
+                  workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None) -> int:
+    """Render about `frames` labelled frames into `out` (one shard per episode; episodes in `conditions`, default
+    all); returns the frame count."""
     from multiprocessing import get_context
 
     from tqdm import tqdm
@@ -235,7 +241,7 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     out.mkdir(parents=True, exist_ok=True)
     n_eps = max(1, math.ceil(frames / frames_per_episode))
     jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz")
-            for i, ep in enumerate(episodes(split, n_eps, seed))]
+            for i, ep in enumerate(episodes(split, n_eps, seed, conditions))]
     bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
     done = 0
     if workers > 1:
@@ -250,6 +256,6 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
             bar.update(n)
     bar.close()
     (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
-                                                  "episodes": n_eps, "held_out_seeds": [HELD_OUT_SEEDS.start,
-                                                                                        HELD_OUT_SEEDS.stop]}))
+                                                  "episodes": n_eps, "conditions": conditions or list(CONDITIONS),
+                                                  "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop]}))
     return done

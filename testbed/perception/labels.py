@@ -31,7 +31,8 @@ X_VIEW_NEAR, X_VIEW_FAR = 5.0, 25.0  # m: where a line must be painted to count 
 SAMPLE_STEP = 1.0  # m between samples along the line
 VISIBLE_CONTRAST = 0.15  # RGB distance of a row's paint from a side's surface over that surface's RGB norm
 # (fresh white paint, row mean in a day frame: about 1.4 over asphalt, 0.1-0.3 over a kerb)
-VISIBLE_FRACTION = 0.25  # of a line's painted image rows in the view window that must show that contrast
+VISIBLE_FRACTION = 0.15  # of a line's painted image rows in the view window that must show that contrast
+# (noise and asphalt grain alone, paint repaved, in a night frame: about 0.12; worn fragments a viewer follows: 0.15 up)
 PAINT_BAND_M = 0.25  # |offset| from the line within which its own paint lies (double yellow included)
 PAINT_CORE = 0.9  # marking coverage at a pixel centre for it to show the paint (not its anti-aliased edge)
 SIDE_BAND_M = (0.05, 0.25)  # beyond the outermost paint of the row: the surface beside the line, each side

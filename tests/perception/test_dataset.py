@@ -19,6 +19,16 @@ def test_held_out_seeds_are_disjoint_from_training_seeds():
         episodes("test", 3, 0)
 
 
+def test_episodes_can_be_drawn_in_chosen_conditions_only():
+    chosen = episodes("train", 24, 5, ["night", "worn"])
+    assert {(ep.preset, ep.condition) for ep in chosen} == {(p, c) for p in PRESETS for c in ("night", "worn")}
+    assert [ep.seed for ep in chosen] == [ep.seed for ep in episodes("train", 24, 5)]  # same track seeds
+    assert episodes("train", 24, 5, list(CONDITIONS)) == episodes("train", 24, 5)
+    for bad in (["fog"], [], ["night", "night"]):
+        with pytest.raises(ValueError, match="conditions"):
+            episodes("train", 3, 0, bad)
+
+
 def test_erased_stretches_keep_the_runs_tiling_the_road(track):
     before = [b.t for b in track.boundaries]
     erase_stretches(track, np.random.default_rng(4), per_km=20.0)

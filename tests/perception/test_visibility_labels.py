@@ -10,6 +10,7 @@ from testbed.camera import FrontCamera
 from testbed.conditions import get_condition
 from testbed.perception.labels import (
     VISIBLE_CONTRAST,
+    VISIBLE_FRACTION,
     FrameVisibility,
     PaintLayout,
     ego_lines,
@@ -90,6 +91,32 @@ def test_fresh_edge_line_beside_a_kerb_is_present(track):
         assert _labels(track, image, pose).right.exists
 
 
+def _fragmented(track, every: int) -> tuple[np.ndarray, Pose]:
+    """The fixture frame with a fresh white right edge line worn back to the asphalt in all but every `every`-th
+    image row of the view window: worn paint that survives in fragments."""
+    image, pose = _synthetic_frame(track, {0: WHITE, 1: WHITE})
+    rows = FrameVisibility(image, RIG, PaintLayout(track)).rows
+    right_half = image[:, RIG.width // 2 :]
+    for k, row in enumerate(rows):
+        if k % every:
+            right_half[row][(right_half[row] == WHITE).all(axis=-1)] = ASPHALT
+    return image, pose
+
+
+def test_a_worn_line_seen_in_fragments_is_present_and_one_seen_in_scattered_rows_is_not(track):
+    """Fragments of fresh contrast along a fifth of the window make a line a driver sees; a row in twenty does not."""
+    fragments, pose = _fragmented(track, 5)
+    vis = FrameVisibility(fragments, RIG, PaintLayout(track))
+    right = track.boundaries[0]
+    s = np.arange(S_CAR - 5.0, S_CAR + 45.0, 1.0)
+    seen = vis.visible_fraction(right.t, s, s - S_CAR, np.full_like(s, right.t - pose.y))
+    assert VISIBLE_FRACTION <= seen < 0.25
+    assert _labels(track, fragments, pose).right.exists
+    scattered, _ = _fragmented(track, 20)
+    assert not _labels(track, scattered, pose).right.exists
+    assert _labels(track, scattered, pose).left.exists
+
+
 def test_dash_gaps_are_not_judged_and_a_line_out_of_frame_is_not_seen(track):
     image, _ = _synthetic_frame(track, {0: WHITE, 1: WHITE})
     vis = FrameVisibility(image, RIG, PaintLayout(track))
@@ -155,6 +182,15 @@ def test_rendered_repaved_paint_is_missing_and_half_faded_paint_is_not(track):
     assert min(_rendered_fractions(track, pose, "day")) > 0.95
     assert min(_rendered_fractions(track, pose, "day", _Fade(0.5))) > 0.95
     assert max(_rendered_fractions(track, pose, "day", _Fade(1.0))) < 0.1
+
+
+def test_rendered_repaved_paint_stays_missing_in_the_noise_of_a_night_frame(track):
+    """Sensor noise and asphalt grain alone pass the contrast test in some rows of a dark frame: fewer than
+    `VISIBLE_FRACTION` of them."""
+    pose = pose_on(track, 0, S_CAR)
+    assert max(_rendered_fractions(track, pose, "night", _Fade(1.0))) < VISIBLE_FRACTION
+    lines = _labels(track, _render(track, pose, "night", _Fade(1.0)), pose)
+    assert not lines.left.exists and not lines.right.exists
 
 
 def test_rendered_wear_leaves_less_visible_paint_the_more_it_wears(track):

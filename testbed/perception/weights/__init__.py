@@ -2,7 +2,8 @@
 
 Provenance: `ld3 ld train` with its defaults (27-minute budget, 2 threads; all 30 epochs ran, 14.6 minutes) from
 scratch on three training sets rendered with the strip-warped ground canvas and labelled with the existence
-seen in each rendered frame (`labels.FrameVisibility`):
+seen in each rendered frame (`labels.FrameVisibility`, at a VISIBLE_FRACTION of 0.25; the commands below now
+label with the current 0.15):
     ld3 ld dataset --out D/train  --frames 20000 --split train --seed 1 --frames-per-episode 30 --workers 2
     ld3 ld dataset --out D/train2 --frames 8000  --split train --seed 2 --frames-per-episode 20 --workers 2
     ld3 ld dataset --out D/train3 --frames 12000 --split train --seed 3 --frames-per-episode 20 --workers 2
