@@ -19,7 +19,7 @@ EXIT_USAGE = 2
 PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcommands here; testbed imports none
 
 
-DEMO_PATCH = "drp-patch:at=62,offset=-1,width=2,length=30,darkness=0.7,angle=-0.05"
+DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:

@@ -93,12 +93,13 @@ def fusion_update_benchmark(n: int = 5000) -> dict[str, float]:
     """One attack-response step: `on_lane_detection` in AR (deviations + Alg. 4 + Alg. 2) and the
     `pose_for_control` that places the fused deviation on the lane."""
     smap = StraightRoadMap()
-    config = DefenseConfig()
-    defense = Ld3Defense(config)
+    defense = Ld3Defense(DefenseConfig())
     ld, msf = _inputs(0)
-    # MSF b + τ + 1 m left of what LD sees: S = τ + 1 > τ, so AR starts here.
-    offset = config.b + config.tau + 1.0
-    defense.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, offset, 0.0), msf.cov), smap)
+    # MSF 1 m left of what LD sees: S grows by 1 − b a detection until it passes τ and AR starts.
+    for _ in range(1000):
+        if defense.mode == "ar":
+            break
+        defense.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), msf.cov), smap)
     if defense.mode != "ar":
         raise RuntimeError("fusion bench: the seeding detection did not start attack response")
     inputs = [_inputs(i) for i in range(1, n + 1)]

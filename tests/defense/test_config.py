@@ -1,12 +1,14 @@
 import pytest
 
-from testbed.defense.config import DefenseConfig
+from testbed.defense.config import PAPER_CUSUM, PAPER_MODE, DefenseConfig
 from testbed.defense.registry import make_defense
 
 
-def test_defaults_follow_the_paper():
+def test_defaults_follow_the_paper_but_the_cusum_is_the_refit_one():
     c = DefenseConfig()
-    assert (c.b, c.tau, c.ar_decel) == (0.6, 0.1, 4.0)
+    assert c.ar_decel == 4.0 and (c.b, c.tau) == (0.2, 2.0)
+    paper = DefenseConfig(**PAPER_MODE)
+    assert PAPER_CUSUM == {"b": 0.6, "tau": 0.1} and (paper.b, paper.tau) == (0.6, 0.1)
 
 
 def test_naive_ar_brakes_at_apollos_planner_bound_not_the_cars_brake_limit():

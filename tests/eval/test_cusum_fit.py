@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from testbed.conditions import CONDITIONS
+from testbed.defense.config import DefenseConfig
 from testbed.defense.roc import ResidualSeries
 from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.cusum_fit import (
@@ -133,5 +134,6 @@ def test_the_campaign_end_to_end_on_two_short_drives(tmp_path):
     assert header.split(",")[:3] == ["b", "largest_benign_cusum", "false_alarms"]
     assert len(rows) > 20
     assert "| urban-straight | " in text
-    assert "Benign drives that alarm (τ = 0.1)" in text and "| 0.6 | " in text
+    shipped = DefenseConfig()
+    assert f"Benign drives that alarm (τ = {shipped.tau:g})" in text and f"| {shipped.b:g} | " in text
     assert "Earliest alarm over (b, τ) with no benign alarm" in text

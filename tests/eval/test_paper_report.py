@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from testbed.cli import main
+from testbed.defense.config import DefenseConfig
 from testbed.eval import paper
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.campaigns import CAMPAIGNS
@@ -152,7 +153,8 @@ def test_report_puts_the_papers_values_beside_ours(tmp_path):
     assert "| 4 m/s | LD3 response deceleration (m/s²) | < 3 (AR deceleration) | 2.5" in report
     assert "| detection dev (mean, std) | 0.31, 0.07 | 0.35, 0.05 (2 runs) |" in report
     assert "| paper ka-local31 | 0.12, 0.08 | 0.70 / 0.82 / 1.06 | – | – |" in report
-    assert "| ours neural local | 0.000, 0.000 | 0.70 / 0.70 / 0.70 | 0.62 (margin 0 σ) | 0/1 |" in report
+    bound = f"{DefenseConfig().b + DefenseConfig().tau:.2f}"  # the run's own (b, τ) in the paper's τ + b + F
+    assert f"| ours neural local | 0.000, 0.000 | {bound} / {bound} / {bound} | 0.62 (margin 0 σ) | 0/1 |" in report
     assert "| response max dev (mean, std) | 0.08, 0.08 | 0.05, 0.00 | – |" in report
     assert "| slr-low (sim-table) | 1 | 0 | 0.20 | 0.05 | reach_destination ×1 |" in report
     assert "No fit drive finished" in report

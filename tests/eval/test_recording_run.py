@@ -7,6 +7,7 @@ from collections import Counter
 import imageio_ffmpeg
 from mcap.reader import make_reader
 
+from testbed.defense.config import DefenseConfig
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
 
@@ -23,7 +24,7 @@ def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):
     counts = Counter(topic for topic, _ in messages)
     assert counts == {"/camera/image": 40, "/pose/true": 200, "/pose/msf": 200, "/signals": 200, "/map/lanes": 1}
     signals = [m for topic, m in messages if topic == "/signals"]
-    assert all(m["tau"] == 0.1 and m["mode"] == "normal" for m in signals)
+    assert all(m["tau"] == DefenseConfig().tau and m["mode"] == "normal" for m in signals)
     assert signals[-1]["cusum"] is not None and signals[-1]["ld_dev"] is not None
     assert len(result.rows) == 200
 

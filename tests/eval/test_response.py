@@ -25,7 +25,7 @@ def fr_runs(tmp_path_factory):
 def test_default_response_stops_in_lane_where_the_paper_mode_straddles(fr_runs):
     default, paper = fr_runs["default"][0], fr_runs["paper"][0]
     assert default["detected"] and paper["detected"]
-    assert default["detection_time_s"] == paper["detection_time_s"]  # the response differs, not the detection
+    assert default["detection_time_s"] < paper["detection_time_s"]  # the refit CUSUM alarms first
     assert default["consequence"] == "stop_in_lane"
     assert abs(default["ar_stop_dev_m"]) < default["lane_straddle_dev_m"]
     assert paper["consequence"] == "stop_with_lane_straddle"

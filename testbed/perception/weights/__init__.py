@@ -1,12 +1,13 @@
 """Shipped LaneNet weights (lanenet.pt), loaded by `testbed.perception.neural.load_model`.
 
-Provenance: `ld3 ld train` with its defaults (27-minute budget, 2 threads; all 30 epochs ran, 14.6 minutes) from
-scratch on three training sets rendered with the strip-warped ground canvas and labelled with the existence
-seen in each rendered frame (`labels.FrameVisibility`, at a VISIBLE_FRACTION of 0.25; the commands below now
-label with the current 0.15):
+Provenance: `ld3 ld train` with its defaults (27-minute budget, 2 threads; all 30 epochs ran, 18.3 minutes) from
+scratch on four training sets rendered with the strip-warped ground canvas and labelled with the existence
+seen in each rendered frame (`labels.FrameVisibility`, VISIBLE_FRACTION 0.15), the fourth in the night and worn
+conditions only:
     ld3 ld dataset --out D/train  --frames 20000 --split train --seed 1 --frames-per-episode 30 --workers 2
     ld3 ld dataset --out D/train2 --frames 8000  --split train --seed 2 --frames-per-episode 20 --workers 2
     ld3 ld dataset --out D/train3 --frames 12000 --split train --seed 3 --frames-per-episode 20 --workers 2
-    ld3 ld train --data D/train D/train2 D/train3 --val D/heldout --out runs/ld-train
+    ld3 ld dataset --out D/train4 --frames 8000  --split train --seed 4 --frames-per-episode 20 --conditions night worn
+    ld3 ld train --data D/train D/train2 D/train3 D/train4 --val D/heldout --out runs/ld-train
 Held-out set: `ld3 ld dataset --out D/heldout --frames 1440 --split heldout --seed 0 --frames-per-episode 20`.
 """
