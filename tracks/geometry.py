@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracks.pose import Pose
+from tracks.recent import RecentAnswers
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
 _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-point search
@@ -111,7 +112,7 @@ class ReferenceLine:
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
         self._hint: int | None = None
-        self._memo: dict[tuple[float, float, float], tuple[float, float]] = {}
+        self._memo: RecentAnswers[tuple[float, float, float], tuple[float, float]] = RecentAnswers(_MEMO_SIZE)
 
     # ---- exact segment formulas -------------------------------------------------------------
     def _seg_index(self, s: float) -> int:
@@ -215,14 +216,8 @@ class ReferenceLine:
         s > length means the point lies beyond an end. The answers to the last few queries are kept and
         returned again for the same point.
         """
-        key = (x, y, max_offset)
-        memo = self._memo
-        found = memo.get(key)
-        if found is None:
-            found = memo[key] = self._project(x, y, max_offset)
-            if len(memo) > _MEMO_SIZE:
-                del memo[next(iter(memo))]
-        return found
+        found = self._memo.get((x, y, max_offset))
+        return found if found is not None else self._memo.keep((x, y, max_offset), self._project(x, y, max_offset))
 
     def _project(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         if self._hint is not None:

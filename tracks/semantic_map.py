@@ -11,6 +11,7 @@ import numpy as np
 
 from tracks.map_api import LaneCoord, OffMapError
 from tracks.pose import Pose
+from tracks.recent import RecentAnswers
 from tracks.road import Track
 
 OFF_MAP_MARGIN = 3.0  # m beyond a lane's half width that still counts as on that lane's map
@@ -27,19 +28,13 @@ class TrackMap:
         self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
         self._reach = (self._bounds[0][0] - OFF_MAP_MARGIN, self._bounds[-1][1] + OFF_MAP_MARGIN)
         self._length = track.length
-        self._memo: dict[tuple[Pose, int | None], LaneCoord] = {}
+        self._memo: RecentAnswers[tuple[Pose, int | None], LaneCoord] = RecentAnswers(_MEMO_SIZE)
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
         """The pose on `lane` (default: the lane containing it); the last few answers are returned again for
         the same pose and lane, errors are not kept."""
-        key = (pose, lane)
-        memo = self._memo
-        found = memo.get(key)
-        if found is None:
-            found = memo[key] = self._project(pose, lane)
-            if len(memo) > _MEMO_SIZE:
-                del memo[next(iter(memo))]
-        return found
+        found = self._memo.get((pose, lane))
+        return found if found is not None else self._memo.keep((pose, lane), self._project(pose, lane))
 
     def _project(self, pose: Pose, lane: int | None) -> LaneCoord:
         if not pose.is_finite():
