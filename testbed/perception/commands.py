@@ -22,6 +22,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--conditions", nargs="+", metavar="CONDITION",
                    help="render episodes in these camera conditions only (default: all, cycled evenly)")
+    p.add_argument("--label-draws", type=int, default=0, metavar="K",
+                   help="also label each frame under K other draws of the sensor's exposure, blur and noise; "
+                        "`ld3 ld eval` then reports how repeatable the existence labels are")
     p.set_defaults(func=_dataset)
 
     p = sub.add_parser("train", help="train LaneNet from scratch on CPU")
@@ -67,7 +70,7 @@ def _dataset(args: argparse.Namespace) -> int:
     from testbed.perception.dataset import build_dataset
 
     n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
-                      workers=args.workers, progress=True, conditions=args.conditions)
+                      workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws)
     print(f"wrote {n} {args.split} frames to {args.out}")
     return 0
 

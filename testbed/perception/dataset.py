@@ -7,7 +7,9 @@ the frame rendered and labelled from the map and from that frame itself (`labels
 missing line). On top of the preset's own look the episode randomises asphalt tone, marking brightness,
 exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges, gaps, and the
 one-sided lines of lane splits and merges) so missing lines are common; the run of poses starts anywhere
-along the track (bends, intersections). Track seeds for training come from `TRAIN_SEEDS`;
+along the track (bends, intersections). Each frame's meta keeps its lines' visible fractions and, on request,
+their existence labels under other draws of the sensor randomisation of the same render (`label_draws`: how
+repeatable a label is). Track seeds for training come from `TRAIN_SEEDS`;
 `HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files:
 images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
 """
@@ -122,8 +124,11 @@ def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None
     return out
 
 
-def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterator[tuple[np.ndarray, dict]]:
-    """Yield (image, label) for `n_frames` poses along one random lane of the episode's track."""
+def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
+                   label_draws: int = 0) -> Iterator[tuple[np.ndarray, dict]]:
+    """Yield (image, label) for `n_frames` poses along one random lane of the episode's track; with
+    `label_draws` > 0 each label's meta also holds `redrawn_exists`, the (left, right) existence labels of that
+    many other sensor draws of the same render, drawn from their own stream (images and labels unchanged)."""
     rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))])
     track = load_track(f"{ep.preset}@{ep.seed}")
     condition = get_condition(ep.condition)
@@ -145,7 +150,9 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
         for i in range(n_frames):
             if s > track.length - 2.0:
                 break
-            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep)
+            redraw_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), i])
+            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep,
+                               [redraw_rng] * label_draws)
             if i % POSES_PER_STATION == POSES_PER_STATION - 1:
                 s += float(rng.uniform(0.4, 1.6)) * mean_step
     finally:
@@ -153,14 +160,17 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan") -> Iterat
 
 
 def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLayout, base_rig: CameraRig,
-                 condition, rng: np.random.Generator, ep: Episode) -> tuple[np.ndarray, dict]:
+                 condition, rng: np.random.Generator, ep: Episode,
+                 redraws: list[np.random.Generator]) -> tuple[np.ndarray, dict]:
     x, y = lane.position(s, float(rng.uniform(-MAX_LATERAL_OFFSET, MAX_LATERAL_OFFSET)))
     pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
     pitch, height = float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)), float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER))
     rig = base_rig.with_jitter(pitch, height)
     streamer.update(pose)
-    image = sensor_randomise(FrontCamera(streamer, rig, condition, rng).render(pose), rng)
+    clean = FrontCamera(streamer, rig, condition, rng).render(pose)
+    image = sensor_randomise(clean, rng)
     truth = ego_lines(track, pose, FrameVisibility(image, rig, layout))
+    redrawn = [ego_lines(track, pose, FrameVisibility(sensor_randomise(clean, r), rig, layout)) for r in redraws]
     label = {
         "left": truth.left.coeffs, "right": truth.right.coeffs,
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,
@@ -168,8 +178,11 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLay
         "meta": {"preset": ep.preset, "seed": ep.seed, "condition": ep.condition, "s": round(s, 2),
                  "lane": truth.lane, "pose": [round(v, 4) for v in pose],
                  "left_kind": truth.left.kind, "right_kind": truth.right.kind,
-                 "pitch_jitter_deg": round(math.degrees(pitch), 4), "height_jitter_m": round(height, 4)},
+                 "pitch_jitter_deg": round(math.degrees(pitch), 4), "height_jitter_m": round(height, 4),
+                 "visible": [None if v is None else round(v, 4) for v in (truth.left.visible, truth.right.visible)]},
     }
+    if redrawn:
+        label["meta"]["redrawn_exists"] = [[t.left.exists, t.right.exists] for t in redrawn]
     return image, label
 
 
@@ -221,18 +234,21 @@ def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
     return FrameSet(meta=[m for p in parts for m in p.meta], **cat)
 
 
-def _render_to_shard(job: tuple[Episode, int, Path]) -> int:
-    ep, n_frames, path = job
-    frames = list(render_episode(ep, n_frames))
+def _render_to_shard(job: tuple[Episode, int, Path, int]) -> int:
+    ep, n_frames, path, label_draws = job
+    frames = list(render_episode(ep, n_frames, label_draws=label_draws))
     if frames:
         write_shard(path, [f[0] for f in frames], [f[1] for f in frames])
     return len(frames)
 
 
 def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
-                  workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None) -> int:
+                  workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None,
+                  label_draws: int = 0) -> int:
     """Render about `frames` labelled frames into `out` (one shard per episode; episodes in `conditions`, default
-    all); returns the frame count."""
+    all; each label also under `label_draws` other sensor draws, see `render_episode`); returns the frame count."""
+    if label_draws < 0:
+        raise ValueError(f"label_draws must be >= 0, got {label_draws}")
     from multiprocessing import get_context
 
     from tqdm import tqdm
@@ -240,7 +256,7 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n_eps = max(1, math.ceil(frames / frames_per_episode))
-    jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz")
+    jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz", label_draws)
             for i, ep in enumerate(episodes(split, n_eps, seed, conditions))]
     bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
     done = 0
@@ -257,5 +273,6 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     bar.close()
     (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
                                                   "episodes": n_eps, "conditions": conditions or list(CONDITIONS),
-                                                  "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop]}))
+                                                  "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop],
+                                                  "label_draws": label_draws}))
     return done

@@ -2,7 +2,9 @@
 
 Per frame, D_LD comes from Alg. 3 (`LdDeviation`, fresh per frame, with the map lane width) and is
 compared with the true physical deviation: mean |error|, p95, p99 (frames where no line is valid count
-under `no_output`). Existence is scored per line: precision and recall of "present" and of "missing".
+under `no_output`). Existence is scored per line: precision and recall of "present" and of "missing", its
+errors also per band of the lines' visible fraction; where the dataset holds labels under other sensor draws
+of the same render, the report says how often those flip (the labels' own repeatability).
 The same statistics per track preset. Latency is `detect` wall time on one torch thread (median, p99).
 Writes ld_eval.json, ld_eval.md, a PNG grid of frames with detected (green) and true (red) lines drawn over
 them, and a PNG of the error's cumulative distribution per condition.
@@ -22,6 +24,7 @@ import torch
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.dataset import FrameSet
+from testbed.perception.labels import VISIBLE_FRACTION
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
@@ -42,19 +45,32 @@ def deviation_errors(detections: Sequence[LaneDetection], lane_width: np.ndarray
     return errs
 
 
-def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray, errors: np.ndarray,
-          existence_threshold: float) -> dict[str, float | int | None]:
-    """Deviation error statistics (from `errors`) and existence precision/recall over the frames `idx`."""
-    tp = fp = fn = tn = 0  # positive = line present
-    for i in idx:
-        ld = detections[i]
-        for coeffs, prob, truth in ((ld.left, ld.left_prob, bool(frames.left_exists[i])),
-                                    (ld.right, ld.right_prob, bool(frames.right_exists[i]))):
-            said = bool(coeffs is not None and prob >= existence_threshold)
-            tp += said and truth
-            fp += said and not truth
-            fn += (not said) and truth
-            tn += (not said) and not truth
+def existence_scores(said: np.ndarray, truth: np.ndarray) -> dict[str, float | int | None]:
+    """Precision and recall of "present" and of "missing" for line calls `said` against labels `truth` (bools of
+    one shape), and the number of lines labelled missing."""
+    said, truth = np.asarray(said, bool), np.asarray(truth, bool)
+    tp, fp = int((said & truth).sum()), int((said & ~truth).sum())
+    fn, tn = int((~said & truth).sum()), int((~said & ~truth).sum())
+    return {"present_precision": _ratio(tp, tp + fp), "present_recall": _ratio(tp, tp + fn),
+            "missing_precision": _ratio(tn, tn + fn), "missing_recall": _ratio(tn, tn + fp),
+            "missing_lines": tn + fp}
+
+
+def said_present(detections: Sequence[LaneDetection], existence_threshold: float) -> np.ndarray:
+    """(N, 2) bools: whether each frame's detection outputs its left and right line at the threshold."""
+    return np.array([[ld.left is not None and ld.left_prob >= existence_threshold,
+                      ld.right is not None and ld.right_prob >= existence_threshold] for ld in detections],
+                    dtype=bool).reshape(-1, 2)
+
+
+def existence_labels(frames: FrameSet) -> np.ndarray:
+    """(N, 2) bools: the frames' left and right existence labels."""
+    return np.stack([frames.left_exists, frames.right_exists], axis=1).astype(bool)
+
+
+def score(said: np.ndarray, frames: FrameSet, idx: np.ndarray, errors: np.ndarray) -> dict[str, float | int | None]:
+    """Deviation error statistics (from `errors`) and existence precision/recall (line calls `said`, (N, 2))
+    over the frames `idx`."""
     e = errors[idx]
     e = e[np.isfinite(e)]
     return {
@@ -62,10 +78,47 @@ def score(detections: list[LaneDetection], frames: FrameSet, idx: np.ndarray, er
         "mean_abs_err_m": float(e.mean()) if len(e) else None,
         "p95_err_m": float(np.percentile(e, 95)) if len(e) else None,
         "p99_err_m": float(np.percentile(e, 99)) if len(e) else None,
-        "present_precision": _ratio(tp, tp + fp), "present_recall": _ratio(tp, tp + fn),
-        "missing_precision": _ratio(tn, tn + fn), "missing_recall": _ratio(tn, tn + fp),
-        "missing_lines": tn + fp,
+        **existence_scores(said[idx], existence_labels(frames)[idx]),
     }
+
+
+VISIBLE_BANDS = (0.0, 0.10, VISIBLE_FRACTION, 0.25, 0.45, 0.80)  # lower edges of the visible-fraction bands
+
+
+def errors_by_visibility(said: np.ndarray, frames: FrameSet) -> list[dict] | None:
+    """Existence errors per band of the lines' visible fraction (meta `visible`; None for datasets rendered
+    before it was recorded): lines, how many labelled present, how many called wrongly each way."""
+    if not frames.meta or any("visible" not in m for m in frames.meta):
+        return None
+    visible = np.array([[np.nan if v is None else v for v in m["visible"]] for m in frames.meta], dtype=float)
+    truth = existence_labels(frames)
+    band = np.where(np.isnan(visible), -1, np.searchsorted(VISIBLE_BANDS, np.nan_to_num(visible), "right") - 1)
+    edges = [*VISIBLE_BANDS, 1.0]
+    rows = []
+    for b in range(-1, len(VISIBLE_BANDS)):
+        m = band == b
+        name = "not judged" if b < 0 else f"{edges[b]:.2f}-{edges[b + 1]:.2f}"
+        rows.append({"visible_fraction": name, "lines": int(m.sum()), "labelled_present": int(truth[m].sum()),
+                     "said_present_labelled_missing": int((said & ~truth)[m].sum()),
+                     "said_missing_labelled_present": int((~said & truth)[m].sum())})
+    return rows
+
+
+def label_repeatability(frames: FrameSet) -> dict | None:
+    """How repeatable the existence labels are under other sensor draws of the same render (meta
+    `redrawn_exists`; None where the dataset was rendered without them): the share of labels each redraw flips,
+    overall and per condition, and the existence scores the redrawn labels themselves get against the labels,
+    the floor a detector seeing a frame's pixels but not its noise draw would share."""
+    if not frames.meta or any("redrawn_exists" not in m for m in frames.meta):
+        return None
+    truth = existence_labels(frames)
+    redrawn = np.array([m["redrawn_exists"] for m in frames.meta], dtype=bool)  # (N, K, 2)
+    flips = redrawn != truth[:, None, :]
+    cond = np.asarray([m.get("condition", "?") for m in frames.meta])
+    return {"draws": int(redrawn.shape[1]), "lines": int(truth.size), "flip_rate": float(flips.mean()),
+            "lines_flipped_in_any_draw": int(flips.any(axis=1).sum()),
+            "flip_rate_per_condition": {c: float(flips[cond == c].mean()) for c in sorted(set(cond.tolist()))},
+            "redrawn_labels_scored": existence_scores(redrawn, np.broadcast_to(truth[:, None, :], redrawn.shape))}
 
 
 def near_line_kinds(frames: FrameSet) -> list[str]:
@@ -90,17 +143,19 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
         detections.append(detector.detect(frame))
         latency.append(time.perf_counter() - t0)
     errors = deviation_errors(detections, frames.lane_width, frames.deviation, existence_threshold)
+    said = said_present(detections, existence_threshold)
 
     def by(values: list[str]) -> dict[str, dict]:
         arr = np.asarray(values)
-        return {v: score(detections, frames, np.flatnonzero(arr == v), errors, existence_threshold)
-                for v in sorted(set(values))}
+        return {v: score(said, frames, np.flatnonzero(arr == v), errors) for v in sorted(set(values))}
 
     report: dict = {"detector": type(detector).__name__, "existence_threshold": existence_threshold,
                     "per_condition": by([m.get("condition", "?") for m in frames.meta]),
                     "per_preset": by([m.get("preset", "?") for m in frames.meta]),
                     "per_near_line": by(near_line_kinds(frames)),
-                    "overall": score(detections, frames, np.arange(len(frames)), errors, existence_threshold),
+                    "overall": score(said, frames, np.arange(len(frames)), errors),
+                    "existence_by_visible_fraction": errors_by_visibility(said, frames),
+                    "label_repeatability": label_repeatability(frames),
                     "frame_errors_m": [None if not np.isfinite(e) else round(float(e), 5) for e in errors]}
     lat = np.asarray(latency) * 1e3
     report["latency_ms"] = {"median": float(np.median(lat)), "p99": float(np.percentile(lat, 99)),
@@ -126,6 +181,25 @@ def markdown_table(reports: list[dict]) -> str:
     lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), "",
              "Per marking of the nearer true line (the one Alg. 3 uses):", "", *rows("per_near_line", "nearer line"),
              ""]
+    for rep in reports:
+        if rep.get("existence_by_visible_fraction"):
+            lines += [f"{rep['detector']} existence errors by the lines' visible fraction (label: present from "
+                      f"{VISIBLE_FRACTION}):", "", "| visible fraction | lines | labelled present | said present, "
+                      "labelled missing | said missing, labelled present |", "|---|---|---|---|---|"]
+            lines += [f"| {r['visible_fraction']} | {r['lines']} | {r['labelled_present']} "
+                      f"| {r['said_present_labelled_missing']} | {r['said_missing_labelled_present']} |"
+                      for r in rep["existence_by_visible_fraction"]]
+            lines.append("")
+    rep_noise = next((r["label_repeatability"] for r in reports if r.get("label_repeatability")), None)
+    if rep_noise is not None:
+        sc = rep_noise["redrawn_labels_scored"]
+        per = ", ".join(f"{c} {v:.3f}" for c, v in rep_noise["flip_rate_per_condition"].items())
+        lines += [f"Label repeatability ({rep_noise['draws']} other sensor draws of each render): "
+                  f"{rep_noise['flip_rate']:.3f} of labels flip per draw ({per}); "
+                  f"{rep_noise['lines_flipped_in_any_draw']} of {rep_noise['lines']} lines flip in some draw. "
+                  f"The redrawn labels scored against the labels: missing P {f(sc['missing_precision'])}, "
+                  f"missing R {f(sc['missing_recall'])}, present P {f(sc['present_precision'])}, "
+                  f"present R {f(sc['present_recall'])}.", ""]
     for rep in reports:
         lat = rep["latency_ms"]
         lines.append(f"{rep['detector']} latency (1 thread): median {lat['median']:.2f} ms, "

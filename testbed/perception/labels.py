@@ -128,11 +128,13 @@ class FrameVisibility:
 
 @dataclass(frozen=True)
 class LineTruth:
-    """One true lane line: cubic y(x) coefficients (ascending powers, vehicle frame) and its existence."""
+    """One true lane line: cubic y(x) coefficients (ascending powers, vehicle frame), its existence, its
+    marking kind, and the fraction of its judged rows whose paint the frame shows (None where not judged)."""
 
     coeffs: np.ndarray
     exists: bool
     kind: str
+    visible: float | None = None
 
 
 @dataclass(frozen=True)
@@ -164,11 +166,12 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     kinds = [boundary.kind_at(float(si)) for si in s[view]]
     painted = sum(k != "none" for k in kinds)
     exists = bool(kinds) and painted >= 0.5 * len(kinds)
+    seen = None
     if exists and visibility is not None:
         seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
     kind = max(set(kinds), key=kinds.count) if kinds else "none"
-    return LineTruth(coeffs=coeffs, exists=exists, kind=kind)
+    return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen)
 
 
 def ego_lines(track, pose: Pose, visibility: FrameVisibility | None = None) -> EgoLines:

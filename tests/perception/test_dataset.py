@@ -1,8 +1,11 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from testbed.conditions import CONDITIONS
-from testbed.perception.dataset import episodes, erase_stretches
+from testbed.perception.dataset import build_dataset, episodes, erase_stretches
+from testbed.perception.labels import VISIBLE_FRACTION
 from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from tracks.layout import MARKING_KINDS
 from tracks.presets import PRESETS
@@ -55,3 +58,20 @@ def test_same_episode_renders_the_same_bytes():
         meta = lab_a["meta"]  # the rig jitter and the line markings are recorded for per-frame analysis
         assert abs(meta["pitch_jitter_deg"]) <= 0.5 and abs(meta["height_jitter_m"]) <= 0.05
         assert {meta["left_kind"], meta["right_kind"]} <= set(MARKING_KINDS)
+        for v, exists in zip(meta["visible"], (lab_a["left_exists"], lab_a["right_exists"]), strict=True):
+            assert (v is None and not exists) or (0.0 <= v <= 1.0 and exists == (v >= VISIBLE_FRACTION))
+
+
+def test_label_redraws_leave_the_frames_and_labels_unchanged():
+    from testbed.perception.dataset import Episode, render_episode
+
+    ep = Episode("urban-straight", TRAIN_SEEDS[7], "worn")
+    plain = list(render_episode(ep, 2))
+    redrawn = list(render_episode(ep, 2, label_draws=3))
+    for (img_a, lab_a), (img_b, lab_b) in zip(plain, redrawn, strict=True):
+        assert img_a.tobytes() == img_b.tobytes()
+        draws = lab_b["meta"].pop("redrawn_exists")
+        assert lab_a["meta"] == lab_b["meta"] and "redrawn_exists" not in lab_a["meta"]
+        assert len(draws) == 3 and all(len(d) == 2 and all(isinstance(x, bool) for x in d) for d in draws)
+    with pytest.raises(ValueError, match="label_draws"):
+        build_dataset(Path("unused"), 2, label_draws=-1)

@@ -56,3 +56,34 @@ def test_errors_existence_and_report(tmp_path):
     md = paths["markdown"].read_text()
     assert "| ShiftedLeftLine | rain | 2 | 0.100 |" in md and "| ShiftedLeftLine | highway | 2 | 0.100 |" in md
     assert "| ShiftedLeftLine | dashed_white | 2 | 0.100 |" in md
+
+
+def test_existence_errors_by_visible_fraction_and_label_repeatability(tmp_path):
+    frames = _frames(tmp_path / "data")
+    visible = [[0.9, 0.5], [0.3, 0.2], [0.9, 0.16], [0.9, None]]
+    redrawn = [[[True, True], [False, True]], [[True, False], [True, True]], [[True, True], [True, False]],
+               [[True, False], [True, False]]]
+    for meta, v, r in zip(frames.meta, visible, redrawn, strict=True):
+        meta.update(visible=v, redrawn_exists=r)
+    report, _ = evaluate(ShiftedLeftLine(), frames)
+    bands = {r["visible_fraction"]: r for r in report["existence_by_visible_fraction"]}
+    assert [b["lines"] for b in bands.values()] == [1, 0, 0, 2, 1, 1, 3]
+    # the one wrong call: frame 2's right line (visible in 0.16 of its rows) said missing
+    assert bands["0.15-0.25"] == {"visible_fraction": "0.15-0.25", "lines": 2, "labelled_present": 2,
+                                  "said_present_labelled_missing": 0, "said_missing_labelled_present": 1}
+    assert bands["not judged"]["labelled_present"] == 0
+    noise = report["label_repeatability"]
+    assert noise["draws"] == 2 and noise["lines"] == 8 and noise["lines_flipped_in_any_draw"] == 3
+    assert noise["flip_rate"] == pytest.approx(3 / 16)
+    assert noise["flip_rate_per_condition"] == pytest.approx({"day": 2 / 8, "rain": 1 / 8})
+    # the redraws call 3 present lines missing and agree on the one missing line (twice)
+    sc = noise["redrawn_labels_scored"]
+    assert sc["missing_precision"] == pytest.approx(2 / 5) and sc["missing_recall"] == 1.0
+    assert sc["present_precision"] == 1.0 and sc["present_recall"] == pytest.approx(11 / 14)
+    md = write_report([report], None, tmp_path / "out")["markdown"].read_text()
+    assert "| 0.15-0.25 | 2 | 2 | 0 | 1 |" in md and "0.188 of labels flip per draw (day 0.250, rain 0.125)" in md
+
+
+def test_datasets_without_visibility_records_report_none(tmp_path):
+    report, _ = evaluate(ShiftedLeftLine(), _frames(tmp_path / "data"))
+    assert report["existence_by_visible_fraction"] is None and report["label_repeatability"] is None
