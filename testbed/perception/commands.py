@@ -37,6 +37,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int, help="use at most this many frames per directory")
     p.add_argument("--init", type=Path, help="continue from this checkpoint instead of from scratch")
     p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
+    p.add_argument("--input-rows", type=int, choices=(56, 112), default=56,
+                   help="network input rows: the ground crop's halved (the shipped weights) or all kept")
     p.set_defaults(func=_train)
 
     p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
@@ -78,7 +80,8 @@ def _dataset(args: argparse.Namespace) -> int:
 def _train(args: argparse.Namespace) -> int:
     from testbed.perception.train import TrainConfig, train
 
-    cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr)
+    cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr,
+                      input_rows=args.input_rows)
     res = train(args.data, args.out, cfg, val_dir=args.val, limit=args.limit, progress=True, init=args.init)
     print(f"checkpoint {res.checkpoint}, curve {res.curve}")
     if res.history:

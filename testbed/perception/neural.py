@@ -1,7 +1,8 @@
 """Neural lane detector: row-anchor column classification (Ultra-Fast-Lane-Detection style) on the camera frame.
 
 Anchors are the image rows that see fixed ground distances `X_ANCHORS` ahead (nominal rig). The ground part
-of the frame is area-resized to 56×160 and standardised per channel (exposure invariance); a fully
+of the frame is area-resized to 56×160 (or 112×160, `INPUT_ROWS`) and standardised per channel (exposure
+invariance); a fully
 convolutional backbone keeps 40 columns (8 px each) and widens its lateral view with 1×9 convs. For each
 line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax expectation
 over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m) at that
@@ -43,7 +44,8 @@ CUBIC_PRIOR_STD = 1e-4  # prior std of c3 (1/m²): c3 = κ'/6, clothoid transiti
 CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
-INPUT_SHAPE = (56, 160)  # network input (H, W)
+INPUT_WIDTH = 160  # network input columns: the frame's halved
+INPUT_ROWS = (56, 112)  # network input rows a LaneNet can be built for: the ground crop's halved, or all kept
 N_COLS = 40  # column cells; cell j covers full-resolution columns [8j, 8j + 8)
 DEFAULT_WEIGHTS = "lanenet.pt"
 
@@ -55,15 +57,20 @@ def _block(c_in: int, c_out: int, stride: tuple[int, int] = (1, 1),
 
 
 class LaneNet(nn.Module):
-    """(N, 3, 56, 160) image -> column logits (N, 2, K, N_COLS + 1) (last: absent), existence logits (N, 2)."""
+    """(N, 3, R, 160) image, R = `input_rows` -> column logits (N, 2, K, N_COLS + 1) (last: absent), existence
+    logits (N, 2). With 112 rows the fourth block halves the rows too, so both inputs reach the 7 × 40 feature
+    map the heads read."""
 
-    def __init__(self, width: int = 32) -> None:
+    def __init__(self, width: int = 32, input_rows: int = INPUT_ROWS[0]) -> None:
         super().__init__()
-        self.width = width
+        if input_rows not in INPUT_ROWS:
+            raise ValueError(f"input_rows must be one of {INPUT_ROWS}, got {input_rows}")
+        self.width, self.input_rows = width, input_rows
         k = len(X_ANCHORS)
         self.features = nn.Sequential(
             _block(3, 16, (2, 2)), _block(16, 32, (2, 2)), _block(32, width, (2, 1)),
-            _block(width, width), _block(width, width, kernel=(1, 9)), _block(width, width, kernel=(1, 9)),
+            _block(width, width, (input_rows // INPUT_ROWS[0], 1)), _block(width, width, kernel=(1, 9)),
+            _block(width, width, kernel=(1, 9)),
         )
         rows = 7
         self.columns = nn.Conv1d(width * rows + 1, 2 * k, 1)
@@ -91,11 +98,11 @@ def head_outputs(f: torch.Tensor, columns: Callable[[torch.Tensor], torch.Tensor
     return torch.cat([cols, absent], dim=-1), g[:, 2 * k :]
 
 
-def preprocess(image: np.ndarray) -> np.ndarray:
-    """Frame (160, 320, 3) uint8 -> network input (3, 56, 160) float32, standardised per channel."""
-    crop = cv2.resize(image[CROP_TOP:], (INPUT_SHAPE[1], INPUT_SHAPE[0]), interpolation=cv2.INTER_AREA)
+def preprocess(image: np.ndarray, rows: int = INPUT_ROWS[0]) -> np.ndarray:
+    """Frame (160, 320, 3) uint8 -> network input (3, rows, 160) float32, standardised per channel."""
+    crop = cv2.resize(image[CROP_TOP:], (INPUT_WIDTH, rows), interpolation=cv2.INTER_AREA)
     mean, std = cv2.meanStdDev(crop)
-    x = np.empty((3, *INPUT_SHAPE), np.float32)
+    x = np.empty((3, rows, INPUT_WIDTH), np.float32)
     for c, plane in enumerate(cv2.split(crop)):  # planar copy: 2x faster than a transposed astype
         x[c] = plane
     x -= mean.astype(np.float32)[:, :, None]
@@ -241,7 +248,7 @@ def load_model(path: str | Path | None = None) -> LaneNet:
             ckpt = torch.load(p, map_location="cpu", weights_only=True)
     else:
         ckpt = torch.load(Path(path), map_location="cpu", weights_only=True)
-    model = LaneNet(int(ckpt["width"]))
+    model = LaneNet(int(ckpt["width"]), int(ckpt.get("input_rows", INPUT_ROWS[0])))  # older checkpoints: 56 rows
     model.load_state_dict(ckpt["state_dict"])
     return model.eval()
 
@@ -253,7 +260,9 @@ class NeuralLaneDetector(LaneDetector):
     def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
         if threads is not None:
             torch.set_num_threads(threads)
-        self.model = FrozenLaneNet(model if model is not None else load_model())
+        model = model if model is not None else load_model()
+        self.input_rows = model.input_rows
+        self.model = FrozenLaneNet(model)
 
     @staticmethod
     def valid_image(image: np.ndarray | None) -> bool:
@@ -265,7 +274,7 @@ class NeuralLaneDetector(LaneDetector):
         """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""
         if image.dtype != np.uint8:
             image = np.clip(image, 0, 255).astype(np.uint8)
-        x = torch.from_numpy(preprocess(image))[None]
+        x = torch.from_numpy(preprocess(image, self.input_rows))[None]
         with torch.inference_mode():
             coeffs, probs = lines_from_outputs(*self.model(x))
         return coeffs[0], probs[0]

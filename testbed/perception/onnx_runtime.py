@@ -12,7 +12,7 @@ import torch
 
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.neural import (
-    INPUT_SHAPE,
+    INPUT_WIDTH,
     LaneNet,
     NeuralLaneDetector,
     lines_from_outputs,
@@ -25,13 +25,13 @@ INSTALL_HINT = "onnxruntime is not installed: pip install 'ld3-testbed[onnx]' (o
 
 
 def export_onnx(model: LaneNet, path: str | Path | None = None) -> bytes:
-    """The eval-mode model as an ONNX graph for one frame (input `image` (1, 3, 56, 160), outputs `columns`,
-    `existence`); also written to `path` when given."""
+    """The eval-mode model as an ONNX graph for one frame (input `image` (1, 3, input rows, 160), outputs
+    `columns`, `existence`); also written to `path` when given."""
     model = model.eval()
     buf = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
-        torch.onnx.export(model, (torch.zeros(1, 3, *INPUT_SHAPE),), buf, input_names=["image"],
+        torch.onnx.export(model, (torch.zeros(1, 3, model.input_rows, INPUT_WIDTH),), buf, input_names=["image"],
                           output_names=["columns", "existence"],
                           opset_version=OPSET, dynamo=False)
     data = buf.getvalue()
@@ -41,8 +41,8 @@ def export_onnx(model: LaneNet, path: str | Path | None = None) -> bytes:
 
 
 class OnnxLaneNet:
-    """An onnxruntime session of an exported LaneNet: (1, 3, 56, 160) float32 -> (column logits, existence
-    logits) as numpy arrays."""
+    """An onnxruntime session of an exported LaneNet: (1, 3, input rows, 160) float32 -> (column logits,
+    existence logits) as numpy arrays."""
 
     def __init__(self, onnx_model: bytes, threads: int = 1) -> None:
         try:
@@ -64,13 +64,15 @@ class OnnxLaneDetector(LaneDetector):
     """`NeuralLaneDetector` with the network in onnxruntime (one intra-op thread unless told otherwise)."""
 
     def __init__(self, model: LaneNet | None = None, threads: int = 1) -> None:
-        self.model = OnnxLaneNet(export_onnx(model if model is not None else load_model()), threads)
+        model = model if model is not None else load_model()
+        self.input_rows = model.input_rows
+        self.model = OnnxLaneNet(export_onnx(model), threads)
 
     def infer(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""
         if image.dtype != np.uint8:
             image = np.clip(image, 0, 255).astype(np.uint8)
-        cols, exist = self.model(preprocess(image)[None])
+        cols, exist = self.model(preprocess(image, self.input_rows)[None])
         coeffs, probs = lines_from_outputs(torch.from_numpy(cols), torch.from_numpy(exist))
         return coeffs[0], probs[0]
 

@@ -26,6 +26,7 @@ from testbed.perception.evaluate import deviation_errors
 from testbed.perception.neural import (
     ANCHOR_WEIGHTS,
     GEOMETRY,
+    INPUT_ROWS,
     N_COLS,
     X_ANCHORS,
     LaneNet,
@@ -49,11 +50,12 @@ class TrainConfig:
     threads: int = 2
     seed: int = 0
     max_minutes: float = 27.0
+    input_rows: int = INPUT_ROWS[0]  # network input rows (`neural.INPUT_ROWS`)
 
 
 @dataclass
 class Tensors:
-    """Inputs (N, 3, 56, 160) float16; targets: anchor offsets y (N, 2, K) m, column class (N, 2, K)
+    """Inputs (N, 3, input rows, 160) float16; targets: anchor offsets y (N, 2, K) m, column class (N, 2, K)
     (N_COLS = absent), offset c0 (N, 2) m and existence (N, 2)."""
 
     x: torch.Tensor
@@ -70,14 +72,14 @@ class Tensors:
         return Tensors(*(torch.cat([getattr(p, k) for p in parts]) for k in ("x", "y", "cls", "c0", "exists")))
 
 
-def load_tensors(directories: list[Path], limit: int | None = None) -> Tensors:
-    """Training tensors of the datasets in `directories` (at most `limit` frames each), converted shard by shard
-    so the raw frames never sit in memory all at once."""
-    return Tensors.cat([to_tensors(shard) for d in directories for shard in iter_shards(d, limit)])
+def load_tensors(directories: list[Path], limit: int | None = None, rows: int = INPUT_ROWS[0]) -> Tensors:
+    """Training tensors of the datasets in `directories` (at most `limit` frames each, inputs of `rows` rows),
+    converted shard by shard so the raw frames never sit in memory all at once."""
+    return Tensors.cat([to_tensors(shard, rows) for d in directories for shard in iter_shards(d, limit)])
 
 
-def to_tensors(frames: FrameSet) -> Tensors:
-    x = np.stack([preprocess(img) for img in frames.images]).astype(np.float16)
+def to_tensors(frames: FrameSet, rows: int = INPUT_ROWS[0]) -> Tensors:
+    x = np.stack([preprocess(img, rows) for img in frames.images]).astype(np.float16)
     anchors = np.asarray(X_ANCHORS)
     coeffs = np.stack([frames.left, frames.right], axis=1)  # (N, 2, 4)
     y = np.polynomial.polynomial.polyval(anchors, coeffs.reshape(-1, 4).T).reshape(len(x), 2, -1)
@@ -152,10 +154,13 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    data = load_tensors(train_dirs, limit)
+    model = load_model(init).train() if init is not None else LaneNet(input_rows=config.input_rows)
+    if model.input_rows != config.input_rows:
+        raise ValueError(f"the checkpoint {init} takes {model.input_rows}-row inputs, the config asks for "
+                         f"{config.input_rows}: train on with input_rows={model.input_rows} or start from scratch")
+    data = load_tensors(train_dirs, limit, config.input_rows)
     val = load_frames(val_dir) if val_dir is not None else None
-    val_t = to_tensors(val) if val is not None else None
-    model = load_model(init).train() if init is not None else LaneNet()
+    val_t = to_tensors(val, config.input_rows) if val is not None else None
     model = model.to(memory_format=torch.channels_last)  # NHWC convolutions: faster training steps on CPU
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     n = len(data.x)
@@ -204,7 +209,7 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
 
 def save_checkpoint(model: LaneNet, path: Path, history: list[dict]) -> None:
     state = {k: v.detach().contiguous().clone() for k, v in model.state_dict().items()}  # NCHW on disk
-    torch.save({"state_dict": state, "width": model.width,
+    torch.save({"state_dict": state, "width": model.width, "input_rows": model.input_rows,
                 "history": json.dumps(history)}, path)
 
 

@@ -140,16 +140,22 @@ def test_cached_fit_matrices_match_the_fit():
     np.testing.assert_allclose(np.einsum("nlck,nlk->nlc", fit_matrices(present), y), direct, atol=1e-9)
 
 
-def test_frozen_model_gives_the_same_outputs():
+@pytest.mark.parametrize("rows", [56, 112])
+def test_frozen_model_gives_the_same_outputs(rows):
     torch.manual_seed(1)
-    model = LaneNet()
+    model = LaneNet(input_rows=rows)
     model.train()
     with torch.no_grad():  # give BatchNorm non-trivial running statistics
         for _ in range(3):
-            model(torch.randn(8, 3, 56, 160) * 2.0 + 0.5)
+            model(torch.randn(8, 3, rows, 160) * 2.0 + 0.5)
     model.eval()
     fused = FrozenLaneNet(model)
-    x = torch.randn(2, 3, 56, 160)
+    x = torch.randn(2, 3, rows, 160)
     with torch.inference_mode():
         for a, b in zip(model(x), fused(x), strict=True):
             torch.testing.assert_close(a, b, atol=1e-4, rtol=1e-4)
+
+
+def test_lanenet_is_built_for_the_listed_input_rows_only():
+    with pytest.raises(ValueError, match="input_rows"):
+        LaneNet(input_rows=100)

@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.neural import FRAME_SHAPE, INPUT_SHAPE, NeuralLaneDetector, load_model
+from testbed.perception.neural import FRAME_SHAPE, INPUT_WIDTH, LaneNet, NeuralLaneDetector, load_model
 
 pytest.importorskip("onnxruntime")
 
@@ -19,7 +19,7 @@ def test_the_onnx_export_matches_torch(model, tmp_path):
     data = export_onnx(model, tmp_path / "lanenet.onnx")
     assert (tmp_path / "lanenet.onnx").read_bytes() == data
     net = OnnxLaneNet(data)
-    for x in np.random.default_rng(0).normal(size=(4, 1, 3, *INPUT_SHAPE)).astype(np.float32):
+    for x in np.random.default_rng(0).normal(size=(4, 1, 3, model.input_rows, INPUT_WIDTH)).astype(np.float32):
         with torch.no_grad():
             cols, exist = model(torch.from_numpy(x))
         ort_cols, ort_exist = net(x)
@@ -40,3 +40,19 @@ def test_the_onnx_detector_gives_the_torch_detection(model):
         if a is not None:
             np.testing.assert_allclose(a, b, atol=1e-4)
     assert OnnxLaneDetector(model).detect(CameraFrame(0.0, None)).left is None
+
+
+def test_a_112_row_network_exports_and_detects_as_in_torch():
+    torch.manual_seed(2)
+    model = LaneNet(input_rows=112).eval()
+    x = np.random.default_rng(3).normal(size=(1, 3, 112, INPUT_WIDTH)).astype(np.float32)
+    with torch.no_grad():
+        cols, exist = model(torch.from_numpy(x))
+    ort_cols, ort_exist = OnnxLaneNet(export_onnx(model))(x)
+    np.testing.assert_allclose(ort_cols, cols.numpy(), atol=1e-4, rtol=0)
+    np.testing.assert_allclose(ort_exist, exist.numpy(), atol=1e-4, rtol=0)
+    image = np.random.default_rng(4).integers(0, 255, (*FRAME_SHAPE, 3), dtype=np.uint8)
+    ours, torch_ld = OnnxLaneDetector(model).detect(CameraFrame(0.0, image)), NeuralLaneDetector(model).detect(
+        CameraFrame(0.0, image))
+    assert ours.left_prob == pytest.approx(torch_ld.left_prob, abs=1e-4)
+    assert ours.right_prob == pytest.approx(torch_ld.right_prob, abs=1e-4)

@@ -1,6 +1,7 @@
 import json
 
 import numpy as np
+import pytest
 import torch
 
 from testbed.lane_detection import CameraFrame
@@ -71,3 +72,17 @@ def test_training_runs_a_few_steps(tmp_path):
     det = NeuralLaneDetector(load_model(res.checkpoint))
     ld = det.detect(CameraFrame(0.0, np.zeros((160, 320, 3), np.uint8)))
     assert ld.timestamp == 0.0 and 0.0 <= ld.left_prob <= 1.0 and 0.0 <= ld.right_prob <= 1.0
+
+
+def test_training_with_every_input_row_kept(tmp_path):
+    _tiny_dataset(tmp_path / "data")
+    res = train([tmp_path / "data"], tmp_path / "out", TrainConfig(epochs=1, batch=4, threads=1, input_rows=112))
+    model = load_model(res.checkpoint)
+    assert model.input_rows == 112
+    assert to_tensors(load_frames(tmp_path / "data"), 112).x.shape[1:] == (3, 112, 160)
+    det = NeuralLaneDetector(model)
+    ld = det.detect(CameraFrame(0.0, np.zeros((160, 320, 3), np.uint8)))
+    assert 0.0 <= ld.left_prob <= 1.0 and 0.0 <= ld.right_prob <= 1.0
+    with pytest.raises(ValueError, match="input_rows=112"):  # a 112-row checkpoint cannot train on at 56 rows
+        train([tmp_path / "data"], tmp_path / "out2", TrainConfig(epochs=1, batch=4, threads=1),
+              init=res.checkpoint)
