@@ -151,8 +151,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
             if s > track.length - 2.0:
                 break
             redraw_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), i])
-            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep,
-                               [redraw_rng] * label_draws)
+            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep, label_draws,
+                               redraw_rng)
             if i % POSES_PER_STATION == POSES_PER_STATION - 1:
                 s += float(rng.uniform(0.4, 1.6)) * mean_step
     finally:
@@ -160,8 +160,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
 
 
 def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLayout, base_rig: CameraRig,
-                 condition, rng: np.random.Generator, ep: Episode,
-                 redraws: list[np.random.Generator]) -> tuple[np.ndarray, dict]:
+                 condition, rng: np.random.Generator, ep: Episode, label_draws: int,
+                 redraw_rng: np.random.Generator) -> tuple[np.ndarray, dict]:
     x, y = lane.position(s, float(rng.uniform(-MAX_LATERAL_OFFSET, MAX_LATERAL_OFFSET)))
     pose = Pose(x, y, lane.heading_at(s) + float(rng.uniform(-MAX_YAW_OFFSET, MAX_YAW_OFFSET)))
     pitch, height = float(rng.uniform(-PITCH_JITTER, PITCH_JITTER)), float(rng.uniform(-HEIGHT_JITTER, HEIGHT_JITTER))
@@ -170,7 +170,8 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLay
     clean = FrontCamera(streamer, rig, condition, rng).render(pose)
     image = sensor_randomise(clean, rng)
     truth = ego_lines(track, pose, FrameVisibility(image, rig, layout))
-    redrawn = [ego_lines(track, pose, FrameVisibility(sensor_randomise(clean, r), rig, layout)) for r in redraws]
+    redrawn = [ego_lines(track, pose, FrameVisibility(sensor_randomise(clean, redraw_rng), rig, layout))
+               for _ in range(label_draws)]
     label = {
         "left": truth.left.coeffs, "right": truth.right.coeffs,
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,

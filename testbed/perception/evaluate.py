@@ -107,8 +107,8 @@ def errors_by_visibility(said: np.ndarray, frames: FrameSet) -> list[dict] | Non
 def label_repeatability(frames: FrameSet) -> dict | None:
     """How repeatable the existence labels are under other sensor draws of the same render (meta
     `redrawn_exists`; None where the dataset was rendered without them): the share of labels each redraw flips,
-    overall and per condition, and the existence scores the redrawn labels themselves get against the labels,
-    the floor a detector seeing a frame's pixels but not its noise draw would share."""
+    overall and per condition, and the existence scores the redrawn labels themselves get against the labels
+    (how far the label moves when only the sensor draw changes)."""
     if not frames.meta or any("redrawn_exists" not in m for m in frames.meta):
         return None
     truth = existence_labels(frames)
