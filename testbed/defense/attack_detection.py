@@ -76,7 +76,10 @@ class Ld3Detector:
 
 
 class LaneConsistencyMonitor:
-    """Alg. 1 with intersection gating; after the alarm, `ego_lane` is the lane the MSF pose was on."""
+    """Alg. 1 with intersection gating. After the alarm, `ego_lane` is the lane the MSF pose was on at the last
+    detection where D_MSF and D_LD agreed within b (the MSF lane at the alarm if they never did): an attacker
+    can move the MSF pose farther than b from where the lines put the car only by raising the statistic, so
+    that lane is the car's own even when the alarm comes on an MSF pose already beyond half a lane."""
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog) -> None:
         self.detector = Ld3Detector(b, tau)
@@ -86,6 +89,7 @@ class LaneConsistencyMonitor:
         self.d_ld: float | None = None
         self.in_intersection = False
         self.ego_lane: int | None = None
+        self._agreed_lane: int | None = None
 
     def step(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection step; True at (and after) the alarm."""
@@ -108,13 +112,30 @@ class LaneConsistencyMonitor:
             self.detector.reset()
             self.ld_dev.reset()
         pair = self.deviations(ld, pose, smap)
-        if pair is None or not self.detector.update(*pair):
+        if pair is None:
             return False
         try:
-            self.ego_lane = smap.project(pose).lane
+            lane = smap.project(pose).lane
         except OffMapError as err:
-            self.faults.report("off-map", ld.timestamp, f"project at alarm: {err}; ego lane left to the map")
+            self.faults.report("off-map", ld.timestamp, f"project: {err}; ego lane left to the map")
+            lane = None
+        if abs(pair[0] - pair[1]) <= self.detector.cusum.b and lane is not None:
+            self._agreed_lane = lane
+        if not self.detector.update(*pair):
+            return False
+        self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
         return True
+
+    def ego_pair(self, t: float, pose: Pose, smap: SemanticMap) -> tuple[float, float] | None:
+        """The alarm's (D_MSF, D_LD) with D_MSF measured against `ego_lane` (Alg. 1 measured it against the
+        lane nearest the MSF pose); None when the map cannot answer."""
+        if self.d_msf is None or self.d_ld is None:
+            return None
+        try:
+            return float(smap.lane_dev(pose, self.ego_lane)), self.d_ld
+        except OffMapError as err:
+            self.faults.report("off-map", t, f"lane_dev on the ego lane at the alarm: {err}")
+            return None
 
     def deviations(
         self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int | None = None

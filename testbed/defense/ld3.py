@@ -5,8 +5,9 @@ Response, once alarmed: the planner stops on the ego-lane centreline at `ar_dece
 deviation placed on the ego lane's centreline point nearest the MSF pose, with the heading the `heading`
 option names (`FusedHeading`; "msf" is the paper mode). Alg. 4's P^MSF / P^LD are the configured
 constants or, with `p_source = "reported"`, the MSF's lateral variance across the lane and the
-detector's c0 variance of the line Alg. 3 used. The ego lane is the one the MSF pose projected onto at
-the alarm; it stays locked so that a drifting MSF cannot move the response into a neighbouring lane.
+detector's c0 variance of the line Alg. 3 used. The ego lane is the car's lane as the monitor last saw MSF
+and lines agree (`LaneConsistencyMonitor.ego_lane`); it stays locked so that a drifting MSF cannot move the
+response into a neighbouring lane.
 When the map cannot answer for the MSF pose, the last fused pose is carried along by the MSF's motion.
 """
 
@@ -45,7 +46,7 @@ class Ld3Defense(Ld3AlarmedDefense):
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.detection_time is None:
             if self._detect(ld, msf, smap):
-                self._respond(ld, msf, smap, (self.monitor.d_msf, self.monitor.d_ld))
+                self._respond(ld, msf, smap, self.monitor.ego_pair(ld.timestamp, msf.pose, smap))
             return
         self._respond(ld, msf, smap, self.monitor.deviations(ld, msf.pose, smap, self.monitor.ego_lane))
 

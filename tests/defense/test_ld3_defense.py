@@ -175,3 +175,26 @@ def test_ar_pose_heading_sources(heading, expected_yaw):
     pose = d.pose_for_control(msf_at(0.0, 0.0, 1.0, yaw=0.03), smap)
     assert pose.yaw == pytest.approx(expected_yaw)
     assert d.status().heading_rel == pytest.approx(expected_yaw)
+
+
+def test_an_alarm_on_an_msf_pose_beyond_half_a_lane_keeps_the_car_s_own_lane():
+    """A one-detection burst puts the MSF pose 2.2 m left, nearer lane 1's centre (3.5 m) than lane 0's: the
+    response must stay on lane 0, where MSF and lines last agreed, or it steers the car a lane width away."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
+    for i in range(3):  # MSF and lines agree: the car 0.05 m left of the lane-0 centre
+        d.on_lane_detection(lane_det(0.05 * i, 0.05), msf_at(0.05 * i, 0.5 * i, 0.05), smap)
+    assert d.mode == "normal"
+    d.on_lane_detection(lane_det(0.15, 0.05), msf_at(0.15, 1.5, 2.2), smap)
+    # against lane 1, D_MSF = -1.3 and |D_MSF - D_LD| = 1.35: S = 0.75 > 0.1
+    assert d.mode == "ar" and d.monitor.ego_lane == 0
+    assert d.status().d_msf == pytest.approx(-1.3)  # Alg. 1's own D_MSF, against the nearest lane
+    assert d.fusion.last is not None and d.fusion.last.d > 0.0  # fused on lane 0: between 0.05 and 2.2
+    pose = d.pose_for_control(msf_at(0.16, 1.6, 0.05), smap)
+    assert pose.y == pytest.approx(d.fusion.last.d) and abs(pose.y) < HALF  # on lane 0, not near y = 3.5
+
+
+def test_without_any_agreement_the_ego_lane_is_the_msf_lane_at_the_alarm():
+    smap = FakeStraightMap()
+    d = alarmed_ld3(smap)  # alarmed on its first detection, MSF 1 m left on lane 0
+    assert d.monitor.ego_lane == 0
