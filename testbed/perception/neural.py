@@ -3,10 +3,9 @@
 Anchors are the image rows that see fixed ground distances `X_ANCHORS` ahead (nominal rig). The ground part
 of the frame is area-resized to 56×160 (or 112×160, `INPUT_ROWS`) and standardised per channel (exposure
 invariance); a fully convolutional backbone keeps 40 columns (8 px each) and widens its lateral view with 1×9
-convs. For each
-line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax expectation
-over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m) at that
-anchor's distance. A weighted least-squares polynomial through the present anchors is the `LaneDetection`
+convs. For each line (left, right) and anchor the head scores the 40 columns plus an "absent" class; the softmax
+expectation over the columns gives a sub-cell column u, which the nominal flat-ground homography maps to y (m)
+at that anchor's distance. A weighted least-squares polynomial through the present anchors is the `LaneDetection`
 cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1), with a
 zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 = 0, stay unbiased) that keeps
 a few bad anchors from bending the line; c0 is its extrapolation to the reference point. A pooled branch
