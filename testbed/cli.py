@@ -41,8 +41,10 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument("--localization", choices=LOCALIZATIONS.names(), metavar="NAME",
                    help=f"localization: {LOCALIZATIONS.choices_help()}")
     p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", help=f"defense: {DEFENSES.choices_help()}")
-    p.add_argument("--attack", help="attack spec KIND[:key=value,...], e.g. trace:default or fusionripper:d=0.5,f=1.3;"
-                                    f" kinds: {', '.join(ATTACKS.names())} (`ld3 components` lists their parameters)")
+    p.add_argument("--attack", action="append", default=[],
+                   help="attack spec KIND[:key=value,...], e.g. trace:default or fusionripper:d=0.5,f=1.3; repeat it "
+                        "to compose attacks (hooks run in the given order); "
+                        f"kinds: {', '.join(ATTACKS.names())} (`ld3 components` lists their parameters)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
@@ -50,11 +52,11 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
 
 
 def scenario_from_args(args: argparse.Namespace):
-    from testbed.attacks.spec import attack_spec_to_dict
+    from testbed.attacks.spec import specs_to_value
     from testbed.eval.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
-    attack = attack_spec_to_dict(args.attack) if getattr(args, "attack", None) else None
+    attack = specs_to_value(getattr(args, "attack", None) or [])
     sc = sc.with_overrides(track=args.track, vehicle=args.vehicle, speed=args.speed, duration=args.duration,
                            condition=args.condition, seed=args.seed, lane=args.lane, detector=args.detector,
                            localization=args.localization, defense=args.defense, attack=attack)
@@ -62,11 +64,12 @@ def scenario_from_args(args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from testbed.attacks.spec import attack_tables
     from testbed.eval.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
-    attack = sc.attack["kind"] if sc.attack else "none"
+    attack = "+".join(t["kind"] for t in attack_tables(sc.attack)) or "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
     result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
@@ -196,7 +199,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     try:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
-                           backend=args.backend or "local", address=args.address)
+                           backend=args.backend or "local", address=args.address, attacks=args.attack)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -211,7 +214,8 @@ def _campaign_list(args: argparse.Namespace) -> int:
     from testbed.eval.campaigns import CAMPAIGNS
 
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
-                                       ("--set", args.set), ("--backend", args.backend), ("--address", args.address))
+                                       ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
+                                       ("--address", args.address))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -303,6 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                   "GLOBs), e.g. 'local@101-*'")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")
+    p.add_argument("--attack", action="append", default=[], metavar="SPEC",
+                   help="compose this attack after every run's own (repeatable; `ld3 run --attack` syntax)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

@@ -25,7 +25,7 @@ from testbed.eval.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_t
 from testbed.eval.drp_response import drp_runs, drp_table
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
-from testbed.eval.scenario import apply_settings, load_scenario
+from testbed.eval.scenario import add_attacks, apply_settings, load_scenario
 from testbed.eval.sim_table import sim_table, sim_table_runs
 from testbed.eval.stealthy_bound import stealthy_runs, stealthy_table
 from testbed.registry import Capability, Registry
@@ -367,15 +367,18 @@ for _spec in (
 
 
 def selected_runs(name: str, detector: str = "neural", select: str | None = None,
-                  settings: Sequence[str] = ()) -> list[CampaignRun]:
+                  settings: Sequence[str] = (), attacks: Sequence[str] = ()) -> list[CampaignRun]:
     """The runs of campaign `name` whose id matches one of the comma-separated globs `select` (all when None),
-    with the `--set KEY=VALUE` `settings` applied to every run's scenario."""
+    with the `--attack` specs `attacks` composed after each run's own attacks and the `--set KEY=VALUE`
+    `settings` applied to every run's scenario."""
     runs = CAMPAIGNS.get(name).build(detector)
     if select is not None:
         globs = [g.strip() for g in select.split(",") if g.strip()]
         runs = [r for r in runs if any(fnmatch.fnmatchcase(r.run_id, g) for g in globs)]
         if not runs:
             raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
+    if attacks:
+        runs = [dataclasses.replace(r, scenario=add_attacks(r.scenario, list(attacks))) for r in runs]
     if settings:
         runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
     return runs
@@ -383,18 +386,19 @@ def selected_runs(name: str, detector: str = "neural", select: str | None = None
 
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
-              backend: str = "local", address: str | None = None) -> Path:
+              backend: str = "local", address: str | None = None, attacks: Sequence[str] = ()) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
     run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
     `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
     `address` as `run_campaign`'s."""
     spec = CAMPAIGNS.get(name)
-    runs = selected_runs(name, detector, select, settings)
+    runs = selected_runs(name, detector, select, settings, attacks)
     done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
                         backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
-    overrides = f" Every run with `--set {' '.join(settings)}`." if settings else ""
+    overrides = "".join(f" Every run with {flag} `{' '.join(values)}`." for flag, values
+                        in (("--attack", attacks), ("--set", settings)) if values)
     report.write_text(f"# Campaign {name}\n\n{spec.help}; lane detector {used}.{overrides}\n\n"
                       f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
     return report
