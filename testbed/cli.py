@@ -245,6 +245,46 @@ def cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_search(args: argparse.Namespace) -> int:
+    from testbed.attacks.threat import parse_threat
+    from testbed.eval.search import AttackSearch, SearchSpec
+    from testbed.eval.search_report import write_search_report
+
+    victim = search_victim(args)
+    spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
+                      objective=args.objective)
+    search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
+                          timeout=args.timeout, progress=sys.stderr.isatty())
+    print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
+          f"localization {victim.localization}; threat {args.threat}; families "
+          f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
+    search.run()
+    report = write_search_report(search)
+    best = search.best()
+    if best is not None:
+        print(f"worst attack: {best.attack['kind']} (trial {best.number}): detected {best.detected}, |D| before "
+              f"detection {best.dev_before_m:.3f} m, max |D| {best.max_dev_m:.3f} m, {best.consequence}")
+        print(f"replay: ld3 run {args.out / 'best.toml'}")
+    print(f"report: {report}; every trial: {args.out / 'trials.csv'}")
+    return 0
+
+
+def search_victim(args: argparse.Namespace):
+    """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
+    from testbed.defense.config import PAPER_MODE
+    from testbed.eval.scenario import apply_settings, load_scenario
+
+    sc = load_scenario(args.scenario)
+    if sc.attack:
+        raise UserError(f"scenario {args.scenario} already has an attack; the search chooses the attack: give a "
+                        f"scenario without one")
+    sc = sc.with_overrides(detector=args.detector, localization=args.localization, defense=args.defense)
+    paper = [f"defense.{k}={v!r}" if isinstance(v, str) else f"defense.{k}={v}" for k, v in PAPER_MODE.items()]
+    if args.paper_mode and sc.defense not in ("ld3", "ld3-naive-ar"):
+        raise UserError(f"--paper-mode sets LD3's options; the victim's defense is {sc.defense!r}: add --defense ld3")
+    return apply_settings(sc, (paper if args.paper_mode else []) + args.set)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
@@ -286,7 +326,35 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--out", type=Path)
     p.set_defaults(func=cmd_tracks)
 
+    from testbed.defense.registry import DEFENSES
     from testbed.eval.campaign import BACKENDS
+    from testbed.localization.registry import LOCALIZATIONS
+    from testbed.perception.registry import DETECTORS
+
+    p = sub.add_parser("search", help="worst-case attack search: the attack a threat model allows that does most "
+                                      "harm to a defense (Optuna over the adaptive attack families)")
+    p.add_argument("scenario", help="the victim: a shipped scenario name or a .toml path (without an attack)")
+    p.add_argument("--threat", required=True, metavar="CAPS",
+                   help="threat model, a comma list of gnss, msf-output, ld-output, road-paint")
+    p.add_argument("--budget", type=int, required=True, help="number of trials (closed-loop runs)")
+    p.add_argument("--out", type=Path, required=True, help="search folder; rerunning it resumes the search")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", help="the victim's defense")
+    p.add_argument("--detector", choices=DETECTORS.names(), metavar="NAME", help="the victim's lane detector")
+    p.add_argument("--localization", choices=LOCALIZATIONS.names(), metavar="NAME", help="the victim's localization")
+    p.add_argument("--paper-mode", action="store_true", help="LD3 as the paper writes it (PAPER_MODE)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override the victim's scenario as `ld3 run --set` does (repeatable)")
+    p.add_argument("--seed", dest="search_seed", type=int, default=0,
+                   help="sampler seed: the same seed gives the same trials (the victim's seed is --set seed=N)")
+    p.add_argument("--objective", choices=("undetected", "overall"), default="undetected",
+                   help="undetected (default): |D| before detection first, then |D| at all; overall: the reverse")
+    p.add_argument("--batch", type=int, default=8, help="trials asked of the sampler at once (default 8; part of "
+                                                        "the search's identity, independent of --workers)")
+    p.add_argument("--workers", type=int, help="parallel runs (as `ld3 campaign --workers`)")
+    p.add_argument("--backend", choices=BACKENDS, default="local", help="local (default) or ray")
+    p.add_argument("--address", help="ray: the cluster to connect to")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
