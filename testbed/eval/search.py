@@ -28,7 +28,7 @@ from testbed.attacks.registry import ATTACKS
 from testbed.attacks.space import ChoiceDim, FloatDim, IntDim
 from testbed.attacks.threat import ThreatCapability, threat_label, within_ld3_threat_model
 from testbed.errors import UserError
-from testbed.eval.campaign import CampaignRun, load_summary, run_campaign
+from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs, validate
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.registry import FIXES, Component, missing_needs
@@ -36,8 +36,9 @@ from testbed.registry import FIXES, Component, missing_needs
 OBJECTIVES = ("undetected", "overall")
 """`undetected`: the physical deviation reached before detection first, then the deviation reached at all;
 `overall`: the other way round."""
-SECONDARY_WEIGHT = 0.1
-"""Weight of the second criterion in the score (the first counts fully)."""
+SECONDARY_WEIGHT = 0.01
+"""Weight of the second criterion in the score (the first counts fully): a tie-break, near lexicographic for
+deviations of a few metres."""
 STUDY = "search"
 TRIALS_DIR = "trials"
 FAILED = "run_failed"
@@ -154,8 +155,11 @@ class AttackSearch:
     """A resumable search in `out` (module docstring): `run()` completes the budget and returns the outcomes."""
 
     def __init__(self, spec: SearchSpec, out: Path, *, workers: int | None = None, backend: str = "local",
-                 address: str | None = None, timeout: float | None = None, progress: bool = True) -> None:
-        self.spec, self.out = spec, out
+                 address: str | None = None, timeout: float | None = None, progress: bool = True,
+                 execute: RunExecutor = run_and_write) -> None:
+        """`execute` runs one trial's scenario into its folder (the campaign executor; the default writes the
+        standard run outputs)."""
+        self.spec, self.out, self.execute = spec, out, execute
         self.workers, self.backend, self.address, self.timeout = workers, backend, address, timeout
         self.progress = progress
         self.families = families_for(spec.threat, spec.victim)
@@ -246,7 +250,7 @@ class AttackSearch:
             except ScenarioError as exc:
                 raise UserError(f"search trial {run.run_id}: {exc}") from None
         done = {run.run_id: summary for run, summary in
-                run_campaign(runs, self.out / TRIALS_DIR, workers=self.workers, progress=False,
+                run_campaign(runs, self.out / TRIALS_DIR, workers=self.workers, progress=False, execute=self.execute,
                              timeout=self.timeout, backend=self.backend, address=self.address)}
         finished = []
         for n, attack in asked:
