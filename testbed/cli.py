@@ -199,7 +199,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     try:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
-                           backend=args.backend or "local", address=args.address, attacks=args.attack)
+                           backend=args.backend or "local", address=args.address, attacks=args.attack,
+                           budget=args.budget)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -215,7 +216,7 @@ def _campaign_list(args: argparse.Namespace) -> int:
 
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
-                                       ("--address", args.address))
+                                       ("--address", args.address), ("--budget", args.budget))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -377,6 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")
     p.add_argument("--attack", action="append", default=[], metavar="SPEC",
                    help="compose this attack after every run's own (repeatable; `ld3 run --attack` syntax)")
+    p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

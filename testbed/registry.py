@@ -149,7 +149,7 @@ class Registry(Generic[E]):
 
     def markdown(self) -> str:
         """A docs table of the family: name, what it is, what it needs."""
-        threat = any(c.capabilities for c in self)
+        threat = any(getattr(c, "capabilities", ()) for c in self)
         lines = ["| name | what | needs |" + (" threat capabilities |" if threat else ""),
                  "|---|---|---|" + ("---|" if threat else "")]
         for c in self:

@@ -25,7 +25,7 @@ from optuna.trial import Trial, TrialState
 from tqdm import tqdm
 
 from testbed.attacks.registry import ATTACKS
-from testbed.attacks.space import ChoiceDim, FloatDim, IntDim
+from testbed.attacks.space import START, ChoiceDim, FloatDim, IntDim
 from testbed.attacks.threat import ThreatCapability, threat_label, within_ld3_threat_model
 from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
@@ -63,6 +63,9 @@ class SearchSpec:
             raise UserError(f"--batch must be >= 1, got {self.batch}")
         if self.seed < 0:
             raise UserError(f"--seed must be >= 0, got {self.seed}")
+        if self.victim.duration < START.low + START_SLACK_S:
+            raise UserError(f"the victim's run lasts {self.victim.duration} s; a search needs at least "
+                            f"{START.low + START_SLACK_S} s so that its attacks start in time: --set duration=45")
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
 
@@ -111,15 +114,21 @@ def families_for(threat: frozenset[ThreatCapability], victim: Scenario) -> list[
     return [c for c, _ in allowed]
 
 
-def sample_attack(trial: Trial, families: Sequence[Component]) -> dict[str, Any]:
-    """One attack table: the family, then each dimension of its space (named `family.parameter`)."""
+START_SLACK_S = 5.0
+"""An attack starts at least this long before the victim's run ends (the search clips `start` ranges to it)."""
+
+
+def sample_attack(trial: Trial, families: Sequence[Component], duration: float) -> dict[str, Any]:
+    """One attack table: the family, then each dimension of its space (named `family.parameter`); start times
+    end `START_SLACK_S` before the run's `duration`."""
     component = next(c for c in families
                      if c.name == trial.suggest_categorical("family", [f.name for f in families]))
     table: dict[str, Any] = {"kind": component.name}
     for dim in component.space:
         key = f"{component.name}.{dim.name}"
         if isinstance(dim, FloatDim):
-            table[dim.name] = round(trial.suggest_float(key, dim.low, dim.high, log=dim.log), 4)
+            high = min(dim.high, duration - START_SLACK_S) if dim.name == "start" else dim.high
+            table[dim.name] = round(trial.suggest_float(key, dim.low, max(high, dim.low), log=dim.log), 4)
         elif isinstance(dim, IntDim):
             table[dim.name] = trial.suggest_int(key, dim.low, dim.high)
         elif isinstance(dim, ChoiceDim):
@@ -219,7 +228,7 @@ class AttackSearch:
                     asked = []
                     for _ in range(size):
                         trial = study.ask()
-                        attack = sample_attack(trial, self.families)
+                        attack = sample_attack(trial, self.families, self.spec.victim.duration)
                         trial.set_user_attr("attack", attack)
                         asked.append((trial.number, attack))
                 finished = self._run_batch(study, asked)
