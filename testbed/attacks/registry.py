@@ -120,12 +120,12 @@ ATTACKS.add(_component(
     ZoneAttack, "adaptive: MSF offset timed to an intersection or a curve, where detection is gated or weak",
     lambda p, rng, defense: ZoneAttack(**p),
     space=(FloatDim("start", 0.0, 30.0), ChoiceDim("zone", ZONES), IntDim("index", 0, 2),
-           FloatDim("lateral", -3.5, 3.5), FloatDim("ramp", 0.0, 3.0), FloatDim("hold", 0.0, 20.0),
+           FloatDim("lateral", -3.5, 3.5), FloatDim("ramp", 0.01, 3.0, log=True), FloatDim("hold", 0.0, 20.0),
            FloatDim("along", -25.0, 25.0))))
 ATTACKS.add(_component(
     OffMapAttack, "adaptive: the MSF pose moved off the mapped road (ramped or in one tick)",
     lambda p, rng, defense: OffMapAttack(**p),
-    space=(START, FloatDim("distance", -40.0, 40.0), FloatDim("ramp", 0.0, 3.0))))
+    space=(START, FloatDim("distance", -40.0, 40.0), FloatDim("ramp", 0.01, 3.0, log=True))))
 ATTACKS.add(_component(
     BurstAttack, "adaptive: spends LD3's CUSUM budget τ in a shaped burst, then holds under b",
     lambda p, rng, defense: BurstAttack(**p),

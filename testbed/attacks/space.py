@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class FloatDim:
-    """A real parameter in [low, high] (log-uniform with `log`)."""
+    """A real parameter in [low, high] (log-uniform with `log`: ramps, where one control tick differs from a
+    second)."""
 
     name: str
     low: float
