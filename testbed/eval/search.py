@@ -36,6 +36,11 @@ from testbed.registry import FIXES, Component, missing_needs
 OBJECTIVES = ("undetected", "overall")
 """`undetected`: the physical deviation reached before detection first, then the deviation reached at all;
 `overall`: the other way round."""
+CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "hit_vehicle"})
+"""Consequences that end a drive in a collision or off its lane."""
+CRASH_BONUS_M = 1.0
+"""Added to the score of a run that crashed (`undetected`: without a detection first): a crash ends the run,
+which caps the deviation it can show, yet it is the attacker's best outcome."""
 SECONDARY_WEIGHT = 0.01
 """Weight of the second criterion in the score (the first counts fully): a tie-break, near lexicographic for
 deviations of a few metres."""
@@ -137,12 +142,15 @@ def sample_attack(trial: Trial, families: Sequence[Component], duration: float) 
 
 
 def score(summary: dict[str, Any], objective: str) -> tuple[float, float, float]:
-    """(score, deviation before detection, deviation at all) of a run's summary, in metres."""
+    """(score, deviation before detection, deviation at all) of a run's summary, in metres: the first criterion
+    plus `SECONDARY_WEIGHT` × the second, plus `CRASH_BONUS_M` for a crash (undetected, for `undetected`)."""
     dev_all = float(summary.get("max_abs_dev_m") or 0.0)
-    before = summary.get("detection_dev_m") if summary.get("detected") else dev_all
+    detected = bool(summary.get("detected"))
+    before = summary.get("detection_dev_m") if detected else dev_all
     dev_before = float(before if before is not None else 0.0)
     first, second = (dev_before, dev_all) if objective == "undetected" else (dev_all, dev_before)
-    return first + SECONDARY_WEIGHT * second, dev_before, dev_all
+    crashed = summary.get("consequence") in CRASHES and (objective == "overall" or not detected)
+    return first + SECONDARY_WEIGHT * second + (CRASH_BONUS_M if crashed else 0.0), dev_before, dev_all
 
 
 def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | None, objective: str) -> TrialOutcome:

@@ -98,6 +98,11 @@ def test_score_puts_the_deviation_before_detection_first():
     assert score(undetected, "undetected")[0] > score(caught_late, "undetected")[0]
     assert score(undetected, "overall")[0] < score(caught_late, "overall")[0]
     assert score(caught_late, "undetected")[1:] == (0.9, 3.0)
+    crashed = {"detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.8, "consequence": "hit_curb"}
+    caught_crash = {**caught_late, "consequence": "hit_curb"}
+    assert score(crashed, "undetected")[0] > score({**caught_late, "detection_dev_m": 1.2}, "undetected")[0]
+    assert score(caught_crash, "undetected")[0] == score(caught_late, "undetected")[0]
+    assert score(caught_crash, "overall")[0] > score(caught_late, "overall")[0]
 
 
 @pytest.mark.timeout(900)
