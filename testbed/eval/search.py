@@ -248,6 +248,7 @@ class AttackSearch:
                 if on_batch is not None:
                     on_batch(finished)
             bar.close()
+        self.write_trials()
         return self.sorted_outcomes()
 
     def _read_told(self, study: optuna.Study) -> None:
