@@ -1,0 +1,91 @@
+"""LD3's fail-closed default against two adaptive MSF-output attacks, end to end on `local` (oracle detector,
+MSF localization): an off-map jump and a shift timed to an intersection, where the lines are gated. The paper
+mode loses the car to both; the default detects both and stops in lane."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from testbed import api
+from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.localization.estimate import LocalizationEstimate
+from tracks.map_api import SemanticMap
+from tracks.presets import load_track
+from tracks.semantic_map import TrackMap
+
+
+class OffMapJump(Attack):
+    """From `start` the MSF pose is moved `offset` m left of the lane, past the map's edge: in one tick, or
+    linearly over `ramp` s."""
+
+    name = "off-map-jump"
+
+    def __init__(self, start: float = 10.0, offset: float = 20.0, ramp: float = 0.0) -> None:
+        super().__init__(start)
+        self.offset = offset
+        self.ramp = ramp
+        self.now = 0.0
+
+    def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
+        elapsed = view.t - self.start_time
+        self.now = 0.0 if elapsed < 0 else self.offset * (min(1.0, elapsed / self.ramp) if self.ramp > 0 else 1.0)
+        return LocalizationEstimate(est.t, shift_pose(est.pose, view.lane_heading, self.now), est.cov)
+
+    def state(self) -> dict[str, Any]:
+        return {"stage": "active" if self.now else "idle", "offset": self.now}
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.name, "start": self.start_time, "offset": self.offset, "ramp": self.ramp}
+
+
+class GatedZoneShift(Attack):
+    """The MSF pose is moved `offset` m left once the car is inside an intersection of `smap` (no lane lines,
+    Alg. 1 gated there) after `start`, and the shift is held from then on."""
+
+    name = "gated-zone-shift"
+
+    def __init__(self, smap: SemanticMap, start: float = 5.0, offset: float = 2.0) -> None:
+        super().__init__(start)
+        self.smap = smap
+        self.offset = offset
+        self.active = False
+
+    def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
+        if not self.active and view.t >= self.start_time:
+            self.active = self.smap.is_intersection(view.true_pose)
+        if not self.active:
+            return est
+        return LocalizationEstimate(est.t, shift_pose(est.pose, view.lane_heading, self.offset), est.cov)
+
+    def state(self) -> dict[str, Any]:
+        return {"stage": "active" if self.active else "idle", "offset": self.offset if self.active else 0.0}
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.name, "start": self.start_time, "offset": self.offset}
+
+
+def _attacks() -> dict[str, Attack]:
+    return {"off-map": OffMapJump(), "off-map-ramp": OffMapJump(ramp=0.5),
+            "gated-zone": GatedZoneShift(TrackMap(load_track("local")))}
+
+
+def _run(attack: str, fail_closed: bool) -> dict[str, Any]:
+    sc = api.scenario("local", localization="msf", defense="ld3", detector="oracle", duration=45.0,
+                      defense_params={"fail_closed": fail_closed})
+    return api.run(sc, attack=_attacks()[attack]).summary
+
+
+@pytest.mark.parametrize("attack", ["off-map", "off-map-ramp", "gated-zone"])
+def test_the_default_detects_and_stops_in_lane(attack):
+    summary = _run(attack, fail_closed=True)
+    assert summary["detected"] and summary["consequence"] == "stop_in_lane"
+    assert summary["ar_max_dev_m"] < summary["lane_straddle_dev_m"]
+
+
+@pytest.mark.parametrize("attack", ["off-map", "off-map-ramp", "gated-zone"])
+def test_the_paper_mode_loses_the_car(attack):
+    summary = _run(attack, fail_closed=False)
+    assert summary["consequence"] not in ("stop_in_lane", "reach_destination")
+    assert not summary["detected"] or summary["detection_dev_m"] > summary["lane_straddle_dev_m"]
