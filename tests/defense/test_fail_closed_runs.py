@@ -1,6 +1,7 @@
 """LD3's fail-closed default against two adaptive MSF-output attacks, end to end on `local` (oracle detector,
-MSF localization): an off-map jump and a shift timed to an intersection, where the lines are gated. The paper
-mode loses the car to both; the default detects both and stops in lane."""
+MSF localization): an off-map jump (in one tick or ramped over 0.5 s) and a shift timed to an intersection,
+where the lines are gated. With `fail_closed = False` (the paper's front end and response) the car is lost to
+each; the default detects each and stops in lane."""
 
 from __future__ import annotations
 
@@ -71,6 +72,14 @@ def _attacks() -> dict[str, Attack]:
             "gated-zone": GatedZoneShift(TrackMap(load_track("local")))}
 
 
+FAULTS = {"off-map": "off-map", "off-map-ramp": "off-map", "gated-zone": "no-lane-lines"}
+"""A fault each run's summary lists for the defense: the MSF pose off the map, the lines gone."""
+
+
+def _defense_faults(summary: dict[str, Any]) -> set[str]:
+    return {f["kind"] for f in summary["faults"] if f["source"] == "defense"}
+
+
 def _run(attack: str, fail_closed: bool) -> dict[str, Any]:
     sc = api.scenario("local", localization="msf", defense="ld3", detector="oracle", duration=45.0,
                       defense_params={"fail_closed": fail_closed})
@@ -82,10 +91,12 @@ def test_the_default_detects_and_stops_in_lane(attack):
     summary = _run(attack, fail_closed=True)
     assert summary["detected"] and summary["consequence"] == "stop_in_lane"
     assert summary["ar_max_dev_m"] < summary["lane_straddle_dev_m"]
+    assert FAULTS[attack] in _defense_faults(summary)
 
 
 @pytest.mark.parametrize("attack", ["off-map", "off-map-ramp", "gated-zone"])
-def test_the_paper_mode_loses_the_car(attack):
+def test_without_failing_closed_the_car_is_lost(attack):
     summary = _run(attack, fail_closed=False)
     assert summary["consequence"] not in ("stop_in_lane", "reach_destination")
-    assert not summary["detected"] or summary["detection_dev_m"] > summary["lane_straddle_dev_m"]
+    assert summary["detected"] is (attack == "off-map-ramp")  # the ramp is seen, then the response follows it
+    assert FAULTS[attack] in _defense_faults(summary)

@@ -127,7 +127,7 @@ def test_a_sweep_over_defense_b_is_recorded_in_runs_csv(tmp_path):
         rows = {r["run_id"]: r for r in csv.DictReader(fh)}
     assert (rows["b0.45"]["defense_params.b"], rows["b0.6"]["defense_params.b"]) == ("0.45", "0.6")
     assert rows["b0.45"]["resolved_scenario.defense_params.window"] == "5"
-    assert rows["b0.45"]["schema_version"] == "2" and json.loads(rows["b0.6"]["faults"]) == []
+    assert rows["b0.45"]["schema_version"] == "3" and json.loads(rows["b0.6"]["faults"]) == []
 
 
 def test_roc_report_with_only_a_fit_drive_says_there_is_nothing_to_sweep(tmp_path):
