@@ -11,9 +11,11 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from testbed.defense.alarmed import Ld3AlarmedDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
+from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.odometry import DeadReckoning, advance
 from testbed.eval.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
@@ -38,7 +40,7 @@ class Drive:
     a lane detection every 50 ms (none inside an intersection). `msf(t, x)` is the MSF pose's lateral
     offset from the car (an attacker's shift)."""
 
-    def __init__(self, defense: Ld3Defense, smap: FakeStraightMap, x0: float = 50.0, speed: float = 10.0,
+    def __init__(self, defense: Ld3AlarmedDefense, smap: FakeStraightMap, x0: float = 50.0, speed: float = 10.0,
                  dev: float = 0.0) -> None:
         self.defense, self.smap, self.x0, self.speed, self.dev = defense, smap, x0, speed, dev
         self.ticks = 0
@@ -118,6 +120,13 @@ def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
     assert d.status().cusum == pytest.approx(3.5 - d.config.b)  # one lane width, less b
     kind = "off-map" if math.isfinite(bad) else "nan-pose"
     assert {r.kind: r.count for r in d.fault_records()}[kind] >= 1
+
+
+def test_naive_ar_shares_the_fail_closed_detection():
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = NaiveArDefense(DefenseConfig())
+    Drive(d, smap).run(5.2).run(1.0, lambda t, x: 2.0)  # shifted inside the zone
+    assert d.mode == "ar" and d.stop_decel == d.config.max_decel
 
 
 def test_paper_mode_skips_off_map_updates():
