@@ -135,6 +135,7 @@ class LaneConsistencyMonitor:
         return self._step_paper(ld, msf.pose, smap)
 
     def _step_paper(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> bool:
+        """Alg. 1 as the paper runs it: gated off in intersections, S reset after them, bad inputs skipped."""
         if not pose.is_finite():
             self.faults.report("nan-pose", ld.timestamp, f"MSF pose {pose} is not finite; update skipped")
             return False
@@ -163,12 +164,14 @@ class LaneConsistencyMonitor:
         return self._update(*pair, lane)
 
     def _step_fail_closed(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> bool:
+        """Alg. 1 failing closed: an unplaceable MSF pose feeds a lane width, missing lines the odometry check,
+        and an agreement with the lines re-anchors the dead-reckoned pose."""
         t = ld.timestamp
         reckoned = self.reckoned
         lane = self._lane_of(t, reckoned, smap)
         d_msf = self.msf_deviation(t, pose, smap, lane)
         if d_msf is None:
-            return self._update(self._unplaced_residual(t, reckoned, lane, smap), 0.0, lane)
+            return self._update(self._unplaced_residual(reckoned, lane, smap), 0.0, lane)
         self.d_msf = d_msf
         if lane is None:
             lane = smap.project(pose).lane
@@ -228,12 +231,16 @@ class LaneConsistencyMonitor:
         self._width = width
         return width
 
-    def _unplaced_residual(self, t: float, reckoned: Pose | None, lane: int | None, smap: SemanticMap) -> float:
+    def _unplaced_residual(self, reckoned: Pose | None, lane: int | None, smap: SemanticMap) -> float:
         """The residual of an MSF pose the map cannot place: the lane width at the dead-reckoned pose, else
         the last width the map gave, else `UNPLACED_RESIDUAL_M`."""
-        width = self._lane_width(t, reckoned, smap, lane) if reckoned is not None else None
-        if width is not None:
-            return width
+        if reckoned is not None:
+            try:
+                width = float(smap.lane_width(reckoned, lane))
+            except OffMapError:
+                width = math.nan
+            if math.isfinite(width) and width > 0.0:
+                return width
         return self._width if self._width is not None else UNPLACED_RESIDUAL_M
 
     def _odometry_check(self, t: float, d_msf: float, reckoned: Pose | None, lane: int, smap: SemanticMap,
