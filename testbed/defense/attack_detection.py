@@ -8,11 +8,12 @@ query, or no D_LD yet is skipped and logged.
 
 Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
-lines agree within b (the MSF pose moved across the lane to D_LD), stands in for the lines where they are
-absent: inside intersections (judged at that pose) and on detections without a valid line the residual is
-D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. D_MSF is measured
-against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with the
-lines. Every skipped or degraded update is a fault.
+lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
+towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
+where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
+residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. D_MSF is
+measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
+the lines. Every skipped or degraded update is a fault.
 
 `Ld3Detector` and `cusum_alarm_index` run the same test on logged (D_MSF, D_LD) traces, e.g. to sweep b and τ
 for ROC curves.
@@ -24,6 +25,7 @@ import math
 from collections.abc import Iterable
 
 from testbed.defense.faults import FaultLog
+from testbed.defense.fused_heading import line_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.defense.odometry import DeadReckoning
@@ -87,6 +89,9 @@ class Ld3Detector:
         self.cusum.reset()
 
 
+ANCHOR_YAW_GAIN = 0.1
+"""Share of the gap between the dead-reckoned yaw and the lines' heading closed per agreeing detection: the
+detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
 UNPLACED_RESIDUAL_M = 3.5
 """Residual fed for an MSF pose the map cannot place while the map has given no lane width yet (m): a lane."""
 
@@ -189,9 +194,17 @@ class LaneConsistencyMonitor:
         self.d_ld = self.fresh_d_ld = d_ld
         if abs(d_msf - d_ld) <= self.detector.cusum.b:
             self._agreed_lane = lane
-            point, heading = smap.lane_point(pose, lane)
-            self.odometry.anchor(pose_on_lane(point, heading, d_ld, pose.yaw))
+            self._anchor(ld, pose, smap, lane, d_ld)
         return self._update(d_msf, d_ld, lane)
+
+    def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
+        """Re-anchor the dead-reckoned pose where MSF and lines agree: the MSF pose's station, D_LD across the
+        lane, the yaw pulled towards the lane heading plus the lines' relative heading (the MSF yaw only for a
+        first anchor without one)."""
+        point, heading = smap.lane_point(pose, lane)
+        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        yaw = pose.yaw if psi is None else heading + psi
+        self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
         """Feed the CUSUM D_MSF − D_ref; on the alarm fix `ego_lane` (the last agreed lane, else `lane`)."""

@@ -1,9 +1,10 @@
 """Dead reckoning of the vehicle pose from chassis odometry (wheel speed v, yaw rate ω).
 
-Unicycle model: between two odometry samples the reference point moves on the arc of constant speed and
-yaw rate, v and ω the means of the two samples' values. The pose exists once anchored (`anchor`); samples
-before that only set the clock. A sample with a non-finite value or a time that does not advance is refused
-(the pose holds) and reported to the caller.
+Unicycle model: between two odometry samples the reference point moves on the arc of constant speed and yaw
+rate, v and ω the means of the two samples' values. The pose exists once anchored (`anchor`); samples before
+that only set the clock. An anchor may correct the yaw only partly (a complementary filter: the gyro between
+anchors, the anchor's heading averaged over several). A sample with a non-finite value or a time that does not
+advance is refused (the pose holds) and reported to the caller.
 """
 
 from __future__ import annotations
@@ -49,6 +50,11 @@ class DeadReckoning:
         self.pose = advance(self.pose, t - last[0], 0.5 * (last[1] + speed), 0.5 * (last[2] + yaw_rate))
         return True
 
-    def anchor(self, pose: Pose) -> None:
-        """Set the pose (at the time of the last sample); odometry carries it from there."""
-        self.pose = pose
+    def anchor(self, pose: Pose, yaw_gain: float = 1.0) -> None:
+        """Set the position (at the time of the last sample) and move the yaw the share `yaw_gain` of the way to
+        `pose.yaw` (all of it for the first anchor); odometry carries the pose from there."""
+        if self.pose is None or yaw_gain >= 1.0:
+            self.pose = pose
+            return
+        yaw = wrap_angle(self.pose.yaw + yaw_gain * wrap_angle(pose.yaw - self.pose.yaw))
+        self.pose = Pose(pose.x, pose.y, yaw)
