@@ -38,7 +38,7 @@ def lines(t: float, dev: float) -> LaneDetection:
 class Drive:
     """A car at `speed` along lane 0 (+x) of a straight road, `dev` m left of its centre; odometry every 10 ms,
     a lane detection every 50 ms (none inside an intersection). `msf(t, x)` is the MSF pose's lateral
-    offset from the car (an attacker's shift)."""
+    offset from the car (an attacker's shift), `yaw(t, x)` its yaw (the car's is 0)."""
 
     def __init__(self, defense: Ld3AlarmedDefense, smap: FakeStraightMap, x0: float = 50.0, speed: float = 10.0,
                  dev: float = 0.0) -> None:
@@ -56,10 +56,12 @@ class Drive:
     def x(self) -> float:
         return self.x0 + self.speed * self.t
 
-    def run(self, seconds: float, msf: Callable[[float, float], float] = lambda t, x: 0.0) -> Drive:
+    def run(self, seconds: float, msf: Callable[[float, float], float] = lambda t, x: 0.0,
+            yaw: Callable[[float, float], float] = lambda t, x: 0.0) -> Drive:
         for _ in range(round(seconds * 100)):
             self.defense.on_odometry(self.t, self.speed, 0.0)
-            est = LocalizationEstimate(self.t, Pose(self.x, self.dev + msf(self.t, self.x), 0.0), np.eye(3) * 0.01)
+            est = LocalizationEstimate(self.t, Pose(self.x, self.dev + msf(self.t, self.x), yaw(self.t, self.x)),
+                                       np.eye(3) * 0.01)
             if self.ticks % 5 == 0:
                 inside = any(lo <= self.x <= hi for lo, hi in self.smap.intersections)
                 ld = LaneDetection.empty(self.t) if inside else lines(self.t, self.dev)
@@ -95,6 +97,14 @@ def test_dead_reckoning_integrates_the_mean_of_two_samples_and_refuses_bad_ones(
     assert odo.pose == pytest.approx((11.0, 0.0, 0.0)) and odo.samples == 2
 
 
+def test_an_anchor_moves_the_yaw_only_its_share_of_the_way():
+    odo = DeadReckoning()
+    odo.anchor(Pose(1.0, 2.0, 0.1), 0.1)
+    assert odo.pose == (1.0, 2.0, 0.1)  # the first anchor sets it all
+    odo.anchor(Pose(3.0, 4.0, 0.3), 0.1)
+    assert odo.pose == pytest.approx((3.0, 4.0, 0.12))
+
+
 def test_imu_grade_yaw_rate_noise_drifts_far_less_than_b_across_an_intersection():
     """A 30-m zone at 12 m/s on a yaw rate with the IMU model's noise and a 3-sigma gyro bias."""
     imu, rng = ImuModel(), np.random.default_rng(0)
@@ -120,6 +130,19 @@ def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
     assert d.status().cusum == pytest.approx(3.5 - d.config.b)  # one lane width, less b
     kind = "off-map" if math.isfinite(bad) else "nan-pose"
     assert {r.kind: r.count for r in d.fault_records()}[kind] >= 1
+
+
+def test_an_msf_yaw_bias_before_the_zone_does_not_tilt_the_check():
+    """MSF position on the car, its yaw 0.05 rad off over the last 12 m before the zone, then moved 0.05 m per
+    metre inside it: what a check anchored on the MSF yaw would follow. The dead-reckoned yaw follows the lines'
+    heading (the car is parallel to the lane), so the shift is seen inside the zone."""
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap)
+    drive.run(5.0, yaw=lambda t, x: 0.05 if x >= 88.0 else 0.0)
+    assert d.mode == "normal" and abs(d.monitor.odometry.pose.yaw) < 1e-9
+    drive.run(3.0, lambda t, x: 0.05 * (x - 100.0), lambda t, x: 0.05)
+    assert d.mode == "ar" and ZONE[0] <= drive.alarm_x <= ZONE[1]
 
 
 def test_naive_ar_shares_the_fail_closed_detection():

@@ -1,6 +1,7 @@
 """LD3's fail-closed default against two adaptive MSF-output attacks, end to end on `local` (oracle detector,
 MSF localization): an off-map jump (in one tick or ramped over 0.5 s) and a shift timed to an intersection,
-where the lines are gated. With `fail_closed = False` (the paper's front end and response) the car is lost to
+where the lines are gated, also after planting an MSF yaw error that a check dead-reckoned from the MSF yaw
+would follow. With `fail_closed = False` (the paper's front end and response) the car is lost to
 each; the default detects each and stops in lane."""
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ from testbed import api
 from testbed.attacks.base import Attack, AttackerView, shift_pose
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
+from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.road import Track
 from tracks.semantic_map import TrackMap
 
 
@@ -67,12 +70,47 @@ class GatedZoneShift(Attack):
         return {"kind": self.name, "start": self.start_time, "offset": self.offset}
 
 
+class YawPlantedZoneShift(Attack):
+    """Against a check dead-reckoned from the MSF yaw: the MSF position stays on the car but its yaw is `eps` rad
+    off over the `plant` m before the lines end (`gap` m before the first intersection after `start`); from
+    there the MSF pose moves `eps` m left per metre travelled, to the zone's end, and the shift is held."""
+
+    name = "yaw-planted-zone-shift"
+
+    def __init__(self, track: Track, start: float = 5.0, eps: float = 0.05, plant: float = 12.0,
+                 gap: float = 14.0) -> None:
+        super().__init__(start)
+        self.track, self.smap = track, TrackMap(track)
+        self.eps, self.plant, self.gap = eps, plant, gap
+        self.zone: tuple[float, float] | None = None
+        self.offset = 0.0
+
+    def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
+        s = self.smap.project(view.true_pose).s
+        if self.zone is None and view.t >= self.start_time:
+            self.zone = next(((a, b) for a, b in self.track.intersections if s < a - self.gap - self.plant), None)
+        if self.zone is None or s < self.zone[0] - self.gap - self.plant:
+            return est
+        lines_end = self.zone[0] - self.gap
+        self.offset = self.eps * max(0.0, min(s, self.zone[1]) - lines_end)
+        pose = shift_pose(est.pose, view.lane_heading, self.offset)
+        return LocalizationEstimate(est.t, Pose(pose.x, pose.y, pose.yaw + self.eps), est.cov)
+
+    def state(self) -> dict[str, Any]:
+        return {"stage": "active" if self.zone else "idle", "offset": self.offset}
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.name, "start": self.start_time, "eps": self.eps, "plant": self.plant, "gap": self.gap}
+
+
 def _attacks() -> dict[str, Attack]:
+    track = load_track("local")
     return {"off-map": OffMapJump(), "off-map-ramp": OffMapJump(ramp=0.5),
-            "gated-zone": GatedZoneShift(TrackMap(load_track("local")))}
+            "gated-zone": GatedZoneShift(TrackMap(track)), "yaw-planted": YawPlantedZoneShift(track)}
 
 
-FAULTS = {"off-map": "off-map", "off-map-ramp": "off-map", "gated-zone": "no-lane-lines"}
+FAULTS = {"off-map": "off-map", "off-map-ramp": "off-map", "gated-zone": "no-lane-lines",
+          "yaw-planted": "no-lane-lines"}
 """A fault each run's summary lists for the defense: the MSF pose off the map, the lines gone."""
 
 
@@ -86,7 +124,7 @@ def _run(attack: str, fail_closed: bool) -> dict[str, Any]:
     return api.run(sc, attack=_attacks()[attack]).summary
 
 
-@pytest.mark.parametrize("attack", ["off-map", "off-map-ramp", "gated-zone"])
+@pytest.mark.parametrize("attack", list(FAULTS))
 def test_the_default_detects_and_stops_in_lane(attack):
     summary = _run(attack, fail_closed=True)
     assert summary["detected"] and summary["consequence"] == "stop_in_lane"
@@ -94,7 +132,7 @@ def test_the_default_detects_and_stops_in_lane(attack):
     assert FAULTS[attack] in _defense_faults(summary)
 
 
-@pytest.mark.parametrize("attack", ["off-map", "off-map-ramp", "gated-zone"])
+@pytest.mark.parametrize("attack", list(FAULTS))
 def test_without_failing_closed_the_car_is_lost(attack):
     summary = _run(attack, fail_closed=False)
     assert summary["consequence"] not in ("stop_in_lane", "reach_destination")
