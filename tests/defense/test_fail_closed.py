@@ -180,6 +180,17 @@ def test_the_response_pose_is_carried_by_odometry_not_by_the_msf():
     assert d.faults.counts["msf-left-out"] > 0
 
 
+def test_an_msf_pose_moved_30_m_during_the_response_leaves_the_control_pose_in_lane():
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap, dev=-0.2).run(1.0).run(0.5, lambda t, x: 1.2)  # 1.2 m off: alarm on the 3rd detection
+    assert d.mode == "ar" and drive.alarm_x is not None
+    start = len(drive.control)
+    drive.run(2.0, lambda t, x: 30.0)
+    assert all(abs(p.y - drive.dev) < 0.3 for p in drive.control[start:])
+    assert drive.control[-1].x == pytest.approx(drive.x - 0.1, abs=1e-6)
+
+
 def test_the_response_pose_station_is_the_odometry_s_not_the_msf_s():
     """An MSF pose dragged 40 m ahead of the car during the response does not move the control pose ahead."""
     smap = FakeStraightMap()
