@@ -280,7 +280,7 @@ def search_victim(args: argparse.Namespace):
         raise UserError(f"scenario {args.scenario} already has an attack; the search chooses the attack: give a "
                         f"scenario without one")
     sc = sc.with_overrides(detector=args.detector, localization=args.localization, defense=args.defense)
-    paper = [f"defense.{k}={v!r}" if isinstance(v, str) else f"defense.{k}={v}" for k, v in PAPER_MODE.items()]
+    paper = [f"defense.{k}={json.dumps(v)}" for k, v in PAPER_MODE.items()]
     if args.paper_mode and sc.defense not in ("ld3", "ld3-naive-ar"):
         raise UserError(f"--paper-mode sets LD3's options; the victim's defense is {sc.defense!r}: add --defense ld3")
     return apply_settings(sc, (paper if args.paper_mode else []) + args.set)

@@ -11,7 +11,8 @@ LD3's open choices in the attack response: `heading` of the fused pose (Alg. 2 d
 `window`, `r_power` and `p_source` (where Alg. 4's P^MSF and P^LD come from). `PAPER_MODE` is the paper's
 system as written (MSF heading, constant P, a 1-s window); the defaults are what the ablation campaign
 measured to hold best on held-out roads (docs/decisions.md): the fused heading clamped to 0.02 rad and a
-5-detection window.
+5-detection window. The default also fails closed (`fail_closed`, DESIGN.md): what the paper skips or resets
+(off-map MSF poses, intersections, the response's MSF motion) is checked against odometry instead.
 
 NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
 stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,
@@ -66,6 +67,11 @@ class DefenseConfig(Params):
                                                      "lower bound")
     existence_threshold: float = Field(0.5, ge=0.0, le=1.0, description="a detected lane line with existence "
                                        "probability below this is not valid")
+    fail_closed: bool = Field(True, description="LD3 fails closed: an MSF pose the map cannot place feeds the "
+                              "CUSUM a lane width; where lines are absent (intersections, no valid line) the MSF "
+                              "is checked against a pose dead-reckoned from odometry and S is kept; in the "
+                              "response the fused pose moves by odometry, never by the MSF. False: the paper "
+                              "mode's skipped updates, S reset after intersections, fused pose carried by MSF")
     savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
     savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
     savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
@@ -88,6 +94,8 @@ class DefenseConfig(Params):
 PAPER_CUSUM: dict[str, float] = {"b": 0.6, "tau": 0.1}
 """LD3's CUSUM weight and threshold as the paper sets them (§5.2)."""
 
-PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}
+PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0,
+                              "fail_closed": False}
 """The `[defense]` overrides that give LD3 as the paper specifies it: its CUSUM (b, τ), Alg. 2 with the MSF yaw,
-Alg. 4 with constant P and f to the first power, over a 1-s window."""
+Alg. 4 with constant P and f to the first power, over a 1-s window, and Alg. 1's skipped updates and
+intersection resets."""

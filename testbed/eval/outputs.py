@@ -87,6 +87,11 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
+def chassis_faults(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """The summary's `faults` that the chassis latched (they end the run), leaving out those the defense handled."""
+    return [f for f in summary["faults"] if f["source"] == "chassis"]
+
+
 def write_summary(path: Path, summary: dict[str, Any]) -> None:
     missing = [k for k in SUMMARY_KEYS if k not in summary]
     if missing:

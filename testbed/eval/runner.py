@@ -288,7 +288,9 @@ class SimRun:
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
             "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
             "final_dev_m": final_dev, "consequence": consequence,
-            "faults": [{"kind": f.kind, "time": f.t, "detail": f.detail} for f in faults],
+            "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
+            + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
+                "count": f.count} for f in self.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
             "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
             "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,
