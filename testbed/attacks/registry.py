@@ -21,6 +21,7 @@ from testbed.attacks.coordinated import CoordinatedShift
 from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
 from testbed.attacks.fusionripper import FusionRipper
 from testbed.attacks.gnss_drift import GnssDrift
+from testbed.attacks.heading import HeadingBias
 from testbed.attacks.offmap import OffMapAttack
 from testbed.attacks.space import SIDE, START, ChoiceDim, Dim, FloatDim, IntDim
 from testbed.attacks.stealthy import CusumKnowledge, StealthyAttack
@@ -72,6 +73,7 @@ _DESCRIPTIONS = {
     "distance": "lateral distance the MSF pose is moved (m, + left)",
     "spend": "fraction of the CUSUM threshold τ the burst spends",
     "profile": "burst shape: flat, rise or fall", "sustain": "offset held after the burst, as a fraction of b",
+    "bias": "heading bias added to the MSF yaw (rad, + left)",
     "rate": "lateral drift rate (m/s)", "limit": "largest lateral offset (m)",
     "lidar_below": "the drift begins once the LiDAR feature quality is below this (0..1; > 1: at start)",
 }
@@ -126,6 +128,10 @@ ATTACKS.add(_component(
     OffMapAttack, "adaptive: the MSF pose moved off the mapped road (ramped or in one tick)",
     lambda p, rng, defense: OffMapAttack(**p),
     space=(START, FloatDim("distance", -40.0, 40.0), FloatDim("ramp", 0.01, 3.0, log=True))))
+ATTACKS.add(_component(
+    HeadingBias, "adaptive: the MSF yaw biased with its position left true (Alg. 1 checks positions only)",
+    lambda p, rng, defense: HeadingBias(**p),
+    space=(START, FloatDim("bias", -0.15, 0.15), FloatDim("ramp", 0.01, 5.0, log=True))))
 ATTACKS.add(_component(
     BurstAttack, "adaptive: spends LD3's CUSUM budget τ in a shaped burst, then holds under b",
     lambda p, rng, defense: BurstAttack(**p),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 
-from testbed.defense.attack_detection import LaneConsistencyMonitor
+from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
@@ -24,7 +24,8 @@ class Ld3AlarmedDefense(LatchingDefense):
         self.config = config
         self.faults = FaultLog(logger)
         self.monitor = LaneConsistencyMonitor(config.b, config.tau, config.existence_threshold, self.faults,
-                                              fail_closed=config.fail_closed)
+                                              fail_closed=config.fail_closed,
+                                              heading=Cusum(config.heading_b, config.heading_tau))
         self.detection_time: float | None = None
 
     @property

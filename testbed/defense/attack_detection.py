@@ -13,7 +13,9 @@ towards the lane heading plus the lines' relative heading, never towards the MSF
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. D_MSF is
 measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
-the lines. Every skipped or degraded update is a fault.
+the lines. Every skipped or degraded update is a fault. A second CUSUM (`heading`) checks the MSF's heading
+relative to the lane against the lines' (against the dead-reckoned yaw where lines are absent): an MSF yaw
+biased with a true position moves no deviation Alg. 1 compares, yet steers the car off the centreline.
 
 `Ld3Detector` and `cusum_alarm_index` run the same test on logged (D_MSF, D_LD) traces, e.g. to sweep b and τ
 for ROC curves.
@@ -104,8 +106,10 @@ class LaneConsistencyMonitor:
     `fail_closed` selects the fail-closed front end (module docstring) over the paper's."""
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
-                 fail_closed: bool) -> None:
+                 fail_closed: bool, heading: Cusum | None = None) -> None:
         self.detector = Ld3Detector(b, tau)
+        self.heading = heading if heading is not None else Cusum(0.0, math.inf)
+        """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -182,20 +186,32 @@ class LaneConsistencyMonitor:
             lane = smap.project(pose).lane
         if self._inside(t, reckoned if reckoned is not None else pose, smap):
             self.in_intersection = True
-            return self._odometry_check(t, d_msf, reckoned, lane, smap, "gated-zone", "no lane lines in the zone")
+            return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "gated-zone",
+                                        "no lane lines in the zone")
         if self.in_intersection:
             self.in_intersection = False
             self.ld_dev.reset()
         width = self._lane_width(t, pose, smap, lane)
         d_ld = None if width is None else self.ld_dev.update(ld, width)
         if d_ld is None or self.ld_dev.reused:
-            return self._odometry_check(t, d_msf, reckoned, lane, smap, "no-lane-lines", "no valid lane line")
+            return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "no-lane-lines",
+                                        "no valid lane line")
         self.faults.clear()
         self.d_ld = self.fresh_d_ld = d_ld
         if abs(d_msf - d_ld) <= self.detector.cusum.b:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld)
+        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
+            return True
         return self._update(d_msf, d_ld, lane)
+
+    def _check_heading(self, residual: float, lane: int | None) -> bool:
+        """Feed the heading CUSUM the wrapped heading residual (rad); on its alarm fix `ego_lane` as `_update`."""
+        if not self.heading.update(math.remainder(residual, math.tau)):
+            return False
+        self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
+        return True
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: the MSF pose's station, D_LD across the
@@ -256,8 +272,8 @@ class LaneConsistencyMonitor:
                 return width
         return self._width if self._width is not None else UNPLACED_RESIDUAL_M
 
-    def _odometry_check(self, t: float, d_msf: float, reckoned: Pose | None, lane: int, smap: SemanticMap,
-                        kind: str, why: str) -> bool:
+    def _odometry_check(self, t: float, d_msf: float, msf_yaw: float, reckoned: Pose | None, lane: int,
+                        smap: SemanticMap, kind: str, why: str) -> bool:
         """Lines absent: feed D_MSF − D_odometry, or skip the update (a fault either way)."""
         if reckoned is None:
             self.faults.report(kind, t, f"{why}; no dead-reckoned pose yet: update skipped")
@@ -268,6 +284,8 @@ class LaneConsistencyMonitor:
             self.faults.report("odometry-off-map", t, f"{why}; dead-reckoned pose: {err}; update skipped")
             return False
         self.faults.report(kind, t, f"{why}; D_MSF={d_msf:.3f} checked against odometry D={d_odo:.3f}")
+        if self._check_heading(msf_yaw - reckoned.yaw, lane):
+            return True
         return self._update(d_msf, d_odo, lane)
 
     def msf_deviation(self, t: float, pose: Pose, smap: SemanticMap, lane: int | None) -> float | None:

@@ -72,11 +72,22 @@ class DefenseConfig(Params):
                               "is checked against a pose dead-reckoned from odometry and S is kept; in the "
                               "response the fused pose moves by odometry, never by the MSF. False: the paper "
                               "mode's skipped updates, S reset after intersections, fused pose carried by MSF")
+    heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
+                             "against the lines' (against odometry where lines are absent), rad")
+    heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
     savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
     savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
     savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
     savior_accel_std: float = Field(0.5, gt=0.0, description="SAVIOR EKF: longitudinal process noise (m/s²)")
     savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
+
+    @model_validator(mode="after")
+    def _heading_check_needs_fail_closed(self) -> DefenseConfig:
+        given = sorted({"heading_b", "heading_tau"} & self.model_fields_set)
+        if given and not self.fail_closed:
+            raise ValueError(f"{', '.join(given)} set the fail-closed heading check, which fail_closed = false "
+                             f"(the paper mode) does not run: drop them or set fail_closed = true")
+        return self
 
     @model_validator(mode="after")
     def _clamp_needs_a_clamped_heading(self) -> DefenseConfig:

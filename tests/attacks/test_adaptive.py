@@ -11,6 +11,7 @@ from testbed.attacks.base import AttackerView, WhiteBox
 from testbed.attacks.burst import BurstAttack, burst_weights
 from testbed.attacks.coordinated import CoordinatedShift
 from testbed.attacks.gnss_drift import GnssDrift
+from testbed.attacks.heading import HeadingBias
 from testbed.attacks.offmap import OffMapAttack
 from testbed.attacks.zone import ZoneAttack
 from testbed.errors import UserError
@@ -132,3 +133,13 @@ def test_gnss_drift_waits_for_weak_lidar_then_drifts_linearly():
     assert offsets[90] == pytest.approx(-0.45, abs=1e-9) and offsets[-1] == pytest.approx(-1.0)
     assert attack.state()["switch_time"] == pytest.approx(8.1)
     assert math.isfinite(attack.describe()["rate"])
+
+
+def test_heading_bias_turns_the_msf_yaw_and_leaves_its_position():
+    attack = HeadingBias(start=1.0, bias=-0.08, ramp=1.0)
+    pose = Pose(5.0, 0.2, 0.01)
+    early = attack.tamper_msf(LocalizationEstimate(0.5, pose, np.eye(3)), AttackerView(0.5, pose, 0.2, 0.0, 10.0))
+    half = attack.tamper_msf(LocalizationEstimate(1.5, pose, np.eye(3)), AttackerView(1.5, pose, 0.2, 0.0, 10.0))
+    assert early.pose == pose
+    assert (half.pose.x, half.pose.y) == (5.0, 0.2) and half.pose.yaw == pytest.approx(0.01 - 0.04)
+    assert attack.state()["stage"] == "ramping"

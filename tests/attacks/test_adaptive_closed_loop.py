@@ -14,6 +14,7 @@ CASES = {
     "burst": ({"kind": "burst", "start": 3.0, "spend": 0.9, "spread": 1.0, "sustain": 0.9}, "msf-output"),
     "coordinated": ({"kind": "coordinated", "start": 3.0, "rate": 1.0, "limit": 2.0}, "msf-output,ld-output"),
     "gnss-drift": ({"kind": "gnss-drift", "start": 3.0, "rate": 1.0, "limit": 3.0}, "gnss"),
+    "heading": ({"kind": "heading", "start": 3.0, "bias": -0.1, "ramp": 1.0}, "msf-output"),
 }
 
 
@@ -32,5 +33,7 @@ def test_each_family_acts_in_a_short_closed_loop_run(family):
     assert stages - {"idle"}, stages
     if family == "coordinated":  # outside LD3's threat model: MSF and lines agree, so nothing is detected
         assert not s["detected"] and s["consequence"] == "hit_curb"
+    if family == "heading":  # the heading check sees the biased yaw before the car leaves its lane
+        assert s["detected"] and s["consequence"] == "stop_in_lane"
     if family == "offmap":
         assert max(abs(r.attack_offset) for r in result.rows) == 25.0

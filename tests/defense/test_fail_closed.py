@@ -135,14 +135,29 @@ def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
 def test_an_msf_yaw_bias_before_the_zone_does_not_tilt_the_check():
     """MSF position on the car, its yaw 0.05 rad off over the last 12 m before the zone, then moved 0.05 m per
     metre inside it: what a check anchored on the MSF yaw would follow. The dead-reckoned yaw follows the lines'
-    heading (the car is parallel to the lane), so the shift is seen inside the zone."""
+    heading (the car is parallel to the lane), so the shift is seen inside the zone (the heading check, which
+    catches the planting itself, switched off)."""
     smap = FakeStraightMap(intersections=(ZONE,))
-    d = Ld3Defense(DefenseConfig())
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9))
     drive = Drive(d, smap)
     drive.run(5.0, yaw=lambda t, x: 0.05 if x >= 88.0 else 0.0)
     assert d.mode == "normal" and abs(d.monitor.odometry.pose.yaw) < 1e-9
     drive.run(3.0, lambda t, x: 0.05 * (x - 100.0), lambda t, x: 0.05)
     assert d.mode == "ar" and ZONE[0] <= drive.alarm_x <= ZONE[1]
+
+
+def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
+    """A 0.05 rad MSF yaw bias, position true: the lateral CUSUM sees nothing, the heading check alarms within
+    (0.3 / (0.05 − 0.03) =) 15 detections of the bias; a bias inside heading_b never alarms."""
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(4.0, yaw=lambda t, x: 0.05 if x >= 60.0 else 0.0)
+    assert d.mode == "ar" and 60.0 <= drive.alarm_x <= 60.0 + 16 * drive.speed / 20.0 and d.status().cusum == 0.0
+    quiet = Ld3Defense(DefenseConfig())
+    Drive(quiet, smap).run(4.0, yaw=lambda t, x: 0.025 if x >= 60.0 else 0.0)
+    assert quiet.mode == "normal"
+    with pytest.raises(ValueError, match="fail_closed = false"):
+        DefenseConfig(**PAPER, heading_b=0.05)
 
 
 def test_naive_ar_shares_the_fail_closed_detection():
