@@ -28,7 +28,7 @@ def plot_convergence(path: Path, outcomes: Sequence[TrialOutcome], straddle: flo
     if scored:
         n = np.array([o.number for o in scored])
         best = np.maximum.accumulate(np.array([o.score for o in scored]))
-        ax.step(n, best, where="post", color="k", lw=1.5, label="best score so far")
+        ax.step(n, best, where="post", color="k", lw=1.5, label="best score so far (m; + 1 for an undetected crash)")
     if straddle is not None:
         ax.axhline(straddle, color="r", ls="--", lw=1, label="lane straddle deviation")
     ax.set_xlabel("trial")
@@ -77,8 +77,8 @@ def write_search_report(search: AttackSearch) -> Path:
             f"of {len(outcomes)} trials.",
             "",
         ]
-    lines += ["## Best per family", "", "| family | trials | attack | detected | |D| before detection (m) | "
-              "max |D| (m) | consequence |", "|---|---|---|---|---|---|---|"]
+    lines += ["## Best per family", "", "| family | trials | attack | detected | \\|D\\| before detection (m) | "
+              "max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|"]
     for family in sorted({o.family for o in outcomes}):
         mine = [o for o in outcomes if o.family == family]
         top = max((o for o in mine if o.score is not None), key=lambda o: o.score, default=None)
