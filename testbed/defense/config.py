@@ -96,6 +96,16 @@ class DefenseConfig(Params):
                              f"drop it or set the heading")
         return self
 
+    def explicit(self, reads: frozenset[str]) -> dict[str, Any]:
+        """Every parameter a defense that `reads` these keys acts on, defaults written out (so that a scenario
+        keeps its meaning when a default changes), less the ones the validators above refuse as inert."""
+        inert = set()
+        if self.heading not in ("ld", "fused"):
+            inert.add("heading_clamp")
+        if not self.fail_closed:
+            inert |= {"heading_b", "heading_tau"}
+        return {k: v for k, v in self.model_dump().items() if k in reads and k not in inert}
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> DefenseConfig:
         """Build from a TOML table; unknown keys and bad values raise ParamsError (a ValueError) naming the key."""

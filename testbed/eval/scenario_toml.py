@@ -8,11 +8,14 @@ from typing import Any
 import tomli_w
 
 from testbed.attacks.spec import attack_tables
+from testbed.defense.config import DefenseConfig
+from testbed.defense.registry import DEFENSES
 from testbed.eval.scenario import Scenario
 
 
 def scenario_document(sc: Scenario) -> dict[str, Any]:
-    """The scenario as a TOML document: every set field, components as tables with `kind`."""
+    """The scenario as a TOML document: every set field, components as tables with `kind`, and the defense's
+    parameters written out in full (`DefenseConfig.explicit`)."""
     doc: dict[str, Any] = {"name": sc.name, "track": sc.track, "vehicle": sc.vehicle, "speed": float(sc.speed),
                            "duration": float(sc.duration), "condition": sc.condition, "seed": sc.seed,
                            "start_s": float(sc.start_s), "localization": sc.localization}
@@ -23,7 +26,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
     if sc.rates:
         doc["rates"] = dict(sc.rates)
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
-    doc["defense"] = {"kind": sc.defense, **sc.defense_params}
+    reads = DEFENSES.get(sc.defense).reads
+    doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}
     tables = [dict(t) for t in attack_tables(sc.attack)]
     if tables:
         doc["attack"] = tables[0] if len(tables) == 1 else tables

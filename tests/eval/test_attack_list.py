@@ -45,4 +45,6 @@ def test_a_scenario_written_as_toml_loads_back_the_same(tmp_path):
     write_scenario(tmp_path / "two.toml", sc, "a comment\non two lines")
     back = load_scenario(str(tmp_path / "two.toml"))
     assert scenario_document(back) == scenario_document(sc)
-    assert (tmp_path / "two.toml").read_text().startswith("# a comment\n# on two lines\n")
+    text = (tmp_path / "two.toml").read_text()
+    assert text.startswith("# a comment\n# on two lines\n")
+    assert "fail_closed = true" in text and "window = 5" in text and "savior_b" not in text  # defaults written out
