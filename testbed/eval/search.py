@@ -106,14 +106,17 @@ def families_for(threat: frozenset[ThreatCapability], victim: Scenario) -> list[
     """The searchable attack families the threat model allows and the victim lets act; UserError, naming
     what is missing, when there are none."""
     provided = check_needs(dataclasses.replace(victim, attack=None))
-    allowed, refused = [], []
+    allowed, refused, unsearchable = [], [], []
     for component in ATTACKS:
-        if not component.space or not component.capabilities <= {c.value for c in threat}:
+        if not component.capabilities <= {c.value for c in threat}:
+            continue
+        if not component.space:
+            unsearchable.append(f"{component.name} declares no search space")
             continue
         missing = missing_needs(component, provided)
         (refused if missing else allowed).append((component, missing))
     if not allowed:
-        why = "; ".join(f"{c.name} needs {FIXES[m[0]]}" for c, m in refused)
+        why = "; ".join([f"{c.name} needs {FIXES[m[0]]}" for c, m in refused] + unsearchable)
         raise UserError(f"no searchable attack family acts under threat model {threat_label(threat)} on this "
                         f"victim" + (f": {why}" if why else ""))
     return [c for c, _ in allowed]
