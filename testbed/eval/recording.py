@@ -18,8 +18,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-from mcap.writer import Writer
 
+from testbed.errors import UserError
 from testbed.eval import mcap_schemas
 from testbed.eval.video import draw_detection
 from testbed.lane_detection import LaneDetection
@@ -89,6 +89,12 @@ class Recording:
     A channel is in the file when it has at least one message."""
 
     def __init__(self, rig: CameraRig, jpeg_quality: int = 85) -> None:
+        """Refuses to start (one line naming the extra) where the mcap package is not installed."""
+        try:
+            from mcap.writer import Writer
+        except ImportError:
+            raise UserError("run.mcap needs the mcap package: pip install 'ld3-testbed[record]'") from None
+        self._writer = Writer
         self.rig = rig
         self.jpeg_quality = jpeg_quality
         self._messages: list[tuple[int, Channel, bytes]] = []
@@ -153,7 +159,7 @@ class Recording:
         """Write every collected message, in log-time order (ties keep the order they arrived in)."""
         messages = sorted(self._messages + self._lane_messages(), key=lambda m: m[0])
         with open(path, "wb") as stream:
-            writer = Writer(stream)
+            writer = self._writer(stream)
             writer.start(profile="", library="ld3-testbed")
             ids: dict[str, int] = {}
             sequence: dict[str, int] = {}
