@@ -221,6 +221,11 @@ class CanChassisBridge(ChassisPort):
         if not self._ecu_lost and not self._feedback_lost:
             self.release()
 
+    def sensor_fault(self, kind: str, detail: str) -> None:
+        """A sensor the loop depends on failed (a stalled GNSS stream, a camera that stopped): latch `kind`; the
+        car brakes in lane and the run ends as chassis_fault."""
+        self._raise(kind, detail)
+
     def interrupt(self, reason: str) -> None:
         """The operator stopped the run (`reason`, e.g. SIGINT): latch interrupted; the car brakes in lane."""
         self._raise("interrupted", f"run interrupted by {reason}")

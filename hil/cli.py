@@ -211,7 +211,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
-                                  record=args.record, **drill)
+                                  record=args.record, sensors=args.sensors, **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -256,6 +256,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ids", default=None, help="with `replay`: frame IDs to send (default the profile's commands; "
                                                 "'all' for every frame)")
     p.add_argument("--yes", action="store_true", help="with `replay`: allow a hardware bus")
+    p.add_argument("--sensors", choices=("sim", "io"), default="sim",
+                   help="io: the simulated GNSS goes out as NMEA on a pty and comes back through the NMEA reader, "
+                        "the camera frames through the camera reader (needs --localization msf)")
     p.add_argument("--drill", default=None, metavar="KIND[@T]",
                    help="inject a fault into the emulated chassis at T s (see hil.fault_drill), e.g. chassis_estop@2")
     p.set_defaults(func=cmd_hil)

@@ -36,6 +36,7 @@ from hil.plants import plant_args_for, scenario_plant
 from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
+from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
 from testbed.errors import UserError
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
@@ -102,6 +103,8 @@ class HilLink:
         self._ecu: EcuEmulator | None = None
         self._ecu_bus: can.BusABC | None = None
         self._process: EcuProcess | None = None
+        self.sensor_io: SensorIo | None = None
+        """The sensor readers of a `--sensors io` run (None: the simulated sensors feed the loop directly)."""
         clock = config.clock_mode
         spawns_ecu = config.spawns_ecu
         self.key = link_key(self.profile, "slcan-pty" if spawns_ecu else config.interface, config.channel)
@@ -170,12 +173,15 @@ def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
-                     record: bool = False) -> RunResult:
+                     record: bool = False, sensors: str = "sim") -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
     (`log_path`, default OUT/can.asc), and with `record` run.mcap with the CAN frames decoded by the profile's
     DBC. The summary gains interface, channel, clock, profile, frame counts and the odometry's largest and
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
-    before engaging (fault drills install their injections there)."""
+    before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
+    through the real readers (`hil.sensor_io`; the link's `sensor_io` then)."""
+    if sensors not in SENSOR_MODES:
+        raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
@@ -188,9 +194,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         if log_path is not None:
             recorder = FrameRecorder(log_path)
             link.bridge.add_listener(recorder)
+        if sensors == "io":
+            link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
         if prepare is not None:
             prepare(link)
-        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record)
+        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
+                     sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
         if sim.recording is not None:
             link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
         with interruptible(link.bridge.interrupt):
@@ -198,6 +207,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
             result = _drive(sim, link.bridge, progress)
     finally:
         link.close()
+        if link.sensor_io is not None:
+            link.sensor_io.close()
         if recorder is not None:
             recorder.stop()
         if sim is not None:
@@ -213,6 +224,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
         "can_frames_rejected": sum(bridge.rejected.values()),
         "can_frames_logged": recorder.frames if recorder is not None else 0,
+        "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
     })
     if out_dir is not None:
         sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
