@@ -34,6 +34,7 @@ from hil.replay import replay_log
 from hil.secoc_key import link_key
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
+from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
 from testbed.errors import UserError
 
@@ -232,7 +233,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add `ld3 hil` and `ld3 ecu` to the ld3 command (entry point group "ld3.commands")."""
+    """Add `ld3 hil`, `ld3 ecu` and `ld3 vehicle` to the ld3 command (entry point group "ld3.commands")."""
     from testbed.cli import _add_run_overrides
 
     p = sub.add_parser("hil", help="run a scenario over CAN (or `ld3 hil replay LOG`: play a CAN log onto a bus)",
@@ -266,6 +267,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)
     add_ecu_arguments(p)
     p.set_defaults(func=run_ecu)
+
+    add_vehicle_parser(sub, add_bus_arguments, bus_from_args)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -37,7 +37,7 @@ PROBE = textwrap.dedent("""
         if name not in skip:
             importlib.import_module(name)
     from testbed.cli import main
-    for argv in (["--help"], ["hil", "--help"]):
+    for argv in (["--help"], ["hil", "--help"], ["vehicle", "--help"]):
         with contextlib.redirect_stdout(io.StringIO()) as text, contextlib.suppress(SystemExit):
             main(argv)
         assert "usage: ld3" in text.getvalue(), argv
