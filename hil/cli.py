@@ -31,6 +31,7 @@ from hil.kinematic_plant import KinematicBicyclePlant
 from hil.link_errors import LINK_ERRORS, link_error_line
 from hil.profile import DEFAULT_PROFILE, load_profile
 from hil.replay import replay_log
+from hil.replay_cli import add_replay_parser
 from hil.secoc_key import link_key
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
@@ -233,7 +234,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add `ld3 hil`, `ld3 ecu` and `ld3 vehicle` to the ld3 command (entry point group "ld3.commands")."""
+    """Add `ld3 hil`, `ld3 ecu`, `ld3 vehicle` and `ld3 replay` to the ld3 command (entry points "ld3.commands")."""
     from testbed.cli import _add_run_overrides
 
     p = sub.add_parser("hil", help="run a scenario over CAN (or `ld3 hil replay LOG`: play a CAN log onto a bus)",
@@ -269,6 +270,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_ecu)
 
     add_vehicle_parser(sub, add_bus_arguments, bus_from_args)
+    add_replay_parser(sub)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -21,8 +21,10 @@ import numpy as np
 
 from testbed.errors import UserError
 from testbed.eval import mcap_schemas
+from testbed.eval.ld3_input import ld3_input_message
 from testbed.eval.video import draw_detection
 from testbed.lane_detection import LaneDetection
+from testbed.localization.estimate import LocalizationEstimate
 from testbed.loop import TickRecord
 from tracks.lane import Lane
 from tracks.pose import Pose
@@ -48,6 +50,7 @@ LANES = Channel("/map/lanes", mcap_schemas.SCENE_UPDATE)
 SIGNALS = Channel("/signals", mcap_schemas.SIGNALS)
 ATTACK = Channel("/attack", mcap_schemas.ATTACK)
 CAN = Channel("/can", mcap_schemas.CAN_FRAME)
+LD3_INPUT = Channel("/ld3/input", mcap_schemas.LD3_INPUT)
 CHANNELS = (CAMERA, POSE_TRUE, POSE_MSF, POSE_FUSED, LANES, SIGNALS, ATTACK, CAN)
 
 
@@ -112,6 +115,10 @@ class Recording:
             raise ValueError(f"cannot JPEG-encode a camera image of shape {image.shape}")
         self._add(CAMERA, t, {"timestamp": _stamp(t), "frame_id": CAMERA_FRAME,
                               "data": base64.b64encode(jpeg.tobytes()).decode(), "format": "jpeg"})
+
+    def add_ld3_input(self, ld: LaneDetection, est: LocalizationEstimate) -> None:
+        """What the defense read at one camera frame (`testbed.eval.ld3_input`), for `ld3 replay`."""
+        self._add(LD3_INPUT, ld.timestamp, ld3_input_message(ld, est))
 
     def add_tick(self, rec: TickRecord, msf_pose: Pose | None, fused: Pose | None, tau: float | None) -> None:
         """One control tick: its record (true pose, signals, attack state), the MSF pose, the fused pose control

@@ -190,6 +190,7 @@ class SimRun:
                 self.video.add(frame, ld, FrameSignals.of(rec, tau))
             if self.recording is not None:
                 self.recording.add_camera(frame.t, frame.image, ld)
+                self.recording.add_ld3_input(ld, self.loop.last_estimate)
         self._frames.clear()
         if self.recording is not None:
             control = self.loop.last_control_pose if rec.mode == "ar" else None
