@@ -32,6 +32,8 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
     p.add_argument("--calibration", type=Path, help="camera calibration TOML (intrinsics, distortion, mount)")
     p.add_argument("--detector", default="neural", choices=DETECTORS.names(), metavar="NAME",
                    help="lane detector reading the camera (default neural; none without a camera)")
+    p.add_argument("--detector-weights", metavar="PATH", help="the detector's weights; for neural-onnx a detector "
+                   "graph from `ld3 ld export-onnx` runs without torch or OpenCV")
     p.add_argument("--defense", default="ld3", choices=DEFENSES.names(), metavar="NAME", help="default ld3")
     p.add_argument("--vehicle", default="dev-chassis", help="vehicle parameter set (default dev-chassis)")
     p.add_argument("--speed", type=float, default=2.0, help="target speed, m/s (default 2)")
@@ -47,7 +49,8 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
     from hil.vehicle_run import VehicleConfig, VehicleRun
 
     config = VehicleConfig(map=args.map, origin=parse_origin(args.origin), gnss=args.gnss, camera=args.camera,
-                           calibration=args.calibration, detector=args.detector, defense=args.defense,
+                           calibration=args.calibration, detector=args.detector,
+                           detector_weights=args.detector_weights, defense=args.defense,
                            vehicle=args.vehicle, speed=args.speed, duration=args.duration, lane=args.lane,
                            profile=args.profile)
     try:

@@ -62,7 +62,8 @@ CAMERA_HZ = 20.0
 @dataclass(frozen=True)
 class VehicleConfig:
     """What `ld3 vehicle` runs: map and its origin, sensors (`nmea:PATH`, `v4l2:/dev/videoN` or `video:PATH`,
-    a calibration file), the components, the vehicle's parameters, target speed (m/s) and duration (s)."""
+    a calibration file), the components (the detector's weights file, if not its default), the vehicle's
+    parameters, target speed (m/s) and duration (s)."""
 
     map: str
     origin: LocalTangentPlane
@@ -70,6 +71,7 @@ class VehicleConfig:
     camera: str | None = None
     calibration: Path | None = None
     detector: str = "neural"
+    detector_weights: str | None = None
     defense: str = "ld3"
     vehicle: str = "dev-chassis"
     speed: float = 2.0
@@ -180,7 +182,9 @@ class VehicleRun:
         defense_config = DefenseConfig.from_dict({})
         defense = DEFENSES.get(config.defense).factory(defense_config,
                                                        BicycleCoefficients(wheelbase=self.params.wheelbase))
-        detector = make_detector(config.detector, track=self.track, rig=self.rig, rng=np.random.default_rng(0))
+        params = {"weights": config.detector_weights} if config.detector_weights else {}
+        detector = make_detector(config.detector, track=self.track, rig=self.rig, rng=np.random.default_rng(0),
+                                 params=params)
         localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
         dt = 1.0 / CONTROL_HZ
         loop = ControlLoop(

@@ -12,6 +12,7 @@ SIMULATOR_PACKAGES = ("pybullet", "cv2", "torch", "torchvision", "matplotlib", "
                       "pandas", "ray", "onnxruntime", "onnx", "control")
 VEHICLE_PACKAGES = ("tracks", "vehicles", "testbed.defense", "testbed.localization", "testbed.control", "hil")
 VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.perception.tracker",
+                   "testbed.perception.onnx_file",
                    "testbed.perception.registry", "testbed.cli")
 SIMULATOR_MODULES = ("tracks.plot", "vehicles.pybullet_vehicle", "hil.campaigns", "hil.fault_drill",
                      "hil.mcap_can", "hil.plants", "hil.scenario_run", "hil.__main__")
