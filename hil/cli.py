@@ -38,6 +38,7 @@ from hil.timing import ClockMode
 from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
 from testbed.errors import UserError
+from testbed.eval.outputs import chassis_faults
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
@@ -224,8 +225,9 @@ def cmd_hil(args: argparse.Namespace) -> int:
     print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
           f"{s['can_frames_rejected']} rejected; log {s['can_log']}")
     print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", run.mcap" if args.record else ""))
-    if s["faults"]:
-        first = s["faults"][0]
+    faults = chassis_faults(s)
+    if faults:
+        first = faults[0]
         stop = f"standstill at {s['stop_time_s']:.2f} s" if s["stop_time_s"] is not None else "no standstill"
         print(f"ld3: chassis fault: {first['kind']} at {first['time']:.2f} s ({first['detail']}); {stop}; "
               f"outputs in {out}", file=sys.stderr)

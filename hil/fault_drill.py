@@ -31,6 +31,7 @@ from hil.report_map import FaultLevel
 from hil.scenario_run import HilLink, LinkConfig, run_hil_scenario
 from testbed.chassis import ChassisCommand
 from testbed.errors import UserError
+from testbed.eval.outputs import chassis_faults
 from testbed.eval.scenario import Scenario
 
 EXPECTED = {
@@ -162,7 +163,7 @@ def run_drill(sc: Scenario, kind: str, out_dir: Path, at: float = 1.5, profile: 
     """Run `sc` with drill `kind` fired at `at` s; the outputs go to `out_dir`."""
     result = run_hil_scenario(sc, out_dir, LinkConfig("virtual", profile=profile),
                               prepare=drill_installer(kind, at), reply_timeout=DRILL_REPLY_TIMEOUT_S)
-    faults = result.summary["faults"]
+    faults = chassis_faults(result.summary)
     first = faults[0] if faults else None
     outputs = tuple(sorted(p.name for p in out_dir.iterdir() if p.is_file()))
     return DrillResult(kind, EXPECTED[kind], first["kind"] if first else None, at,

@@ -53,7 +53,8 @@ class Simulation:
     `write(dir)` writes the output contract of what has run. Close it (or use `with`) to free PyBullet."""
 
     def __init__(self, sc: Scenario, *, defense: Defense | None = None, detector: LaneDetector | None = None,
-                 attack: Attack | None = None, render: bool | None = None, video: bool = False) -> None:
+                 attack: Attack | list[Attack] | None = None, render: bool | None = None,
+                 video: bool = False) -> None:
         self.scenario = sc
         self._sim = SimRun(sc, render=render, video=video, defense=defense, detector=detector, attack=attack)
 
@@ -102,7 +103,8 @@ class Simulation:
 
 
 def run(sc: Scenario, out: Path | str | None = None, *, defense: Defense | None = None,
-        detector: LaneDetector | None = None, attack: Attack | None = None, progress: bool = False) -> Result:
+        detector: LaneDetector | None = None, attack: Attack | list[Attack] | None = None,
+        progress: bool = False) -> Result:
     """Run `sc` to the end (with your own components where given); write its outputs to `out` when given."""
     with Simulation(sc, defense=defense, detector=detector, attack=attack) as sim:
         result = sim.run(progress=progress)

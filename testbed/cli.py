@@ -41,8 +41,10 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     p.add_argument("--localization", choices=LOCALIZATIONS.names(), metavar="NAME",
                    help=f"localization: {LOCALIZATIONS.choices_help()}")
     p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", help=f"defense: {DEFENSES.choices_help()}")
-    p.add_argument("--attack", help="attack spec KIND[:key=value,...], e.g. trace:default or fusionripper:d=0.5,f=1.3;"
-                                    f" kinds: {', '.join(ATTACKS.names())} (`ld3 components` lists their parameters)")
+    p.add_argument("--attack", action="append", default=[],
+                   help="attack spec KIND[:key=value,...], e.g. trace:default or fusionripper:d=0.5,f=1.3; repeat it "
+                        "to compose attacks (hooks run in the given order); "
+                        f"kinds: {', '.join(ATTACKS.names())} (`ld3 components` lists their parameters)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
@@ -50,11 +52,11 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
 
 
 def scenario_from_args(args: argparse.Namespace):
-    from testbed.attacks.spec import attack_spec_to_dict
+    from testbed.attacks.spec import specs_to_value
     from testbed.eval.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
-    attack = attack_spec_to_dict(args.attack) if getattr(args, "attack", None) else None
+    attack = specs_to_value(getattr(args, "attack", None) or [])
     sc = sc.with_overrides(track=args.track, vehicle=args.vehicle, speed=args.speed, duration=args.duration,
                            condition=args.condition, seed=args.seed, lane=args.lane, detector=args.detector,
                            localization=args.localization, defense=args.defense, attack=attack)
@@ -62,11 +64,12 @@ def scenario_from_args(args: argparse.Namespace):
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from testbed.attacks.spec import attack_tables
     from testbed.eval.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
-    attack = sc.attack["kind"] if sc.attack else "none"
+    attack = "+".join(t["kind"] for t in attack_tables(sc.attack)) or "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
     result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
@@ -196,7 +199,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     try:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
-                           backend=args.backend or "local", address=args.address)
+                           backend=args.backend or "local", address=args.address, attacks=args.attack,
+                           budget=args.budget)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -211,7 +215,8 @@ def _campaign_list(args: argparse.Namespace) -> int:
     from testbed.eval.campaigns import CAMPAIGNS
 
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
-                                       ("--set", args.set), ("--backend", args.backend), ("--address", args.address))
+                                       ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
+                                       ("--address", args.address), ("--budget", args.budget))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -239,6 +244,46 @@ def cmd_paper(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     print(f"report: {report}")
     return 0
+
+
+def cmd_search(args: argparse.Namespace) -> int:
+    from testbed.attacks.threat import parse_threat
+    from testbed.eval.search import AttackSearch, SearchSpec
+    from testbed.eval.search_report import write_search_report
+
+    victim = search_victim(args)
+    spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
+                      objective=args.objective)
+    search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
+                          timeout=args.timeout, progress=sys.stderr.isatty())
+    print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
+          f"localization {victim.localization}; threat {args.threat}; families "
+          f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
+    search.run()
+    report = write_search_report(search)
+    best = search.best()
+    if best is not None:
+        print(f"worst attack: {best.attack['kind']} (trial {best.number}): detected {best.detected}, |D| before "
+              f"detection {best.dev_before_m:.3f} m, max |D| {best.max_dev_m:.3f} m, {best.consequence}")
+        print(f"replay: ld3 run {args.out / 'best.toml'}")
+    print(f"report: {report}; every trial: {args.out / 'trials.csv'}")
+    return 0
+
+
+def search_victim(args: argparse.Namespace):
+    """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
+    from testbed.defense.config import PAPER_MODE
+    from testbed.eval.scenario import apply_settings, load_scenario
+
+    sc = load_scenario(args.scenario)
+    if sc.attack:
+        raise UserError(f"scenario {args.scenario} already has an attack; the search chooses the attack: give a "
+                        f"scenario without one")
+    sc = sc.with_overrides(detector=args.detector, localization=args.localization, defense=args.defense)
+    paper = [f"defense.{k}={json.dumps(v)}" for k, v in PAPER_MODE.items()]
+    if args.paper_mode and sc.defense not in ("ld3", "ld3-naive-ar"):
+        raise UserError(f"--paper-mode sets LD3's options; the victim's defense is {sc.defense!r}: add --defense ld3")
+    return apply_settings(sc, (paper if args.paper_mode else []) + args.set)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -282,7 +327,35 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--out", type=Path)
     p.set_defaults(func=cmd_tracks)
 
+    from testbed.defense.registry import DEFENSES
     from testbed.eval.campaign import BACKENDS
+    from testbed.localization.registry import LOCALIZATIONS
+    from testbed.perception.registry import DETECTORS
+
+    p = sub.add_parser("search", help="worst-case attack search: the attack a threat model allows that does most "
+                                      "harm to a defense (Optuna over the adaptive attack families)")
+    p.add_argument("scenario", help="the victim: a shipped scenario name or a .toml path (without an attack)")
+    p.add_argument("--threat", required=True, metavar="CAPS",
+                   help="threat model, a comma list of gnss, msf-output, ld-output, road-paint")
+    p.add_argument("--budget", type=int, required=True, help="number of trials (closed-loop runs)")
+    p.add_argument("--out", type=Path, required=True, help="search folder; rerunning it resumes the search")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", help="the victim's defense")
+    p.add_argument("--detector", choices=DETECTORS.names(), metavar="NAME", help="the victim's lane detector")
+    p.add_argument("--localization", choices=LOCALIZATIONS.names(), metavar="NAME", help="the victim's localization")
+    p.add_argument("--paper-mode", action="store_true", help="LD3 as the paper writes it (PAPER_MODE)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override the victim's scenario as `ld3 run --set` does (repeatable)")
+    p.add_argument("--seed", dest="search_seed", type=int, default=0,
+                   help="sampler seed: the same seed gives the same trials (the victim's seed is --set seed=N)")
+    p.add_argument("--objective", choices=("undetected", "overall"), default="undetected",
+                   help="undetected (default): |D| before detection first, then |D| at all; overall: the reverse")
+    p.add_argument("--batch", type=int, default=8, help="trials asked of the sampler at once (default 8; part of "
+                                                        "the search's identity, independent of --workers)")
+    p.add_argument("--workers", type=int, help="parallel runs (as `ld3 campaign --workers`)")
+    p.add_argument("--backend", choices=BACKENDS, default="local", help="local (default) or ray")
+    p.add_argument("--address", help="ray: the cluster to connect to")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
@@ -303,6 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                   "GLOBs), e.g. 'local@101-*'")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override every run's scenario as `ld3 run --set` does, e.g. defense.heading=msf")
+    p.add_argument("--attack", action="append", default=[], metavar="SPEC",
+                   help="compose this attack after every run's own (repeatable; `ld3 run --attack` syntax)")
+    p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

@@ -1,8 +1,9 @@
 """The one detection/response/control loop (DESIGN.md), shared by simulation and the CAN bridge.
 
-Per control tick: read the chassis, step localization (the attacker may spoof GNSS or the MSF output),
-on camera ticks run the lane detector and feed the defense, take the pose the defense wants control to
-use, plan (lane follow, or the in-lane stop once the defense responds), control, command the chassis.
+Per control tick: read the chassis and hand its odometry to the defense, step localization (the attacker
+may spoof GNSS or the MSF output), on camera ticks run the lane detector and feed the defense, take the pose
+the defense wants control to use, plan (lane follow, or the in-lane stop once the defense responds),
+control, command the chassis.
 """
 
 from __future__ import annotations
@@ -153,6 +154,7 @@ class ControlLoop:
         state = self.chassis.read()
         self.last_state = state
         t = state.t
+        self.defense.on_odometry(t, state.speed, state.yaw_rate)
         view = self._attacker_view(state) if self.attack is not None else None
         spoof = (lambda fix: self.attack.spoof_gnss(fix, view)) if view is not None else None
         localization = self.sensors.localization

@@ -62,6 +62,10 @@ class Component:
     provides: frozenset[Capability] = frozenset()
     params: type[Params] = NoParams
     reads: frozenset[str] = frozenset()
+    capabilities: frozenset[str] = frozenset()
+    """For attacks: the threat capabilities it acts through (`testbed.attacks.threat`)."""
+    space: tuple[Any, ...] = ()
+    """For attacks: the dimensions a worst-case search varies (`testbed.attacks.space`); empty: not searched."""
 
     def settings(self, table: Mapping[str, Any], where: str) -> Params:
         """This component's parameters from `table` (validated; ParamsError names the key)."""
@@ -145,10 +149,13 @@ class Registry(Generic[E]):
 
     def markdown(self) -> str:
         """A docs table of the family: name, what it is, what it needs."""
-        lines = ["| name | what | needs |", "|---|---|---|"]
+        threat = any(getattr(c, "capabilities", ()) for c in self)
+        lines = ["| name | what | needs |" + (" threat capabilities |" if threat else ""),
+                 "|---|---|---|" + ("---|" if threat else "")]
         for c in self:
             needs = ", ".join(sorted(n.value for n in c.needs)) or "–"
-            lines.append(f"| `{c.name}` | {c.help} | {needs} |")
+            caps = f" {', '.join(sorted(c.capabilities)) or '–'} |" if threat else ""
+            lines.append(f"| `{c.name}` | {c.help} | {needs} |{caps}")
         return "\n".join(lines)
 
 

@@ -99,7 +99,7 @@ def traced_loop(request):
 
     detector = Traced(OracleLaneDetector(track, np.random.default_rng(0)), "detector", log, ("detect",))
     defense = Traced(Ld3Defense(DefenseConfig()), "defense", log,
-                     ("on_gnss", "on_lane_detection", "pose_for_control", "on_command"))
+                     ("on_odometry", "on_gnss", "on_lane_detection", "pose_for_control", "on_command"))
     frames: list[float] = []
     lane = track.ego_lane
     driving = DrivingPorts(
@@ -126,7 +126,7 @@ def _ticks(loop: ControlLoop, log: list[str], n: int) -> list[list[str]]:
 
 
 CAMERA_TICK = [
-    "chassis.read", "localization.step", "attack.tamper_msf",
+    "chassis.read", "defense.on_odometry", "localization.step", "attack.tamper_msf",
     "camera", "detector.detect", "attack.tamper_ld", "defense.on_lane_detection",
     "defense.pose_for_control", "planner.plan", "lateral.update", "longitudinal.update",
     "chassis.send", "defense.on_command", "chassis.advance",
@@ -155,6 +155,18 @@ def test_planned_stop_starts_once_before_planning(traced_loop):
     assert plant.read().speed < 10.0
 
 
+def test_the_defense_gets_the_chassis_odometry_every_tick(traced_loop):
+    loop, _, _, plant = traced_loop
+    seen: list[tuple[float, float, float]] = []
+    loop.defense.on_odometry = lambda t, speed, yaw_rate: seen.append((t, speed, yaw_rate))
+    expected = []
+    for _ in range(30):
+        state = plant.read()
+        expected.append((state.t, state.speed, state.yaw_rate))
+        loop.tick()
+    assert seen == expected and seen[-1][1] < seen[0][1]  # speeds read as the planned stop brakes
+
+
 def test_records_one_row_per_tick_with_the_plants_time_and_a_fresh_flag(traced_loop):
     loop, _, _, plant = traced_loop
     rows = [loop.tick() for _ in range(12)]
@@ -169,5 +181,5 @@ def test_records_one_row_per_tick_with_the_plants_time_and_a_fresh_flag(traced_l
 def test_a_gnss_fix_is_spoofed_inside_the_localization_step_and_reaches_the_defense_before_the_camera(traced_loop):
     loop, log, _, _ = traced_loop
     calls = _ticks(loop, log, 1)[0]
-    assert calls[:6] == ["chassis.read", "localization.step", "attack.spoof_gnss", "attack.tamper_msf",
-                         "defense.on_gnss", "camera"]
+    assert calls[:7] == ["chassis.read", "defense.on_odometry", "localization.step", "attack.spoof_gnss",
+                         "attack.tamper_msf", "defense.on_gnss", "camera"]

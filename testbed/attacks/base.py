@@ -3,21 +3,27 @@
 An attack may spoof GNSS fixes before the MSF fuses them, tamper with the MSF output, tamper with the
 lane detector's output, or paint the road. Every hook defaults to the identity; `state()` reports the
 attack's stage, switch time and current lateral offset (signed, + left) for trajectory.csv/summary.json.
+Each attack declares the `capabilities` it acts through (its threat model); an adaptive attack may also read
+what a white-box attacker knows (`WhiteBox`: the map, the defense's public parameters, the rates), handed to
+`know()` once before the run starts.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix
+from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 
 
@@ -30,6 +36,20 @@ class AttackerView:
     phys_dev: float
     lane_heading: float
     speed: float
+
+
+@dataclass(frozen=True)
+class WhiteBox:
+    """What a white-box attacker knows before the run: the semantic map and the victim's lane, the LiDAR
+    locator's feature quality at a world point, the defense's public parameters (`defense`: CUSUM `b`, `tau`
+    and the rest of its `[defense]` table), and the lane detector's and the control loop's rates (Hz)."""
+
+    smap: SemanticMap
+    lane: int
+    defense: Any
+    detector_hz: float
+    control_hz: float
+    lidar_quality: Callable[[float, float], float] = lambda x, y: 1.0
 
 
 def left_normal(heading: float) -> np.ndarray:
@@ -47,11 +67,18 @@ class Attack(ABC):
     """One attack: hooks default to the identity; subclasses override the ones their threat model uses."""
 
     name: str = ""
+    capabilities: ClassVar[frozenset[ThreatCapability]] = frozenset()
+    """Where the attack acts; the hooks it overrides must lie within them."""
 
     def __init__(self, start_time: float) -> None:
         if not (math.isfinite(start_time) and start_time >= 0):
             raise UserError(f"attack start must be a time >= 0 s, got {start_time}")
         self.start_time = start_time
+        self.whitebox: WhiteBox | None = None
+
+    def know(self, whitebox: WhiteBox) -> None:
+        """What a white-box attacker knows, handed over once before the first tick."""
+        self.whitebox = whitebox
 
     def spoof_gnss(self, fix: GnssFix, view: AttackerView) -> GnssFix:
         return fix

@@ -16,6 +16,7 @@ import math
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView
+from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 
@@ -31,6 +32,7 @@ class DrpTrace(Attack):
     """Trapezoid LD-deviation injection: ramp to `shift` in `ramp` s, hold, stop after `duration` s."""
 
     name = "drp-trace"
+    capabilities = frozenset({ThreatCapability.LD_OUTPUT})
 
     def __init__(
         self, start: float = 10.0, shift: float = 0.7, ramp: float = 1.0, duration: float = 5.0
@@ -114,6 +116,7 @@ class DrpPatch(Attack):
     """A dark patch painted on the road at arc length `at`, offset `offset` from the reference line."""
 
     name = "drp-patch"
+    capabilities = frozenset({ThreatCapability.ROAD_PAINT})
 
     def __init__(
         self,

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack, AttackerView, left_normal
+from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.sensors import GnssFix
 
@@ -27,6 +28,7 @@ class FusionRipper(Attack):
     """Two-stage lateral GNSS spoofing; `direction` is the side the spoofed position goes (left|right)."""
 
     name = "fusionripper"
+    capabilities = frozenset({ThreatCapability.GNSS})
 
     def __init__(
         self,

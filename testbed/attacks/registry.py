@@ -1,5 +1,8 @@
 """The attack registry: built-in attacks and the `ld3.attacks` entry points.
 
+Each entry records the threat capabilities its attack acts through and, for the worst-case search, the
+space of its parameters (`testbed.attacks.space`).
+
 An attack component's factory is `factory(params, rng, defense)`: the parameters the scenario gives,
 validated by the component's `params` model (built from the attack's constructor), the run's attack
 random stream, and what it may know of the defense (an object with CUSUM `b` and `tau`). `needs` says
@@ -13,10 +16,17 @@ from typing import Any
 
 from pydantic import Field, create_model
 
+from testbed.attacks.burst import PROFILES, BurstAttack
+from testbed.attacks.coordinated import CoordinatedShift
 from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
 from testbed.attacks.fusionripper import FusionRipper
+from testbed.attacks.gnss_drift import GnssDrift
+from testbed.attacks.heading import HeadingBias
+from testbed.attacks.offmap import OffMapAttack
+from testbed.attacks.space import SIDE, START, ChoiceDim, Dim, FloatDim, IntDim
 from testbed.attacks.stealthy import CusumKnowledge, StealthyAttack
 from testbed.attacks.trace import Trace, TraceInjection
+from testbed.attacks.zone import ZONES, ZoneAttack
 from testbed.params import Params, params_from_signature
 from testbed.registry import Capability, Component, Registry
 
@@ -54,6 +64,18 @@ _DESCRIPTIONS = {
     "length": "patch length along the road (m)", "width": "patch width (m)",
     "offset": "lateral offset of the patch centre from the reference line (m, + left)",
     "angle": "patch rotation (rad)", "darkness": "how much darker than the asphalt (0..1)",
+    "zone": "road feature the attack is timed to: intersection or curve",
+    "index": "which occurrence of the zone after start (0 = the first)",
+    "lateral": "lateral offset of the MSF pose (m, + left)",
+    "hold": "time the offset is held after the zone before it ramps out (s)",
+    "along": "longitudinal shift of the MSF pose (m, + ahead), so that it enters the zone early",
+    "kappa": "curvature above which the road counts as a curve (1/m)",
+    "distance": "lateral distance the MSF pose is moved (m, + left)",
+    "spend": "fraction of the CUSUM threshold τ the burst spends",
+    "profile": "burst shape: flat, rise or fall", "sustain": "offset held after the burst, as a fraction of b",
+    "bias": "heading bias added to the MSF yaw (rad, + left)",
+    "rate": "lateral drift rate (m/s)", "limit": "largest lateral offset (m)",
+    "lidar_below": "the drift begins once the LiDAR feature quality is below this (0..1; > 1: at start)",
 }
 
 
@@ -64,25 +86,63 @@ def _params(name: str, cls: type, skip: tuple[str, ...] = (), **extra: Any) -> t
     return create_model(f"{name}-params", __base__=base, **fields) if fields else base
 
 
+def _component(cls: type, help_text: str, factory, *, skip: tuple[str, ...] = (), space: tuple[Dim, ...] = (),
+               needs: frozenset[Capability] = frozenset(), **extra: Any) -> Component:
+    """The registry entry of attack class `cls`: its name and capabilities come from the class."""
+    return Component(cls.name, factory, help_text, needs=needs, params=_params(cls.name, cls, skip, **extra),
+                     capabilities=frozenset(c.value for c in cls.capabilities), space=space)
+
+
+_MSF = frozenset({Capability.GNSS})
+_LD = frozenset({Capability.LANE_DETECTOR})
 ATTACKS: Registry[Component] = Registry("attack kind", Component, "ld3.attacks")
-ATTACKS.add(Component(
-    "fusionripper", lambda p, rng, defense: FusionRipper(**p, rng=rng),
-    "FusionRipper: lateral GNSS spoofing, profiling then aggressive", needs=frozenset({Capability.GNSS}),
-    params=_params("fusionripper", FusionRipper, ("rng",))))
-ATTACKS.add(Component(
-    "trace", lambda p, rng, defense: TraceInjection(_resolve_trace(p.pop("trace", "default")), **p),
-    "a recorded lateral-deviation trace injected into the localization output",
-    params=_params("trace", TraceInjection, ("trace",), trace=(str, "default"))))
-ATTACKS.add(Component(
-    "stealthy", _stealthy, "white-box MSF offset kept just under LD3's CUSUM threshold",
-    params=_params("stealthy", StealthyAttack, ("knowledge",), b=(float | None, None), tau=(float | None, None),
-                   ld_std=(float | None, None))))
-ATTACKS.add(Component(
-    "drp-trace", lambda p, rng, defense: DrpTrace(**p), "an LD deviation trace (dirty road patch, modelled)",
-    needs=frozenset({Capability.LANE_DETECTOR}), params=_params("drp-trace", DrpTrace)))
-ATTACKS.add(Component(
-    "drp-bend", lambda p, rng, defense: DrpBend(**p), "an LD deviation trace that also rotates the detected lines",
-    needs=frozenset({Capability.LANE_DETECTOR}), params=_params("drp-bend", DrpBend)))
-ATTACKS.add(Component(
-    "drp-patch", lambda p, rng, defense: DrpPatch(**p), "a dark patch painted on the road the camera sees",
-    needs=frozenset({Capability.CAMERA_IMAGE}), params=_params("drp-patch", DrpPatch)))
+ATTACKS.add(_component(
+    FusionRipper, "FusionRipper: lateral GNSS spoofing, profiling then aggressive",
+    lambda p, rng, defense: FusionRipper(**p, rng=rng), skip=("rng",), needs=_MSF,
+    space=(START, FloatDim("d", 0.3, 3.0), FloatDim("f", 1.05, 2.0), SIDE)))
+ATTACKS.add(_component(
+    TraceInjection, "a recorded lateral-deviation trace injected into the localization output",
+    lambda p, rng, defense: TraceInjection(_resolve_trace(p.pop("trace", "default")), **p), skip=("trace",),
+    trace=(str, "default"), space=(START, FloatDim("scale", -1.5, 1.5))))
+ATTACKS.add(_component(
+    StealthyAttack, "white-box MSF offset kept just under LD3's CUSUM threshold", _stealthy, skip=("knowledge",),
+    b=(float | None, None), tau=(float | None, None), ld_std=(float | None, None),
+    space=(START, FloatDim("margin", 0.0, 0.3), FloatDim("spread", 0.0, 5.0), SIDE)))
+ATTACKS.add(_component(
+    DrpTrace, "an LD deviation trace (dirty road patch, modelled)", lambda p, rng, defense: DrpTrace(**p),
+    needs=_LD, space=(START, FloatDim("shift", -2.0, 2.0), FloatDim("ramp", 0.0, 3.0),
+                      FloatDim("duration", 1.0, 20.0))))
+ATTACKS.add(_component(
+    DrpBend, "an LD deviation trace that also rotates the detected lines", lambda p, rng, defense: DrpBend(**p),
+    needs=_LD))
+ATTACKS.add(_component(
+    DrpPatch, "a dark patch painted on the road the camera sees", lambda p, rng, defense: DrpPatch(**p),
+    needs=frozenset({Capability.CAMERA_IMAGE})))
+ATTACKS.add(_component(
+    ZoneAttack, "adaptive: MSF offset timed to an intersection or a curve, where detection is gated or weak",
+    lambda p, rng, defense: ZoneAttack(**p),
+    space=(FloatDim("start", 0.0, 30.0), ChoiceDim("zone", ZONES), IntDim("index", 0, 2),
+           FloatDim("lateral", -3.5, 3.5), FloatDim("ramp", 0.01, 3.0, log=True), FloatDim("hold", 0.0, 20.0),
+           FloatDim("along", -25.0, 25.0))))
+ATTACKS.add(_component(
+    OffMapAttack, "adaptive: the MSF pose moved off the mapped road (ramped or in one tick)",
+    lambda p, rng, defense: OffMapAttack(**p),
+    space=(START, FloatDim("distance", -40.0, 40.0), FloatDim("ramp", 0.01, 3.0, log=True))))
+ATTACKS.add(_component(
+    HeadingBias, "adaptive: the MSF yaw biased with its position left true (Alg. 1 checks positions only)",
+    lambda p, rng, defense: HeadingBias(**p),
+    space=(START, FloatDim("bias", -0.15, 0.15), FloatDim("ramp", 0.01, 5.0, log=True))))
+ATTACKS.add(_component(
+    BurstAttack, "adaptive: spends LD3's CUSUM budget τ in a shaped burst, then holds under b",
+    lambda p, rng, defense: BurstAttack(**p),
+    space=(START, FloatDim("spend", 0.2, 1.2), FloatDim("spread", 0.05, 5.0), ChoiceDim("profile", PROFILES),
+           FloatDim("sustain", 0.0, 1.2), SIDE)))
+ATTACKS.add(_component(
+    CoordinatedShift, "adaptive: MSF pose and detected lines shifted together (outside LD3's threat model)",
+    lambda p, rng, defense: CoordinatedShift(**p), needs=_LD,
+    space=(START, FloatDim("rate", 0.1, 2.0), FloatDim("limit", 0.5, 4.0), SIDE)))
+ATTACKS.add(_component(
+    GnssDrift, "adaptive: slow lateral GNSS drift begun where the LiDAR locator is weak",
+    lambda p, rng, defense: GnssDrift(**p), needs=_MSF,
+    space=(START, FloatDim("rate", 0.05, 2.0), FloatDim("limit", 0.5, 6.0), FloatDim("lidar_below", 0.2, 1.01),
+           SIDE)))

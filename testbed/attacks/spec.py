@@ -2,8 +2,9 @@
 
 Spec grammar: `KIND` or `KIND:ARG,ARG,...`, each ARG `key=value`; a bare first ARG of `trace` is the trace
 name or CSV path (`trace:default`, `trace:runs/t.csv,start=5`). Kinds and their parameters come from the
-attack registry (testbed.attacks.registry; `ld3 attacks` lists them). Every problem raises ValueError with
-a one-line message.
+attack registry (testbed.attacks.registry; `ld3 attacks` lists them). A scenario's `attack` is one table or
+a list of them (composed in list order, `testbed.attacks.compose`). Every problem raises ValueError with a
+one-line message.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack
+from testbed.attacks.compose import AttackChain
 from testbed.attacks.registry import ATTACKS
 from testbed.errors import UserError
 from testbed.params import Params
@@ -61,11 +63,13 @@ def attack_spec_to_dict(spec: str) -> dict[str, Any]:
     return table
 
 
-def _number_or_text(value: str) -> float | str:
-    try:
-        return float(value)
-    except ValueError:
-        return value
+def _number_or_text(value: str) -> int | float | str:
+    for parse in (int, float):
+        try:
+            return parse(value)
+        except ValueError:
+            pass
+    return value
 
 
 def parse_attack(spec: str, rng: np.random.Generator | None = None, defense: Any = None) -> Attack:
@@ -83,3 +87,32 @@ def attack_from_dict(
     """
     component, settings = attack_settings(table)
     return component.factory(settings.model_dump(exclude_unset=True), rng, defense)
+
+
+AttackValue = Mapping[str, Any] | list[Mapping[str, Any]] | None
+"""A scenario's `attack`: nothing, one [attack] table, or a list of them."""
+
+
+def attack_tables(value: AttackValue) -> list[Mapping[str, Any]]:
+    """The scenario's attack tables as a list (empty without an attack); UserError for any other shape."""
+    if value is None:
+        return []
+    if isinstance(value, Mapping):
+        return [value]
+    if isinstance(value, list) and value and all(isinstance(t, Mapping) for t in value):
+        return list(value)
+    raise UserError(f"attack must be a table with a 'kind' or a non-empty list of such tables, got {value!r}")
+
+
+def build_attack(value: AttackValue, rng: np.random.Generator | None = None, defense: Any = None) -> Attack | None:
+    """The run's attack: None, the one attack, or an `AttackChain` of a list's attacks in order."""
+    attacks = [attack_from_dict(t, rng=rng, defense=defense) for t in attack_tables(value)]
+    if not attacks:
+        return None
+    return attacks[0] if len(attacks) == 1 else AttackChain(attacks)
+
+
+def specs_to_value(specs: list[str]) -> AttackValue:
+    """Repeated `--attack` specs as a scenario's `attack`: None, one table, or a list of tables."""
+    tables = [attack_spec_to_dict(s) for s in specs]
+    return None if not tables else tables[0] if len(tables) == 1 else tables

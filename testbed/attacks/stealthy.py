@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
 
@@ -47,6 +48,7 @@ class StealthyAttack(Attack):
     """Pushes the MSF sideways as far as the (worst-case) CUSUM statistic allows without crossing τ."""
 
     name = "stealthy"
+    capabilities = frozenset({ThreatCapability.MSF_OUTPUT})
 
     def __init__(
         self,

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
 
@@ -86,6 +87,7 @@ class TraceInjection(Attack):
     """Adds scale·trace(t − start) to the MSF pose along the left normal of the lane heading."""
 
     name = "trace"
+    capabilities = frozenset({ThreatCapability.MSF_OUTPUT})
 
     def __init__(self, trace: Trace, start: float = 10.0, scale: float = 1.0) -> None:
         super().__init__(start)

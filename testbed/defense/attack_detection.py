@@ -2,10 +2,23 @@
 pose, D_LD by Alg. 3 with the map's lane width, and a one-sided CUSUM on D_MSF − D_LD:
 S_i = max(0, S_{i-1} + |r_i| − b), alarm when S_i > τ (lines 6–10).
 
-Detection is disabled while the MSF pose is inside an intersection (no lane markings) and resumes after
-it with S reset and Alg. 3's memory cleared. A detection with a non-finite pose, an off-map query, or no
-D_LD yet is skipped and logged. `Ld3Detector` and `cusum_alarm_index` run the same test on logged
-(D_MSF, D_LD) traces, e.g. to sweep b and τ for ROC curves.
+Paper mode: detection is disabled while the MSF pose is inside an intersection (no lane markings) and
+resumes after it with S reset and Alg. 3's memory cleared; a detection with a non-finite pose, an off-map
+query, or no D_LD yet is skipped and logged.
+
+Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
+residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
+lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
+towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
+where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
+residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. D_MSF is
+measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
+the lines. Every skipped or degraded update is a fault. A second CUSUM (`heading`) checks the MSF's heading
+relative to the lane against the lines' (against the dead-reckoned yaw where lines are absent): an MSF yaw
+biased with a true position moves no deviation Alg. 1 compares, yet steers the car off the centreline.
+
+`Ld3Detector` and `cusum_alarm_index` run the same test on logged (D_MSF, D_LD) traces, e.g. to sweep b and τ
+for ROC curves.
 """
 
 from __future__ import annotations
@@ -14,7 +27,10 @@ import math
 from collections.abc import Iterable
 
 from testbed.defense.faults import FaultLog
+from testbed.defense.fused_heading import line_relative_heading
+from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -38,7 +54,7 @@ class Cusum:
         return self.alarmed
 
     def reset(self) -> None:
-        """S back to 0 and the alarm cleared (after a zone where detection is disabled)."""
+        """S back to 0 and the alarm cleared (paper mode, after a zone where detection is disabled)."""
         self.statistic = 0.0
         self.alarmed = False
 
@@ -75,27 +91,60 @@ class Ld3Detector:
         self.cusum.reset()
 
 
+ANCHOR_YAW_GAIN = 0.1
+"""Share of the gap between the dead-reckoned yaw and the lines' heading closed per agreeing detection: the
+detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
+UNPLACED_RESIDUAL_M = 3.5
+"""Residual fed for an MSF pose the map cannot place while the map has given no lane width yet (m): a lane."""
+
+
 class LaneConsistencyMonitor:
     """Alg. 1 with intersection gating. After the alarm, `ego_lane` is the lane the MSF pose was on at the last
     detection where D_MSF and D_LD agreed within b (the MSF lane at the alarm if they never did): an attacker
     can move the MSF pose farther than b from where the lines put the car only by raising the statistic, so
-    that lane is the car's own even when the alarm comes on an MSF pose already beyond half a lane."""
+    that lane is the car's own even when the alarm comes on an MSF pose already beyond half a lane.
+    `fail_closed` selects the fail-closed front end (module docstring) over the paper's."""
 
-    def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog) -> None:
+    def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
+                 fail_closed: bool, heading: Cusum | None = None) -> None:
         self.detector = Ld3Detector(b, tau)
+        self.heading = heading if heading is not None else Cusum(0.0, math.inf)
+        """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
+        self.fail_closed = fail_closed
+        self.odometry = DeadReckoning()
         self.d_msf: float | None = None
         self.d_ld: float | None = None
+        self.fresh_d_ld: float | None = None
+        """D_LD of the last detection when a line seen in it gave one (None when absent or reused)."""
         self.in_intersection = False
         self.ego_lane: int | None = None
         self._agreed_lane: int | None = None
+        self._width: float | None = None
+
+    def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
+        """Carry the dead-reckoned pose to `t` (fail-closed mode); a bad sample is a fault."""
+        if self.fail_closed and not self.odometry.on_odometry(t, speed, yaw_rate):
+            self.faults.report("bad-odometry", t, f"speed={speed}, yaw rate={yaw_rate}; sample skipped")
+
+    @property
+    def reckoned(self) -> Pose | None:
+        """The dead-reckoned pose once anchored and carried by odometry, else None."""
+        odo = self.odometry
+        return odo.pose if odo.pose is not None and odo.samples > 0 else None
 
     def step(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection step; True at (and after) the alarm."""
         if self.detector.alarmed:
             return True
-        pose = msf.pose
+        self.fresh_d_ld = None
+        if self.fail_closed:
+            return self._step_fail_closed(ld, msf.pose, smap)
+        return self._step_paper(ld, msf.pose, smap)
+
+    def _step_paper(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> bool:
+        """Alg. 1 as the paper runs it: gated off in intersections, S reset after them, bad inputs skipped."""
         if not pose.is_finite():
             self.faults.report("nan-pose", ld.timestamp, f"MSF pose {pose} is not finite; update skipped")
             return False
@@ -121,10 +170,148 @@ class LaneConsistencyMonitor:
             lane = None
         if abs(pair[0] - pair[1]) <= self.detector.cusum.b and lane is not None:
             self._agreed_lane = lane
-        if not self.detector.update(*pair):
+        return self._update(*pair, lane)
+
+    def _step_fail_closed(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> bool:
+        """Alg. 1 failing closed: an unplaceable MSF pose feeds a lane width, missing lines the odometry check,
+        and an agreement with the lines re-anchors the dead-reckoned pose."""
+        t = ld.timestamp
+        reckoned = self.reckoned
+        lane = self._lane_of(t, reckoned, smap)
+        d_msf = self.msf_deviation(t, pose, smap, lane)
+        if d_msf is None:
+            return self._update(self._unplaced_residual(reckoned, lane, smap), 0.0, lane)
+        self.d_msf = d_msf
+        if lane is None:
+            lane = smap.project(pose).lane
+        if self._inside(t, reckoned if reckoned is not None else pose, smap):
+            self.in_intersection = True
+            return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "gated-zone",
+                                        "no lane lines in the zone")
+        if self.in_intersection:
+            self.in_intersection = False
+            self.ld_dev.reset()
+        width = self._lane_width(t, pose, smap, lane)
+        d_ld = None if width is None else self.ld_dev.update(ld, width)
+        if d_ld is None or self.ld_dev.reused:
+            return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "no-lane-lines",
+                                        "no valid lane line")
+        self.faults.clear()
+        self.d_ld = self.fresh_d_ld = d_ld
+        if abs(d_msf - d_ld) <= self.detector.cusum.b:
+            self._agreed_lane = lane
+            self._anchor(ld, pose, smap, lane, d_ld)
+        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
+            return True
+        return self._update(d_msf, d_ld, lane)
+
+    def _check_heading(self, residual: float, lane: int | None) -> bool:
+        """Feed the heading CUSUM the wrapped heading residual (rad); on its alarm fix `ego_lane` as `_update`."""
+        if not self.heading.update(math.remainder(residual, math.tau)):
             return False
         self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
         return True
+
+    def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
+        """Re-anchor the dead-reckoned pose where MSF and lines agree: the MSF pose's station, D_LD across the
+        lane, the yaw pulled towards the lane heading plus the lines' relative heading (the MSF yaw only for a
+        first anchor without one)."""
+        point, heading = smap.lane_point(pose, lane)
+        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        yaw = pose.yaw if psi is None else heading + psi
+        self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
+
+    def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
+        """Feed the CUSUM D_MSF − D_ref; on the alarm fix `ego_lane` (the last agreed lane, else `lane`)."""
+        if not self.detector.update(d_msf, d_ref):
+            return False
+        self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
+        return True
+
+    def _lane_of(self, t: float, reckoned: Pose | None, smap: SemanticMap) -> int | None:
+        """The lane of the dead-reckoned pose (None without one: the MSF pose's nearest lane is used)."""
+        if reckoned is None:
+            return None
+        try:
+            return smap.project(reckoned).lane
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", t, f"dead-reckoned pose: {err}; lane left to the MSF pose")
+            return None
+
+    def _inside(self, t: float, pose: Pose, smap: SemanticMap) -> bool:
+        """Whether `pose` is in an intersection; a pose the map cannot place is a fault and counts as outside."""
+        try:
+            return smap.is_intersection(pose)
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", t, f"is_intersection: {err}; taken as outside")
+            return False
+
+    def _lane_width(self, t: float, pose: Pose, smap: SemanticMap, lane: int | None) -> float | None:
+        """The map's width of `lane` at `pose`, or None (a fault) when it has no usable one."""
+        try:
+            width = float(smap.lane_width(pose, lane))
+        except OffMapError as err:
+            self.faults.report("off-map", t, f"lane_width: {err}; update skipped")
+            return None
+        if not (math.isfinite(width) and width > 0.0):
+            self.faults.report("bad-map", t, f"lane width={width}; update skipped")
+            return None
+        self._width = width
+        return width
+
+    def _unplaced_residual(self, reckoned: Pose | None, lane: int | None, smap: SemanticMap) -> float:
+        """The residual of an MSF pose the map cannot place: the lane width at the dead-reckoned pose, else
+        the last width the map gave, else `UNPLACED_RESIDUAL_M`."""
+        if reckoned is not None:
+            try:
+                width = float(smap.lane_width(reckoned, lane))
+            except OffMapError:
+                width = math.nan
+            if math.isfinite(width) and width > 0.0:
+                return width
+        return self._width if self._width is not None else UNPLACED_RESIDUAL_M
+
+    def _odometry_check(self, t: float, d_msf: float, msf_yaw: float, reckoned: Pose | None, lane: int,
+                        smap: SemanticMap, kind: str, why: str) -> bool:
+        """Lines absent: feed D_MSF − D_odometry, or skip the update (a fault either way)."""
+        if reckoned is None:
+            self.faults.report(kind, t, f"{why}; no dead-reckoned pose yet: update skipped")
+            return False
+        try:
+            d_odo = float(smap.lane_dev(reckoned, lane))
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", t, f"{why}; dead-reckoned pose: {err}; update skipped")
+            return False
+        self.faults.report(kind, t, f"{why}; D_MSF={d_msf:.3f} checked against odometry D={d_odo:.3f}")
+        if self._check_heading(msf_yaw - reckoned.yaw, lane):
+            return True
+        return self._update(d_msf, d_odo, lane)
+
+    def msf_deviation(self, t: float, pose: Pose, smap: SemanticMap, lane: int | None) -> float | None:
+        """D_MSF against `lane` (nearest lane when None), or None (a fault) when the map cannot place the pose."""
+        if not pose.is_finite():
+            self.faults.report("nan-pose", t, f"MSF pose {pose} is not finite")
+            return None
+        try:
+            d_msf = float(smap.lane_dev(pose, lane))
+        except OffMapError as err:
+            self.faults.report("off-map", t, f"MSF pose: {err}")
+            return None
+        if not math.isfinite(d_msf):
+            self.faults.report("bad-map", t, f"D_MSF={d_msf}")
+            return None
+        return d_msf
+
+    def lines_deviation(self, ld: LaneDetection, width: float) -> float | None:
+        """Alg. 3 on a detection in attack response: D_LD from a line seen in it, else None (a fault)."""
+        d_ld = self.ld_dev.update(ld, width)
+        if d_ld is None or self.ld_dev.reused:
+            self.faults.report("no-lane-lines", ld.timestamp, "no valid lane line; no D_LD this detection")
+            return None
+        self.faults.clear()
+        self.d_ld = d_ld
+        return d_ld
 
     def ego_pair(self, t: float, pose: Pose, smap: SemanticMap) -> tuple[float, float] | None:
         """The alarm's (D_MSF, D_LD) with D_MSF measured against `ego_lane` (Alg. 1 measured it against the

@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from testbed.defense.faults import FaultRecord
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
@@ -63,6 +64,9 @@ class Defense(ABC):
     def on_command(self, t: float, steer: float, accel: float, speed: float) -> None:  # noqa: B027
         """The command just sent (100 Hz): road-wheel steer (rad), accel (m/s²), measured speed (m/s)."""
 
+    def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:  # noqa: B027 - optional hook
+        """Chassis odometry at the start of every control tick (100 Hz): speed (m/s), yaw rate (rad/s, + left)."""
+
     @abstractmethod
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
         """The pose the controller tracks with: MSF normally, the defense's own estimate in AR."""
@@ -74,6 +78,10 @@ class Defense(ABC):
     def alarm_threshold(self) -> float | None:
         """The threshold its `status().cusum` statistic alarms above (None: no such statistic)."""
         return None
+
+    def fault_records(self) -> list[FaultRecord]:
+        """The bad or degraded inputs it handled so far, one record per kind (none for a defense without)."""
+        return []
 
 
 class LatchingDefense(Defense):

@@ -11,7 +11,8 @@ LD3's open choices in the attack response: `heading` of the fused pose (Alg. 2 d
 `window`, `r_power` and `p_source` (where Alg. 4's P^MSF and P^LD come from). `PAPER_MODE` is the paper's
 system as written (MSF heading, constant P, a 1-s window); the defaults are what the ablation campaign
 measured to hold best on held-out roads (docs/decisions.md): the fused heading clamped to 0.02 rad and a
-5-detection window.
+5-detection window. The default also fails closed (`fail_closed`, DESIGN.md): what the paper skips or resets
+(off-map MSF poses, intersections, the response's MSF motion) is checked against odometry instead.
 
 NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
 stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,
@@ -66,6 +67,14 @@ class DefenseConfig(Params):
                                                      "lower bound")
     existence_threshold: float = Field(0.5, ge=0.0, le=1.0, description="a detected lane line with existence "
                                        "probability below this is not valid")
+    fail_closed: bool = Field(True, description="LD3 fails closed: an MSF pose the map cannot place feeds the "
+                              "CUSUM a lane width; where lines are absent (intersections, no valid line) the MSF "
+                              "is checked against a pose dead-reckoned from odometry and S is kept; in the "
+                              "response the fused pose moves by odometry, never by the MSF. False: the paper "
+                              "mode's skipped updates, S reset after intersections, fused pose carried by MSF")
+    heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
+                             "against the lines' (against odometry where lines are absent), rad")
+    heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
     savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
     savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
     savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
@@ -73,11 +82,29 @@ class DefenseConfig(Params):
     savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
 
     @model_validator(mode="after")
+    def _heading_check_needs_fail_closed(self) -> DefenseConfig:
+        given = sorted({"heading_b", "heading_tau"} & self.model_fields_set)
+        if given and not self.fail_closed:
+            raise ValueError(f"{', '.join(given)} set the fail-closed heading check, which fail_closed = false "
+                             f"(the paper mode) does not run: drop them or set fail_closed = true")
+        return self
+
+    @model_validator(mode="after")
     def _clamp_needs_a_clamped_heading(self) -> DefenseConfig:
         if "heading_clamp" in self.model_fields_set and self.heading not in ("ld", "fused"):
             raise ValueError(f"heading_clamp acts only with heading = 'ld' or 'fused', not {self.heading!r}: "
                              f"drop it or set the heading")
         return self
+
+    def explicit(self, reads: frozenset[str]) -> dict[str, Any]:
+        """Every parameter a defense that `reads` these keys acts on, defaults written out (so that a scenario
+        keeps its meaning when a default changes), less the ones the validators above refuse as inert."""
+        inert = set()
+        if self.heading not in ("ld", "fused"):
+            inert.add("heading_clamp")
+        if not self.fail_closed:
+            inert |= {"heading_b", "heading_tau"}
+        return {k: v for k, v in self.model_dump().items() if k in reads and k not in inert}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> DefenseConfig:
@@ -88,6 +115,8 @@ class DefenseConfig(Params):
 PAPER_CUSUM: dict[str, float] = {"b": 0.6, "tau": 0.1}
 """LD3's CUSUM weight and threshold as the paper sets them (§5.2)."""
 
-PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0}
+PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0,
+                              "fail_closed": False}
 """The `[defense]` overrides that give LD3 as the paper specifies it: its CUSUM (b, τ), Alg. 2 with the MSF yaw,
-Alg. 4 with constant P and f to the first power, over a 1-s window."""
+Alg. 4 with constant P and f to the first power, over a 1-s window, and Alg. 1's skipped updates and
+intersection resets."""

@@ -8,7 +8,9 @@
   which over 50 ms is the gyro's doing, not the attacker's.
 - "fused": the safety-driven mean of the two relative headings, ψ = (ψ_MSF / R_MSF + ψ_LD / R_LD) /
   (1 / R_MSF + 1 / R_LD) with Alg. 4's uncertainties of the last fusion step, so the heading follows the
-  source the deviation fusion trusts.
+  source the deviation fusion trusts (the lines alone when R_MSF is infinite).
+
+In fail-closed mode the LD3 response passes the dead-reckoned yaw where "MSF yaw" is written here.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ class FusedHeading:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
         if self.source == "fused" and uncertainties is not None:
             r_msf, r_ld = uncertainties
-            self._ld_weight = r_msf / (r_msf + r_ld)
+            self._ld_weight = 1.0 if math.isinf(r_msf) else r_msf / (r_msf + r_ld)
 
     def yaw(self, msf_yaw: float, lane_heading: float) -> float:
         """The fused pose's yaw at the current MSF yaw and lane heading."""

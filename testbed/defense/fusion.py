@@ -1,8 +1,10 @@
 """Safety-driven fusion of the MSF and LD lateral deviations (paper Alg. 2 with Alg. 4).
 
 Per lane detection: (R_MSF, R_LD) from the deviation histories, then kf.update(D_MSF, R_MSF), predict,
-kf.update(D_LD, R_LD), predict. The fused deviation d is placed on the lane centreline point along the
-lane normal (`pose_on_lane`) to give the pose the controller uses during attack response.
+kf.update(D_LD, R_LD), predict. Without a D_MSF (fail-closed mode, an MSF pose the map cannot place) the
+MSF update is left out: predict, kf.update(D_LD, P^LD), predict, with R_MSF = ∞ and its gain 0.
+The fused deviation d is placed on the lane centreline point along the lane normal (`pose_on_lane`) to
+give the pose the controller uses during attack response.
 """
 
 from __future__ import annotations
@@ -44,6 +46,14 @@ class SafetyDrivenFusion:
         k_ld = self.kf.update(d_ld, r_ld)
         d = self.kf.predict()
         self.last = FusionStep(d, r_msf, r_ld, k_msf, k_ld)
+        return self.last
+
+    def update_ld(self, d_ld: float, p_ld: float) -> FusionStep:
+        """One step on D_LD alone, measured with LD's own uncertainty P^LD (m²); the histories are unchanged."""
+        self.kf.predict()
+        k_ld = self.kf.update(d_ld, p_ld)
+        d = self.kf.predict()
+        self.last = FusionStep(d, math.inf, p_ld, 0.0, k_ld)
         return self.last
 
 

@@ -8,7 +8,15 @@ constants or, with `p_source = "reported"`, the MSF's lateral variance across th
 detector's c0 variance of the line Alg. 3 used. The ego lane is the car's lane as the monitor last saw MSF
 and lines agree (`LaneConsistencyMonitor.ego_lane`); it stays locked so that a drifting MSF cannot move the
 response into a neighbouring lane.
-When the map cannot answer for the MSF pose, the last fused pose is carried along by the MSF's motion.
+
+Paper mode (`fail_closed = False`): the fused deviation is placed at the MSF pose's station; when the map
+cannot answer for the MSF pose, the last fused pose is carried along by the MSF's motion.
+Fail-closed mode (the default): the fused pose is the monitor's dead-reckoned pose, carried by odometry
+between detections and, on each detection with a valid line, placed across the ego lane at the fused
+deviation (lane point at its own station, its own yaw); the heading option reads that yaw where the paper
+reads the MSF's. An MSF pose the map cannot place leaves Alg. 2 to D_LD alone; a detection without a valid
+line leaves the pose to odometry. The MSF pose is handed to control in response only when there is no
+pose to carry (never anchored, the MSF unplaceable at the alarm), as a fault.
 """
 
 from __future__ import annotations
@@ -19,7 +27,7 @@ from testbed.defense.alarmed import Ld3AlarmedDefense
 from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
 from testbed.defense.fused_heading import FusedHeading
-from testbed.defense.fusion import SafetyDrivenFusion, pose_on_lane
+from testbed.defense.fusion import FusionStep, SafetyDrivenFusion, pose_on_lane
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -44,6 +52,11 @@ class Ld3Defense(Ld3AlarmedDefense):
         return self.config.ar_decel
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
+        if self.config.fail_closed:
+            alarm = self.detection_time is None
+            if not alarm or self._detect(ld, msf, smap):
+                self._respond_fail_closed(ld, msf, smap, alarm)
+            return
         if self.detection_time is None:
             if self._detect(ld, msf, smap):
                 self._respond(ld, msf, smap, self.monitor.ego_pair(ld.timestamp, msf.pose, smap))
@@ -63,19 +76,77 @@ class Ld3Defense(Ld3AlarmedDefense):
         step = self.fusion.last
         self.heading.on_detection(ld, msf.pose.yaw, lane_heading, (step.r_msf, step.r_ld) if step else None)
 
+    def _respond_fail_closed(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap,
+                             alarm: bool) -> None:
+        """One fail-closed AR frame: Alg. 2 on this detection's D_LD (with D_MSF when the map places the MSF
+        pose), the fused pose placed across the ego lane at the fused deviation, then the heading reading.
+        On the alarm's detection D_LD is the one Alg. 1 just formed, and the status keeps Alg. 1's D_MSF."""
+        mon, t, lane = self.monitor, ld.timestamp, self.monitor.ego_lane
+        d_msf = mon.msf_deviation(t, msf.pose, smap, lane)
+        if d_msf is not None and not alarm:
+            mon.d_msf = d_msf
+        pose = mon.reckoned
+        if pose is None:
+            pose = self._unreckoned_pose(t, msf, smap)
+        if pose is None:
+            return
+        try:
+            point, heading = smap.lane_point(pose, lane)
+            width = float(smap.lane_width(pose, lane))
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", t, f"fused pose: {err}; carried by odometry alone")
+            return
+        d_ld = mon.fresh_d_ld if alarm else mon.lines_deviation(ld, width)
+        if d_ld is not None:
+            step = self._fuse(ld, msf, d_msf, d_ld, heading)
+            mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
+        step = self.fusion.last
+        self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
+
+    def _fuse(self, ld: LaneDetection, msf: LocalizationEstimate, d_msf: float | None, d_ld: float,
+              lane_heading: float) -> FusionStep:
+        """Alg. 2 with both deviations, or on D_LD alone when the map could not place the MSF pose."""
+        if d_msf is None:
+            self.faults.report("msf-left-out", ld.timestamp, f"Alg. 2 on D_LD={d_ld:.3f} alone")
+            return self.fusion.update_ld(d_ld, self._ld_uncertainty(ld))
+        p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
+        return self.fusion.update(d_msf, d_ld, p_msf, p_ld)
+
+    def _unreckoned_pose(self, t: float, msf: LocalizationEstimate, smap: SemanticMap) -> Pose | None:
+        """Without a dead-reckoned pose (never anchored, or no odometry): start one at the MSF pose's station
+        on the ego lane with its yaw; None (a fault) when the map cannot place the MSF pose either."""
+        try:
+            point, heading = smap.lane_point(msf.pose, self.monitor.ego_lane)
+        except OffMapError as err:
+            self.faults.report("no-fused-pose", t, f"no dead-reckoned pose and MSF pose: {err}")
+            return None
+        self.faults.report("no-fused-pose", t, "no dead-reckoned pose: started at the MSF pose's station")
+        step = self.fusion.last
+        self.monitor.odometry.anchor(pose_on_lane(point, heading, step.d if step else 0.0, msf.pose.yaw))
+        return self.monitor.odometry.pose
+
     def _source_uncertainties(self, ld: LaneDetection, msf: LocalizationEstimate,
                               lane_heading: float) -> tuple[float, float]:
         """(P^MSF, P^LD): the constants, or what the MSF and the detector report (the last P^LD is kept
         while Alg. 3 reuses an old D)."""
+        p_ld = self._ld_uncertainty(ld)
         if self.config.p_source == "constant":
-            return self.config.p_msf, self.config.p_ld
+            return self.config.p_msf, p_ld
+        return msf.lateral_variance(lane_heading), p_ld
+
+    def _ld_uncertainty(self, ld: LaneDetection) -> float:
+        """P^LD: the constant, or the detector's c0 variance of the line Alg. 3 used (kept while D is reused)."""
+        if self.config.p_source == "constant":
+            return self.config.p_ld
         side = self.monitor.ld_dev.side
         var = ld.left_var if side == "left" else ld.right_var if side == "right" else None
         if var is not None and not self.monitor.ld_dev.reused:
             self._p_ld = var
-        return msf.lateral_variance(lane_heading), self._p_ld
+        return self._p_ld
 
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
+        if self.config.fail_closed:
+            return self._fail_closed_pose(msf, smap)
         step = self.fusion.last
         if self.detection_time is None or step is None:
             return msf.pose
@@ -95,6 +166,21 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._fused_pose = fused
         self._fused_offset = (fused.x - pose.x, fused.y - pose.y)
         return fused
+
+    def _fail_closed_pose(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
+        """The dead-reckoned fused pose in response, with the heading option's yaw (the MSF pose while normal)."""
+        if self.detection_time is None:
+            return msf.pose
+        pose = self.monitor.odometry.pose
+        if pose is None:
+            self.faults.report("no-fused-pose", msf.t, "no fused pose to carry; steering on the MSF pose")
+            return msf.pose
+        try:
+            _, heading = smap.lane_point(pose, self.monitor.ego_lane)
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", msf.t, f"fused pose: {err}; its own yaw kept")
+            return pose
+        return Pose(pose.x, pose.y, self.heading.yaw(pose.yaw, heading))
 
     def status(self) -> DefenseStatus:
         step = self.fusion.last

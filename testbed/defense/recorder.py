@@ -3,16 +3,17 @@
 `DetectionRecorder` is a defense that never alarms and never responds, so the vehicle drives exactly as
 with no defense. It logs:
 
-- LD3: every (D_MSF, D_LD) pair that Alg. 1's CUSUM would be fed, produced by the same front end as the
-  real defense (`LaneConsistencyMonitor`: Alg. 3, intersection gating, skipped updates), with a new
-  segment after every intersection (where the real detector resets S);
+- LD3: every (D_MSF, D_LD) pair that Alg. 1's CUSUM would be fed, produced by the paper mode's front end
+  (`LaneConsistencyMonitor` with fail_closed = False: Alg. 3, intersection gating, skipped updates), with a
+  new segment after every intersection (where that detector resets S);
 - SAVIOR: its raw inputs in arrival order: the first finite MSF estimate handed to it with a lane
   detection (SAVIOR's EKF starts there), every GNSS fix with its covariance, every command with the
   measured speed. `replay_savior` (testbed.defense.roc) re-runs SAVIOR's EKF on them with any bicycle
   coefficients.
 
 Neither detector changes anything before its first alarm, so the first alarm of CUSUM(b, τ) on the
-logged series is exactly the one the closed-loop defense with (b, τ) would have raised.
+logged series is exactly the one the closed-loop paper-mode defense with (b, τ) would have raised; the
+fail-closed default also feeds S through intersections, line gaps and off-map poses and never resets it.
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ class DetectionRecorder(NoDefense):
     def __init__(self, existence_threshold: float = 0.5) -> None:
         self.log = DetectionLog()
         self._clock = [math.nan]
-        self.monitor = LaneConsistencyMonitor(0.0, math.inf, existence_threshold, FaultLog(logger))
+        self.monitor = LaneConsistencyMonitor(0.0, math.inf, existence_threshold, FaultLog(logger),
+                                              fail_closed=False)
         self.monitor.detector = _LoggingDetector(self.log, self._clock)
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:

@@ -23,7 +23,7 @@ from testbed.defense.attack_detection import Cusum
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel, fit_bicycle_coefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.faults import FaultLog
+from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
@@ -122,6 +122,9 @@ class SaviorDefense(LatchingDefense):
             detection_time=self.detection_time,
             cusum=self.cusum.statistic,
         )
+
+    def fault_records(self) -> list[FaultRecord]:
+        return self.faults.records()
 
     def start_from(self, msf: LocalizationEstimate) -> None:
         """Initialise the EKF at a finite MSF estimate, with the last measured speed."""

@@ -41,8 +41,11 @@ class CampaignCost:
 
 
 def campaign_cost(runs: Sequence[CampaignRun]) -> CampaignCost:
-    costs = [r.scenario.duration * wall_per_sim_s(r) for r in runs]
-    return CampaignCost(len(runs), sum(r.scenario.duration for r in runs), sum(costs), max(costs, default=0.0))
+    """The cost of `runs`; a search cell (a `trials` tag) costs its trials, each no longer than one run."""
+    single = [r.scenario.duration * wall_per_sim_s(r) for r in runs]
+    trials = [r.tags.get("trials", 1) for r in runs]
+    return CampaignCost(len(runs), sum(r.scenario.duration * n for r, n in zip(runs, trials, strict=True)),
+                        sum(c * n for c, n in zip(single, trials, strict=True)), max(single, default=0.0))
 
 
 def human_duration(seconds: float) -> str:

@@ -19,13 +19,14 @@ import numpy as np
 
 from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
+from testbed.eval.adaptive import adaptive_runs, adaptive_table, run_cells, with_budget
 from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_table
 from testbed.eval.drp_response import drp_runs, drp_table
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
-from testbed.eval.scenario import apply_settings, load_scenario
+from testbed.eval.scenario import add_attacks, apply_settings, load_scenario
 from testbed.eval.sim_table import sim_table, sim_table_runs
 from testbed.eval.stealthy_bound import stealthy_runs, stealthy_table
 from testbed.registry import Capability, Registry
@@ -42,6 +43,9 @@ class CampaignSpec:
     table: Callable[[list[tuple[CampaignRun, dict[str, Any]]], Path], str]
     execute: RunExecutor = run_and_write
     needs: frozenset[Capability] = frozenset()
+    searches: Callable[..., list[tuple[CampaignRun, dict[str, Any]]]] | None = None
+    """For a campaign of attack searches: runs each of its runs as a search cell (`testbed.eval.adaptive`) in
+    place of `run_campaign`; its runs' `trials` tag is the budget of each search."""
 
 
 def _fmt(v: Any) -> str:
@@ -362,39 +366,63 @@ for _spec in (
                  stealthy_runs, stealthy_table),
     CampaignSpec("drp-ar", "DRP during the attack response, LD3: the DRP deviation trace on local, highway, "
                  "urban-straight and a painted road patch on urban-straight", drp_runs, drp_table),
+    CampaignSpec("adaptive", "security margins: a worst-case attack search per road (local, highway, urban-curvy) "
+                 "× defense (none, NaiveAR, SAVIOR, LD3 paper mode, LD3 default) × threat model (gnss, msf-output, "
+                 "ld-output, both)", adaptive_runs, adaptive_table, searches=run_cells),
 ):
     CAMPAIGNS.add(_spec)
 
 
 def selected_runs(name: str, detector: str = "neural", select: str | None = None,
-                  settings: Sequence[str] = ()) -> list[CampaignRun]:
+                  settings: Sequence[str] = (), attacks: Sequence[str] = (),
+                  budget: int | None = None) -> list[CampaignRun]:
     """The runs of campaign `name` whose id matches one of the comma-separated globs `select` (all when None),
-    with the `--set KEY=VALUE` `settings` applied to every run's scenario."""
-    runs = CAMPAIGNS.get(name).build(detector)
+    with the `--attack` specs `attacks` composed after each run's own attacks and the `--set KEY=VALUE`
+    `settings` applied to every run's scenario; `budget` is the trials of each search of a search campaign."""
+    spec = CAMPAIGNS.get(name)
+    runs = spec.build(detector)
+    if budget is not None:
+        if spec.searches is None:
+            raise UserError(f"--budget sets the trials of a search campaign; {name!r} runs fixed scenarios: drop it")
+        runs = with_budget(runs, budget)
     if select is not None:
         globs = [g.strip() for g in select.split(",") if g.strip()]
         runs = [r for r in runs if any(fnmatch.fnmatchcase(r.run_id, g) for g in globs)]
         if not runs:
             raise UserError(f"--runs {select!r} matches no run of campaign {name!r}")
+    if attacks:
+        runs = [dataclasses.replace(r, scenario=add_attacks(r.scenario, list(attacks))) for r in runs]
     if settings:
         runs = [dataclasses.replace(r, scenario=apply_settings(r.scenario, list(settings))) for r in runs]
     return runs
 
 
+def _where(spec: CampaignSpec) -> str:
+    if spec.searches is not None:
+        return "Each cell's search (trials.csv, report.md, best.toml) in its sub-folder."
+    return "Per-run outputs in the sub-folders; all summaries in runs.csv."
+
+
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
-              backend: str = "local", address: str | None = None) -> Path:
+              backend: str = "local", address: str | None = None, attacks: Sequence[str] = (),
+              budget: int | None = None) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
     run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
     `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
     `address` as `run_campaign`'s."""
     spec = CAMPAIGNS.get(name)
-    runs = selected_runs(name, detector, select, settings)
-    done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
-                        backend=backend, address=address)
+    runs = selected_runs(name, detector, select, settings, attacks, budget)
+    if spec.searches is not None:
+        done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
+                             progress=progress)
+    else:
+        done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
+                            backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
-    overrides = f" Every run with `--set {' '.join(settings)}`." if settings else ""
+    overrides = "".join(f" Every run with {flag} `{' '.join(values)}`." for flag, values
+                        in (("--attack", attacks), ("--set", settings)) if values)
     report.write_text(f"# Campaign {name}\n\n{spec.help}; lane detector {used}.{overrides}\n\n"
-                      f"{spec.table(done, out)}\n\nPer-run outputs in the sub-folders; all summaries in runs.csv.\n")
+                      f"{spec.table(done, out)}\n\n{_where(spec)}\n")
     return report

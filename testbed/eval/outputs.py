@@ -20,10 +20,10 @@ from testbed.loop import TickRecord
 TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "ld_fresh", "cusum", "mode",
                       "steer", "accel", "attack_stage", "attack_offset", "fused_dev", "r_msf", "r_ld", "k_msf",
                       "k_ld", "heading_used")
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of summary.json's layout; raised when a key changes meaning or goes away."""
 SUMMARY_KEYS = ("schema_version", "package_version", "git_commit", "resolved_scenario",
-                "scenario", "seed", "track", "vehicle", "attack", "defense", "condition", "sim_time_s",
+                "scenario", "seed", "track", "vehicle", "attack", "threat_model", "defense", "condition", "sim_time_s",
                 "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
                 "final_dev_m", "consequence", "faults", "detected", "detection_time_s", "detection_dev_m",
                 "ar_max_dev_m", "ar_stop_dev_m")
@@ -85,6 +85,11 @@ def _json_safe(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [_json_safe(v) for v in value]
     return value
+
+
+def chassis_faults(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """The summary's `faults` that the chassis latched (they end the run), leaving out those the defense handled."""
+    return [f for f in summary["faults"] if f["source"] == "chassis"]
 
 
 def write_summary(path: Path, summary: dict[str, Any]) -> None:

@@ -38,6 +38,7 @@ EXPERIMENTS = (
     Experiment("drp-ar", "drp-trace/*-start10-seed1,drp-patch/*-at62-seed1"),
     Experiment("benign", "highway-seed0,local-seed0,parking-lot-seed0"),
     Experiment("ablation", "paper/*-seed1-start12,heading-fused-clamp0.02-window5/*-seed1-start12"),
+    Experiment("adaptive", "local/ld3-paper/msf-output,local/ld3/msf-output"),
 )
 
 WALL_PER_SIM_S = {"neural": 0.5, "classical": 0.5, "oracle": 0.06, "none": 0.07}
@@ -114,8 +115,8 @@ def is_done(run: CampaignRun, folder: Path) -> bool:
 def estimate_s(campaign: str, runs: list[CampaignRun]) -> float:
     """Upper-bound one-core wall seconds for `runs` of `campaign` (`WALL_PER_SIM_S`, `SETUP_S`)."""
     slowdown = CAN_SLOWDOWN if campaign in CAN_CAMPAIGNS else 1.0
-    return sum(SETUP_S + slowdown * WALL_PER_SIM_S.get(r.scenario.detector, 0.5) * r.scenario.duration
-               for r in runs)
+    return sum((SETUP_S + slowdown * WALL_PER_SIM_S.get(r.scenario.detector, 0.5) * r.scenario.duration)
+               * r.tags.get("trials", 1) for r in runs)
 
 
 def announce_plan(plan: dict[str, list[CampaignRun]], options: PaperOptions) -> str:

@@ -18,6 +18,7 @@ import pandas as pd
 
 from testbed.eval.ablation import ATTACKS as ABLATION_ATTACKS
 from testbed.eval.ablation import IN_LANE, VARIANTS, is_default
+from testbed.eval.adaptive import adaptive_table
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
@@ -356,8 +357,18 @@ def ablation_section(results: dict[str, CampaignResult], values: dict[str, Any],
     return "\n".join(lines)
 
 
+# ---- adaptive attacks ------------------------------------------------------------------------------------
+def adaptive_section(results: dict[str, CampaignResult], values: dict[str, Any], out: Path) -> str:
+    res = results.get("adaptive")
+    if res is None:
+        return "## Security margins against adaptive attackers\n\nNot run in this selection (`ld3 campaign adaptive`)."
+    return "\n".join([_header("Security margins against adaptive attackers (the testbed's own)",
+                              "none (the paper evaluates attackers that do not know the defense)", [res], out),
+                      adaptive_table(res.done, out)])
+
+
 SECTIONS: tuple[Section, ...] = (sim_section, chassis_section, fr_section, grid_section, roc_section,
-                                 stealthy_section, drp_section, benign_section, ablation_section)
+                                 stealthy_section, drp_section, benign_section, ablation_section, adaptive_section)
 
 
 def _sources(done: Done) -> str:

@@ -17,8 +17,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from testbed.attacks.base import Attack
-from testbed.attacks.spec import attack_from_dict
+from testbed.attacks.base import Attack, WhiteBox
+from testbed.attacks.compose import AttackChain, threat_model_of
+from testbed.attacks.spec import build_attack
+from testbed.attacks.threat import threat_label
 from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort
 from testbed.conditions import get_condition
@@ -75,13 +77,14 @@ class SimRun:
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
-                 attack: Attack | None = None, tracking: bool | None = None,
+                 attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
                  sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
         `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
         surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
-        own objects, or a passive detection recorder); the summary records their own names. `tracking` puts a
+        own objects, or a passive detection recorder; a list of attacks is composed in order); the summary
+        records their own names. `tracking` puts a
         `LaneTracker` after the detector (default: the scenario's `detector.tracking`, or for an injected
         detector, whether it reads the camera). `sensor_ports` wraps the sensor ports the run builds
         (sensor-level HIL passes them through real readers)."""
@@ -108,9 +111,9 @@ class SimRun:
         self.world = world
         self.chassis = chassis
         rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
-        self.attack: Attack | None = attack
-        if attack is None and sc.attack:
-            self.attack = attack_from_dict(sc.attack, rng=rng_attack, defense=self.defense_config)
+        self.attack: Attack | None = AttackChain(attack) if isinstance(attack, list) else attack
+        if attack is None:
+            self.attack = build_attack(sc.attack, rng=rng_attack, defense=self.defense_config)
         for painter in self.condition.track_painters(sc.seed):
             self.track.add_painter(painter)
         if self.attack is not None:
@@ -161,6 +164,9 @@ class SimRun:
                          planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None),
             attack=self.attack, rates=rates,
         )
+        if self.attack is not None:
+            self.attack.know(WhiteBox(self.smap, self.lane, self.defense_config, rates.camera_hz, rates.control_hz,
+                                      self._lidar_quality))
         lane_width = self.smap.lane_width(start, self.lane)
         self.lane_width = lane_width
         self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
@@ -279,6 +285,7 @@ class SimRun:
                                                  if self.detector_settings is not None else {}},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
             "attack": self.attack.describe() if self.attack is not None else None,
+            "threat_model": threat_label(threat_model_of(self.attack)),
             "defense": self.defense.name, "defense_params": defense_params,
             "condition": sc.condition, "detector": self.detector_name, "tracking": self.tracker is not None,
             "localization": sc.localization, "target_speed_mps": sc.speed,
@@ -286,7 +293,9 @@ class SimRun:
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
             "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
             "final_dev_m": final_dev, "consequence": consequence,
-            "faults": [{"kind": f.kind, "time": f.t, "detail": f.detail} for f in faults],
+            "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
+            + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
+                "count": f.count} for f in self.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
             "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
             "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,

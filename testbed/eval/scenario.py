@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
-from testbed.attacks.spec import attack_settings
+from testbed.attacks.spec import AttackValue, attack_settings, attack_tables
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
@@ -43,7 +43,8 @@ class Scenario:
     localization: str = "truth"
     defense: str = "none"
     defense_params: dict[str, Any] = field(default_factory=dict)
-    attack: dict[str, Any] | None = None
+    attack: AttackValue = None
+    """One [attack] table, a list of them (composed in order), or None."""
     rates: dict[str, float] = field(default_factory=dict)
     stop_at: float | None = None
     """A planned in-lane stop at this time (s) and `stop_decel`, independent of any defense."""
@@ -85,8 +86,8 @@ def validate(sc: Scenario) -> Scenario:
     try:
         DefenseConfig.from_dict(sc.defense_params)
         DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
-        if sc.attack:
-            attack_settings(sc.attack)
+        for table in attack_tables(sc.attack):
+            attack_settings(table)
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
     return sc
@@ -97,11 +98,10 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
     or attack could not act with them (each component declares its needs in its registry)."""
     provided = DETECTORS.get(sc.detector).provides | LOCALIZATIONS.get(sc.localization).provides
     users = [("defense", DEFENSES.get(sc.defense))]
-    if sc.attack:
-        try:
-            users.append(("attack", ATTACKS.get(str(sc.attack.get("kind")))))
-        except UnknownComponent as exc:
-            raise ScenarioError(str(exc)) from None
+    try:
+        users += [("attack", ATTACKS.get(str(t.get("kind")))) for t in attack_tables(sc.attack)]
+    except UnknownComponent as exc:
+        raise ScenarioError(str(exc)) from None
     for family, component in users:
         missing = missing_needs(component, provided)
         _check(not missing, f"{family} {component.name!r} has no effect with detector = {sc.detector!r} and "
@@ -155,7 +155,7 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
     detector, detector_params = sc.detector, dict(sc.detector_params)
-    attack = dict(sc.attack) if sc.attack else None
+    attacks = [dict(t) for t in attack_tables(sc.attack)]
     for item in settings:
         key, eq, raw = item.partition("=")
         key = key.strip()
@@ -177,17 +177,36 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
             else:
                 detector_params[name] = value
         elif section == "attack":
-            _check(attack is not None, f"--set {item!r}: the scenario has no attack; add one with --attack KIND")
-            attack[name] = value
+            _check(bool(attacks), f"--set {item!r}: the scenario has no attack; add one with --attack KIND")
+            index, dot, member_key = name.partition(".")
+            if len(attacks) > 1 or (dot and index.isdigit()):
+                _check(bool(dot) and index.isdigit() and int(index) < len(attacks),
+                       f"--set {item!r}: the scenario composes {len(attacks)} attacks; name one as "
+                       f"attack.N.KEY with N in 0..{len(attacks) - 1}")
+                attacks[int(index)][member_key] = value
+            else:
+                attacks[0][name] = value
         else:
             raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
                                 f"attack.KEY or KEY")
     try:
         changed = dataclasses.replace(sc, defense=defense, defense_params=params, detector=detector,
-                                      detector_params=detector_params, attack=attack, **top)
+                                      detector_params=detector_params,
+                                      attack=None if not attacks else attacks[0] if len(attacks) == 1 else attacks,
+                                      **top)
     except TypeError as exc:
         raise ScenarioError(f"--set: {exc}") from None
     return validate(changed)
+
+
+def add_attacks(sc: Scenario, specs: list[str]) -> Scenario:
+    """`sc` with the `--attack` specs composed after its own attacks (hooks run in that order)."""
+    from testbed.attacks.spec import attack_spec_to_dict
+
+    tables = [dict(t) for t in attack_tables(sc.attack)] + [attack_spec_to_dict(spec) for spec in specs]
+    if not specs:
+        return sc
+    return validate(dataclasses.replace(sc, attack=tables[0] if len(tables) == 1 else tables))
 
 
 def shipped_scenarios() -> list[str]:

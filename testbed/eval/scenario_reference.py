@@ -29,7 +29,7 @@ TOP_LEVEL: dict[str, str] = {
     "detector": "lane detector: a name, or a [detector] table with `kind` and its parameters",
     "localization": "localization source",
     "defense": "defense: a name, or a [defense] table with `kind` (default ld3) and parameters",
-    "attack": "an [attack] table with `kind` and its parameters (or none)",
+    "attack": "an [attack] table with `kind` and its parameters, a list of them (composed in order), or none",
     "rates": "[rates] control_hz (100), camera_hz (20), physics_hz (240), command_hold_s (0), and a "
              "[rates.localization] table of sensor rates and noise",
     "stop_at": "time of a planned in-lane stop (s), independent of any defense",
@@ -112,7 +112,8 @@ def json_schema() -> dict[str, Any]:
     props["defense"]["anyOf"] = [names["defense"], defense_table]
     props["detector"]["anyOf"] = [names["detector"]] + [
         _with_kind(c.name, c.params.model_json_schema(), defs) for c in DETECTORS]
-    props["attack"]["anyOf"] = [_with_kind(c.name, c.params.model_json_schema(), defs) for c in ATTACKS]
+    tables = [_with_kind(c.name, c.params.model_json_schema(), defs) for c in ATTACKS]
+    props["attack"]["anyOf"] = [*tables, {"type": "array", "minItems": 1, "items": {"anyOf": tables}}]
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "LD3 testbed scenario",
             "type": "object", "properties": props, "required": ["track"], "additionalProperties": False,
             "$defs": defs}

@@ -15,6 +15,8 @@ from tests.defense.fake_map import FakeStraightMap
 from tracks.pose import Pose
 
 HALF = 1.75  # half of the 3.5 m lane
+PAPER_FRONT_END = {**PAPER_CUSUM, "fail_closed": False}
+"""The paper's CUSUM with the paper mode's skipped updates, intersection resets and MSF-carried fused pose."""
 
 
 def lane_det(t, phys_dev, prob=0.9):
@@ -52,7 +54,7 @@ def test_detection_index_on_a_drifting_msf():
 
 def test_intersection_disables_detection_and_resets_cusum():
     smap = FakeStraightMap(intersections=((100.0, 120.0),))
-    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
+    d = Ld3Defense(DefenseConfig(**PAPER_FRONT_END))
     off = 0.7  # constant |D_MSF - D_LD| = 0.7: S grows by 0.1 per detection outside intersections
     d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 90.0, off), smap)  # S = 0.1
     d.on_lane_detection(lane_det(0.1, 0.0), msf_at(0.1, 110.0, off), smap)  # inside: skipped
@@ -64,7 +66,7 @@ def test_intersection_disables_detection_and_resets_cusum():
 
 
 def alarmed_ld3(smap):
-    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
+    d = Ld3Defense(DefenseConfig(**PAPER_FRONT_END))
     d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 0.0, 1.0), smap)  # S = 1.0 - 0.6 = 0.4 -> alarm
     assert d.mode == "ar"
     return d
@@ -98,7 +100,7 @@ def test_ar_pose_when_msf_leaves_the_map_follows_msf_motion():
 
 def test_bad_inputs_never_raise_and_are_logged(caplog):
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM))
+    d = Ld3Defense(DefenseConfig(**PAPER_FRONT_END))
     with caplog.at_level(logging.DEBUG, logger="testbed.defense"):
         d.on_lane_detection(lane_det(0.0, 0.0), msf_at(0.0, 0.0, math.nan), smap)  # NaN pose
         d.on_lane_detection(lane_det(0.05, 0.0), msf_at(0.05, 0.0, 20.0), smap)  # off the map

@@ -8,6 +8,7 @@ from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
 from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, GRID_TRACK_SEEDS, fr_grid_runs, fusionripper_ld3_runs
+from testbed.eval.outputs import SCHEMA_VERSION
 from testbed.eval.roc import record_detection_run, roc_runs
 from testbed.eval.scenario import load_scenario
 
@@ -127,7 +128,7 @@ def test_a_sweep_over_defense_b_is_recorded_in_runs_csv(tmp_path):
         rows = {r["run_id"]: r for r in csv.DictReader(fh)}
     assert (rows["b0.45"]["defense_params.b"], rows["b0.6"]["defense_params.b"]) == ("0.45", "0.6")
     assert rows["b0.45"]["resolved_scenario.defense_params.window"] == "5"
-    assert rows["b0.45"]["schema_version"] == "2" and json.loads(rows["b0.6"]["faults"]) == []
+    assert rows["b0.45"]["schema_version"] == str(SCHEMA_VERSION) and json.loads(rows["b0.6"]["faults"]) == []
 
 
 def test_roc_report_with_only_a_fit_drive_says_there_is_nothing_to_sweep(tmp_path):

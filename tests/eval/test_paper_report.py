@@ -140,8 +140,14 @@ def test_report_puts_the_papers_values_beside_ours(tmp_path):
                "fusionripper-grid": result("fusionripper-grid", tmp_path, []),
                "roc": result("roc", tmp_path, []), "stealthy": result("stealthy", tmp_path, stealthy),
                "drp-ar": result("drp-ar", tmp_path, drp), "benign": result("benign", tmp_path, []),
-               "ablation": result("ablation", tmp_path, [])}
+               "ablation": result("ablation", tmp_path, []),
+               "adaptive": result("adaptive", tmp_path, [(CampaignRun(
+                   "local/ld3/msf-output", sc, {"road": "local", "victim": "LD3 default", "threat": "msf-output",
+                                                "trials": 4}),
+                   {"worst_undetected_m": 0.31, "worst_overall_m": 0.52, "undetected_departures": 0,
+                    "replay": f"ld3 run {tmp_path}/adaptive/local/ld3/msf-output/search/best.toml"})])}
     report = write_paper_report(PaperOptions(tmp_path, quick=True), results).read_text()
+    assert "| LD3 default | 0.31 / 0.52 ([replay](adaptive/local/ld3/msf-output/search/best.toml)) |" in report
     values = load_paper_values()
     for section in values.values():
         assert section["label"] in report

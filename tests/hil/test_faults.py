@@ -43,7 +43,7 @@ def test_each_fault_brakes_to_standstill_in_lane_and_ends_the_run_as_chassis_fau
     assert summary["consequence"] == "chassis_fault"
     assert result.detected == EXPECTED[drill]
     first = summary["faults"][0]
-    assert set(first) == {"kind", "time", "detail"} and first["detail"]
+    assert set(first) == {"kind", "source", "time", "detail"} and first["source"] == "chassis" and first["detail"]
     assert 0.0 <= result.detection_latency_s <= LATENCY_BOUND.get(drill, 2 * CYCLE)
     track = read_trajectory(tmp_path, ["t", "speed"])
     speed_at_fault = float(np.interp(result.detected_s, track["t"], track["speed"]))

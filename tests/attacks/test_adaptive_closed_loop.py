@@ -1,0 +1,39 @@
+"""Each adaptive family on a short closed-loop run: it acts (its stage leaves idle), moves what its threat model
+lets it move, and the run records the threat model."""
+
+import dataclasses
+
+import pytest
+
+from testbed.eval.runner import run_scenario
+from testbed.eval.scenario import load_scenario, validate
+
+CASES = {
+    "zone": ({"kind": "zone", "zone": "intersection", "lateral": -1.5, "ramp": 0.2, "hold": 2.0}, "msf-output"),
+    "offmap": ({"kind": "offmap", "start": 3.0, "distance": 25.0}, "msf-output"),
+    "burst": ({"kind": "burst", "start": 3.0, "spend": 0.9, "spread": 1.0, "sustain": 0.9}, "msf-output"),
+    "coordinated": ({"kind": "coordinated", "start": 3.0, "rate": 1.0, "limit": 2.0}, "msf-output,ld-output"),
+    "gnss-drift": ({"kind": "gnss-drift", "start": 3.0, "rate": 1.0, "limit": 3.0}, "gnss"),
+    "heading": ({"kind": "heading", "start": 3.0, "bias": -0.1, "ramp": 1.0}, "msf-output"),
+}
+
+
+@pytest.mark.parametrize("family", sorted(CASES))
+def test_each_family_acts_in_a_short_closed_loop_run(family):
+    attack, threat = CASES[family]
+    # 40 m before local's first intersection (s = 350 m), so the zone attack meets it within the run
+    sc = validate(dataclasses.replace(load_scenario("local"), defense="ld3", localization="msf", duration=9.0,
+                                      start_s=310.0, attack=attack))
+    result = run_scenario(sc, None)
+    s = result.summary
+    assert s["threat_model"] == threat and s["attack"]["kind"] == family
+    offsets = [r.attack_offset for r in result.rows if r.attack_offset]
+    assert offsets, f"{family} never offset anything"
+    stages = {r.attack_stage for r in result.rows}
+    assert stages - {"idle"}, stages
+    if family == "coordinated":  # outside LD3's threat model: MSF and lines agree, so nothing is detected
+        assert not s["detected"] and s["consequence"] == "hit_curb"
+    if family == "heading":  # the heading check sees the biased yaw before the car leaves its lane
+        assert s["detected"] and s["consequence"] == "stop_in_lane"
+    if family == "offmap":
+        assert max(abs(r.attack_offset) for r in result.rows) == 25.0

@@ -1,0 +1,317 @@
+"""LD3's fail-closed rules on hand-built drives: odometry dead reckoning, off-map MSF poses as evidence, the
+response pose carried by odometry (never by the MSF), the check through intersections, the ego lane an MSF
+jump of a lane width cannot move, faults in the summary; and the paper mode's behaviour where they differ."""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from testbed.defense.alarmed import Ld3AlarmedDefense
+from testbed.defense.config import DefenseConfig
+from testbed.defense.faults import FaultLog, FaultRecord
+from testbed.defense.ld3 import Ld3Defense
+from testbed.defense.naive_ar import NaiveArDefense
+from testbed.defense.odometry import DeadReckoning, advance
+from testbed.eval.scenario import load_scenario
+from testbed.lane_detection import LaneDetection
+from testbed.localization.estimate import LocalizationEstimate
+from testbed.localization.sensors import ImuModel
+from tests.defense.fake_map import FakeStraightMap
+from tracks.pose import Pose
+
+HALF = 1.75  # half of the 3.5 m lane
+ZONE = (100.0, 130.0)  # an intersection along x
+PAPER = {"fail_closed": False}
+
+
+def lines(t: float, dev: float) -> LaneDetection:
+    """Ideal lines for a car `dev` m left of the lane-0 centre, parallel to the lane."""
+    return LaneDetection(t, np.array([HALF - dev, 0, 0, 0.0]), np.array([-HALF - dev, 0, 0, 0.0]), 0.9, 0.9,
+                         (0.0, 40.0))
+
+
+class Drive:
+    """A car at `speed` along lane 0 (+x) of a straight road, `dev` m left of its centre; odometry every 10 ms,
+    a lane detection every 50 ms (none inside an intersection). `msf(t, x)` is the MSF pose's lateral
+    offset from the car (an attacker's shift), `yaw(t, x)` its yaw (the car's is 0)."""
+
+    def __init__(self, defense: Ld3AlarmedDefense, smap: FakeStraightMap, x0: float = 50.0, speed: float = 10.0,
+                 dev: float = 0.0) -> None:
+        self.defense, self.smap, self.x0, self.speed, self.dev = defense, smap, x0, speed, dev
+        self.ticks = 0
+        self.control: list[Pose] = []
+        self.alarm_x: float | None = None
+        self.alarm_tick: int | None = None
+
+    @property
+    def t(self) -> float:
+        return round(self.ticks * 0.01, 9)
+
+    @property
+    def x(self) -> float:
+        return self.x0 + self.speed * self.t
+
+    def run(self, seconds: float, msf: Callable[[float, float], float] = lambda t, x: 0.0,
+            yaw: Callable[[float, float], float] = lambda t, x: 0.0) -> Drive:
+        for _ in range(round(seconds * 100)):
+            self.defense.on_odometry(self.t, self.speed, 0.0)
+            est = LocalizationEstimate(self.t, Pose(self.x, self.dev + msf(self.t, self.x), yaw(self.t, self.x)),
+                                       np.eye(3) * 0.01)
+            if self.ticks % 5 == 0:
+                inside = any(lo <= self.x <= hi for lo, hi in self.smap.intersections)
+                ld = LaneDetection.empty(self.t) if inside else lines(self.t, self.dev)
+                self.defense.on_lane_detection(ld, est, self.smap)
+                if self.alarm_x is None and self.defense.mode == "ar":
+                    self.alarm_x, self.alarm_tick = self.x, self.ticks
+            self.control.append(self.defense.pose_for_control(est, self.smap))
+            self.ticks += 1
+        return self
+
+
+# --- dead reckoning ---------------------------------------------------------------------------------------
+
+def test_dead_reckoning_on_a_straight_and_on_a_circle():
+    assert advance(Pose(1.0, 2.0, 0.5), 2.0, 3.0, 0.0) == pytest.approx(
+        (1.0 + 6.0 * math.cos(0.5), 2.0 + 6.0 * math.sin(0.5), 0.5))
+    # a quarter circle of radius 10 m turning left: from (0, 0) heading +x to (10, 10) heading +y
+    odo = DeadReckoning()
+    odo.on_odometry(0.0, 5.0, 0.5)
+    odo.anchor(Pose(0.0, 0.0, 0.0))
+    steps = 100
+    for i in range(1, steps + 1):
+        odo.on_odometry(i * (math.pi / 2 / 0.5) / steps, 5.0, 0.5)
+    assert odo.pose == pytest.approx((10.0, 10.0, math.pi / 2))
+
+
+def test_dead_reckoning_integrates_the_mean_of_two_samples_and_refuses_bad_ones():
+    odo = DeadReckoning()
+    assert odo.on_odometry(0.0, 10.0, 0.0) and odo.pose is None  # a clock, no pose before the anchor
+    odo.anchor(Pose(0.0, 0.0, 0.0))
+    assert odo.on_odometry(1.0, 12.0, 0.0) and odo.pose == pytest.approx((11.0, 0.0, 0.0))
+    assert not odo.on_odometry(1.0, 12.0, 0.0) and not odo.on_odometry(1.1, math.nan, 0.0)
+    assert odo.pose == pytest.approx((11.0, 0.0, 0.0)) and odo.samples == 2
+
+
+def test_an_anchor_moves_the_yaw_only_its_share_of_the_way():
+    odo = DeadReckoning()
+    odo.anchor(Pose(1.0, 2.0, 0.1), 0.1)
+    assert odo.pose == (1.0, 2.0, 0.1)  # the first anchor sets it all
+    odo.anchor(Pose(3.0, 4.0, 0.3), 0.1)
+    assert odo.pose == pytest.approx((3.0, 4.0, 0.12))
+
+
+def test_imu_grade_yaw_rate_noise_drifts_far_less_than_b_across_an_intersection():
+    """A 30-m zone at 12 m/s on a yaw rate with the IMU model's noise and a 3-sigma gyro bias."""
+    imu, rng = ImuModel(), np.random.default_rng(0)
+    odo = DeadReckoning()
+    odo.on_odometry(0.0, 12.0, 0.0)
+    odo.anchor(Pose(0.0, 0.0, 0.0))
+    for i in range(1, 251):
+        odo.on_odometry(i * 0.01, 12.0, 3 * imu.gyro_bias_std + imu.gyro_std * rng.normal())
+    assert odo.pose.x == pytest.approx(30.0, abs=0.01)
+    assert abs(odo.pose.y) < 0.5 * DefenseConfig().b
+
+
+# --- off-map MSF poses ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("bad", [30.0, math.nan])
+def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(1.0)
+    assert d.mode == "normal"
+    drive.run(0.1, lambda t, x: bad)
+    assert d.mode == "ar" and d.status().detection_time == pytest.approx(1.0)
+    assert d.status().cusum == pytest.approx(3.5 - d.config.b)  # one lane width, less b
+    kind = "off-map" if math.isfinite(bad) else "nan-pose"
+    assert {r.kind: r.count for r in d.fault_records()}[kind] >= 1
+
+
+def test_an_msf_yaw_bias_before_the_zone_does_not_tilt_the_check():
+    """MSF position on the car, its yaw 0.05 rad off over the last 12 m before the zone, then moved 0.05 m per
+    metre inside it: what a check anchored on the MSF yaw would follow. The dead-reckoned yaw follows the lines'
+    heading (the car is parallel to the lane), so the shift is seen inside the zone (the heading check, which
+    catches the planting itself, switched off)."""
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    drive = Drive(d, smap)
+    drive.run(5.0, yaw=lambda t, x: 0.05 if x >= 88.0 else 0.0)
+    assert d.mode == "normal" and abs(d.monitor.odometry.pose.yaw) < 1e-9
+    drive.run(3.0, lambda t, x: 0.05 * (x - 100.0), lambda t, x: 0.05)
+    assert d.mode == "ar" and ZONE[0] <= drive.alarm_x <= ZONE[1]
+
+
+def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
+    """A 0.05 rad MSF yaw bias, position true: the lateral CUSUM sees nothing, the heading check alarms within
+    (0.3 / (0.05 − 0.03) =) 15 detections of the bias; a bias inside heading_b never alarms."""
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(4.0, yaw=lambda t, x: 0.05 if x >= 60.0 else 0.0)
+    assert d.mode == "ar" and 60.0 <= drive.alarm_x <= 60.0 + 16 * drive.speed / 20.0 and d.status().cusum == 0.0
+    quiet = Ld3Defense(DefenseConfig())
+    Drive(quiet, smap).run(4.0, yaw=lambda t, x: 0.025 if x >= 60.0 else 0.0)
+    assert quiet.mode == "normal"
+    with pytest.raises(ValueError, match="fail_closed = false"):
+        DefenseConfig(**PAPER, heading_b=0.05)
+
+
+def test_naive_ar_shares_the_fail_closed_detection():
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = NaiveArDefense(DefenseConfig())
+    Drive(d, smap).run(5.2).run(1.0, lambda t, x: 2.0)  # shifted inside the zone
+    assert d.mode == "ar" and d.stop_decel == d.config.max_decel
+
+
+def test_paper_mode_skips_off_map_updates():
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(**PAPER))
+    Drive(d, smap).run(1.0).run(5.0, lambda t, x: 30.0)
+    assert d.mode == "normal" and d.status().cusum == 0.0
+    assert d.faults.counts["off-map"] == 100
+
+
+# --- the response pose --------------------------------------------------------------------------------------
+
+def test_the_response_pose_is_carried_by_odometry_not_by_the_msf():
+    """Alarmed by an MSF pose 30 m to the left, the response never follows it: the control pose stays in lane,
+    moves along at the odometry's speed, and Alg. 2 fuses D_LD alone (the car is 0.3 m left)."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap, dev=0.3).run(1.0)
+    start = len(drive.control)
+    drive.run(3.0, lambda t, x: 30.0 + 5.0 * (t - 1.0))  # and it keeps running away sideways
+    assert d.mode == "ar"
+    poses = drive.control[start:]
+    assert all(abs(p.y) < HALF and abs(p.yaw) < 0.05 for p in poses)
+    assert [p.x for p in poses] == pytest.approx([drive.alarm_x + 0.1 * i for i in range(len(poses))], abs=1e-6)
+    step = d.fusion.last
+    assert step.gain_msf == 0.0 and math.isinf(step.r_msf) and step.d == pytest.approx(0.3, abs=0.05)
+    assert poses[-1].y == pytest.approx(step.d, abs=1e-9)
+    assert d.faults.counts["msf-left-out"] > 0
+
+
+def test_an_msf_pose_moved_30_m_during_the_response_leaves_the_control_pose_in_lane():
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap, dev=-0.2).run(1.0).run(0.5, lambda t, x: 1.2)  # 1.2 m off: alarm on the 3rd detection
+    assert d.mode == "ar" and drive.alarm_x is not None
+    start = len(drive.control)
+    drive.run(2.0, lambda t, x: 30.0)
+    assert all(abs(p.y - drive.dev) < 0.3 for p in drive.control[start:])
+    assert drive.control[-1].x == pytest.approx(drive.x - 0.1, abs=1e-6)
+
+
+def test_the_response_pose_station_is_the_odometry_s_not_the_msf_s():
+    """An MSF pose dragged 40 m ahead of the car during the response does not move the control pose ahead."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(1.0).run(0.1, lambda t, x: 30.0)
+    assert d.mode == "ar"
+    x_before = drive.control[-1].x
+    d.on_odometry(drive.t, drive.speed, 0.0)
+    far = LocalizationEstimate(drive.t, Pose(drive.x + 40.0, 0.5, 0.0), np.eye(3) * 0.01)
+    d.on_lane_detection(lines(drive.t, 0.0), far, smap)
+    assert d.pose_for_control(far, smap).x == pytest.approx(x_before + 0.1, abs=1e-6)
+
+
+def test_paper_mode_carries_the_fused_pose_with_the_msf_motion():
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(b=0.6, tau=0.1, **PAPER))
+    drive = Drive(d, smap).run(1.0).run(0.1, lambda t, x: 1.0)  # alarm on an on-map MSF pose 1 m left
+    assert d.mode == "ar"
+    drive.run(1.0, lambda t, x: 30.0)
+    assert abs(drive.control[-1].y) > 25.0
+
+
+# --- intersections and line gaps ------------------------------------------------------------------------------
+
+def test_a_2_m_msf_shift_inside_an_intersection_is_detected_there():
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(5.2)  # x = 102: inside
+    assert d.mode == "normal" and d.monitor.in_intersection
+    drive.run(1.0, lambda t, x: 2.0)
+    assert d.mode == "ar" and ZONE[0] <= drive.alarm_x <= ZONE[0] + 5.0
+    assert d.faults.counts["gated-zone"] > 0
+    assert all(abs(p.y) < 0.1 for p in drive.control[drive.alarm_tick:])  # the response: on the car
+
+
+def before_the_zone(t: float, x: float) -> float:
+    """The MSF 0.25 m off the lines over the last second before the zone (x = 90 .. 100): S = 20 × 0.05 = 1.0."""
+    return 0.25 if x >= 90.0 else 0.0
+
+
+def test_paper_mode_misses_the_same_shift_and_resets_s_after_the_zone():
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig(**PAPER))
+    drive = Drive(d, smap).run(5.0, before_the_zone)
+    assert d.status().cusum == pytest.approx(1.0) and d.mode == "normal"
+    drive.run(3.0, lambda t, x: 2.0)  # x = 100 .. 130, shifted 2 m inside the zone: unchecked
+    assert d.mode == "normal" and d.status().cusum == pytest.approx(1.0)
+    drive.run(0.5)  # out of the zone, the MSF back on the car
+    assert d.mode == "normal" and d.status().cusum == 0.0  # S reset on the way out
+
+
+def test_a_benign_zone_keeps_s():
+    """Inside the zone the MSF stays 0.19 m (< b) off the dead-reckoned pose: S drains by 0.01 a detection and
+    leaves the zone at about 1.0 − 60 × 0.01 = 0.4, where the paper mode would reset it."""
+    smap = FakeStraightMap(intersections=(ZONE,))
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(5.0, before_the_zone)
+    assert d.status().cusum == pytest.approx(1.0) and d.mode == "normal"
+    drive.run(3.0, lambda t, x: 0.19)
+    drive.run(0.1)  # out of the zone: the first detections drain S by b each
+    assert d.mode == "normal" and not d.monitor.in_intersection
+    assert d.status().cusum == pytest.approx(0.4 - 2 * d.config.b, abs=0.02)
+    assert d.faults.counts["gated-zone"] > 50
+
+
+def test_without_lines_the_msf_is_checked_against_odometry():
+    """No valid line outside any zone (worn paint): a shift of the MSF there is still seen."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(1.0)
+    for _ in range(20):
+        d.on_odometry(drive.t, drive.speed, 0.0)
+        d.on_lane_detection(LaneDetection.empty(drive.t),
+                            LocalizationEstimate(drive.t, Pose(drive.x, 1.0, 0.0), np.eye(3) * 0.01), smap)
+        drive.ticks += 5
+    assert d.mode == "ar" and d.faults.counts["no-lane-lines"] > 0
+
+
+# --- the ego lane ---------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("fail_closed", "alarm"), [(True, True), (False, False)])
+def test_an_msf_jump_of_one_lane_width_does_not_move_the_lane_checked(fail_closed, alarm):
+    """Lane 1's centre is 3.5 m left: against the nearest lane the MSF deviation is unchanged, so the paper's
+    check agrees with the lines and moves the last agreed lane; against the dead-reckoned pose's lane it is
+    a lane width off."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(fail_closed=fail_closed))
+    Drive(d, smap, dev=0.1).run(1.0).run(1.0, lambda t, x: 3.5)
+    assert (d.mode == "ar") is alarm
+    assert d.monitor._agreed_lane == (0 if fail_closed else 1)
+
+
+# --- faults reach the summary -------------------------------------------------------------------------------
+
+def test_fault_records_keep_first_and_last_occurrence_and_count():
+    log = FaultLog(logging.getLogger("test"))
+    log.report("off-map", 1.0, "first")
+    log.report("nan-pose", 1.5, "other")
+    log.report("off-map", 2.0, "second")
+    assert log.records() == [FaultRecord("off-map", 1.0, "first", 2.0, 2),
+                             FaultRecord("nan-pose", 1.5, "other", 1.5, 1)]
+
+
+def test_fail_closed_is_a_key_ld3_and_naive_ar_read_and_others_refuse():
+    for defense in ("ld3", "ld3-naive-ar"):
+        sc = load_scenario("local").with_overrides(defense=defense, defense_params={"fail_closed": False})
+        assert sc.defense_params == {"fail_closed": False}
+    with pytest.raises(ValueError, match="fail_closed"):
+        load_scenario("local").with_overrides(defense="savior", defense_params={"fail_closed": False})

@@ -1,0 +1,123 @@
+"""The worst-case attack search: the optimiser on a toy objective, determinism by seed, resume after a kill,
+refusals, and end to end on a few closed-loop trials whose best.toml replays to the same figures."""
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from testbed.attacks.threat import parse_threat
+from testbed.errors import UserError
+from testbed.eval.scenario import load_scenario
+from testbed.eval.search import AttackSearch, SearchSpec, families_for, score
+from testbed.eval.search_report import write_search_report
+from tests.eval.search_helpers import toy_search
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    with (out / "trials.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_the_search_finds_the_toy_optimum_and_reports_it(tmp_path):
+    search = toy_search(tmp_path / "s", budget=40)
+    outcomes = search.run()
+    assert len(outcomes) == 40 and len(_rows(tmp_path / "s")) == 40
+    best = search.best()
+    assert best.family == "offmap" and best.dev_before_m > 2.7 and best.undetected_departure
+    report = write_search_report(search)
+    text = report.read_text()
+    assert "offmap" in text and "Replay: `ld3 run" in text and (tmp_path / "s" / "convergence.png").stat().st_size
+    assert "distance" in (tmp_path / "s" / "best.toml").read_text()
+
+
+def test_the_same_seed_gives_the_same_trials_and_another_seed_others(tmp_path):
+    a, b, c = (toy_search(tmp_path / n, budget=12, seed=s) for n, s in (("a", 3), ("b", 3), ("c", 4)))
+    for s in (a, b, c):
+        s.run()
+    attacks = [[r["attack"] for r in _rows(tmp_path / n)] for n in "abc"]
+    assert attacks[0] == attacks[1] and attacks[0] != attacks[2]
+
+
+def test_a_killed_search_resumes_to_the_trials_of_an_uninterrupted_one(tmp_path):
+    toy_search(tmp_path / "whole", budget=16).run()
+    out = tmp_path / "killed"
+    env = {**os.environ, "TOY_SLEEP_S": "0.15",
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "tests.eval.search_helpers", str(out), "16"], cwd=ROOT, env=env)
+    try:
+        deadline = time.monotonic() + 120.0
+        while len(list((out / "trials").glob("trial-*"))) < 6:  # mid second batch of four
+            assert proc.poll() is None and time.monotonic() < deadline, "the search never got under way"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert len(_rows(out)) < 16
+    resumed = toy_search(out, budget=16)
+    resumed.run()
+    assert _rows(out) == _rows(tmp_path / "whole")
+
+
+def test_a_larger_budget_continues_and_another_search_is_refused(tmp_path):
+    toy_search(tmp_path / "s", budget=4).run()
+    toy_search(tmp_path / "s", budget=8).run()
+    assert [r["trial"] for r in _rows(tmp_path / "s")] == [str(i) for i in range(8)]
+    with pytest.raises(UserError, match="different search"):
+        toy_search(tmp_path / "s", budget=8, seed=9)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "x.txt").write_text("mine")
+    with pytest.raises(UserError, match="not empty"):
+        toy_search(tmp_path / "other", budget=4)
+
+
+def test_families_follow_the_threat_model_and_the_victim():
+    victim = load_scenario("local").with_overrides(defense="ld3", localization="msf")
+    names = {c.name for c in families_for(parse_threat("msf-output"), victim)}
+    assert {"zone", "offmap", "burst", "stealthy", "trace"} <= names and "fusionripper" not in names
+    assert {c.name for c in families_for(parse_threat("gnss"), victim)} == {"fusionripper", "gnss-drift"}
+    both = {c.name for c in families_for(parse_threat("msf-output,ld-output"), victim)}
+    assert "coordinated" in both and "drp-trace" in both
+    with pytest.raises(UserError, match="localization that fuses GNSS"):
+        families_for(parse_threat("gnss"), load_scenario("local"))
+    with pytest.raises(UserError, match="budget"):
+        SearchSpec(victim, parse_threat("gnss"), 0)
+
+
+def test_score_puts_the_deviation_before_detection_first():
+    undetected = {"detected": False, "detection_dev_m": None, "max_abs_dev_m": 1.0}
+    caught_late = {"detected": True, "detection_dev_m": 0.9, "max_abs_dev_m": 3.0}
+    assert score(undetected, "undetected")[0] > score(caught_late, "undetected")[0]
+    assert score(undetected, "overall")[0] < score(caught_late, "overall")[0]
+    assert score(caught_late, "undetected")[1:] == (0.9, 3.0)
+    crashed = {"detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.8, "consequence": "hit_curb"}
+    caught_crash = {**caught_late, "consequence": "hit_curb"}
+    assert score(crashed, "undetected")[0] > score({**caught_late, "detection_dev_m": 1.2}, "undetected")[0]
+    assert score(caught_crash, "undetected")[0] == score(caught_late, "undetected")[0]
+    assert score(caught_crash, "overall")[0] > score(caught_late, "overall")[0]
+
+
+@pytest.mark.timeout(900)
+def test_a_few_closed_loop_trials_and_their_best_replays(tmp_path):
+    from testbed.eval.runner import run_scenario
+    from testbed.eval.scenario import load_scenario as load
+
+    victim = load_scenario("local").with_overrides(defense="ld3", localization="msf", duration=14.0)
+    search = AttackSearch(SearchSpec(victim, parse_threat("msf-output"), 2, seed=1, batch=2), tmp_path / "s",
+                          workers=1, progress=False)
+    outcomes = search.run()
+    assert len(outcomes) == 2 and all(o.score is not None for o in outcomes)
+    write_search_report(search)
+    best = search.best()
+    replay = run_scenario(load(str(tmp_path / "s" / "best.toml")), tmp_path / "replay").summary
+    assert replay["detected"] == best.detected and replay["consequence"] == best.consequence
+    assert replay["max_abs_dev_m"] == pytest.approx(best.max_dev_m, abs=1e-9)
+    assert replay["threat_model"] == "msf-output"
