@@ -11,7 +11,9 @@ against it: `odometry_error_max_m`, `odometry_error_last_m`).
 Faults (`hil.faults`) are latched with their chassis time; from then on every command brakes at the profile's
 fault_decel, keeping the loop's steering so the car stops in its lane, and `latched_faults()` tells the run to
 end as chassis_fault. Lost feedback or a lost ECU leaves the odometry braking at fault_decel from the last
-reported speed (what the chassis's own time-out does). `release` hands control back only at standstill.
+reported speed (what the chassis's own time-out does). A link that dies (the receive thread's bus fails, or a
+send fails because the device is gone) latches link_lost; `interrupt` latches interrupted (SIGINT, SIGTERM).
+`release` hands control back only at standstill.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import can
 
 from hil.actuator_map import ActuatorRequest
 from hil.codec import REJECT_REASONS, ChassisCodec, FrameRejected
-from hil.faults import FaultLatch
+from hil.faults import FaultLatch, one_line
 from hil.odometry import KinematicOdometry
 from hil.profile import ChassisProfile, default_profile
 from hil.report_map import ReportFollower
@@ -37,6 +39,25 @@ STANDSTILL_MPS = 0.05
 BAD_REPORT_RUN = 3
 RATE_WINDOW_CYCLES = 5
 COMM_FAULTS = ("command_timeout", "bad_frames", "foreign_node")
+FEEDBACK_FAULTS = ("report_timeout", "ecu_lost", "link_lost")
+
+
+def link_died(exc: BaseException) -> bool:
+    """True where a bus error says the device or peer is gone (an OSError, or a CanError caused by one)."""
+    return isinstance(exc, OSError) or isinstance(exc.__cause__, OSError)
+
+
+class _Receiver(can.Listener):
+    """Hands each received frame to the bridge, and an error of the notifier's receive thread to `on_lost`."""
+
+    def __init__(self, on_frame: Callable[[can.Message], None], on_lost: Callable[[Exception], None]) -> None:
+        self.on_frame, self.on_lost = on_frame, on_lost
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.on_frame(msg)
+
+    def on_error(self, exc: Exception) -> None:
+        self.on_lost(exc)
 
 
 class BridgeError(RuntimeError):
@@ -104,7 +125,7 @@ class CanChassisBridge(ChassisPort):
         self.foreign_node = False
         self.odometry_error_max_m: float | None = None
         self.odometry_error_last_m: float | None = None
-        self._notifier = can.Notifier(bus, [self.handle], timeout=0.05)
+        self._notifier = can.Notifier(bus, [_Receiver(self.handle, self._receive_failed)], timeout=0.05)
 
     # ------------------------------------------------------------------ ChassisPort
     def read(self) -> ChassisState:
@@ -112,7 +133,7 @@ class CanChassisBridge(ChassisPort):
             if self.clock is ClockMode.REALTIME:
                 self._check_realtime()
             extra = ("foreign_node",) if self.foreign_node else ()
-            extra += tuple(f.kind for f in self.fault_latch.faults if f.kind in ("report_timeout", "ecu_lost"))
+            extra += tuple(f.kind for f in self.fault_latch.faults if f.kind in FEEDBACK_FAULTS)
             state = self.follower.state(self.time())
             speed = self.odometry.speed if self._feedback_lost else state.speed
             return ChassisState(
@@ -200,10 +221,29 @@ class CanChassisBridge(ChassisPort):
         if not self._ecu_lost and not self._feedback_lost:
             self.release()
 
+    def sensor_fault(self, kind: str, detail: str) -> None:
+        """A sensor the loop depends on failed (a stalled GNSS stream, a camera that stopped): latch `kind`; the
+        car brakes in lane and the run ends as chassis_fault."""
+        self._raise(kind, detail)
+
+    def interrupt(self, reason: str) -> None:
+        """The operator stopped the run (`reason`, e.g. SIGINT): latch interrupted; the car brakes in lane."""
+        self._raise("interrupted", f"run interrupted by {reason}")
+
     def close(self) -> None:
         self._notifier.stop()
 
     # ------------------------------------------------------------------ faults
+    def link_lost(self, detail: str) -> None:
+        """The bus or its peer is gone: latch link_lost; the odometry coasts as after lost feedback."""
+        self._raise("link_lost", detail)
+        self._ecu_lost = self._feedback_lost = True
+
+    def _receive_failed(self, exc: Exception) -> None:
+        self.link_lost(f"receiving failed: {one_line(exc)}")
+        with self._done:
+            self._done.notify_all()
+
     def _raise(self, kind: str, detail: str) -> None:
         self.fault_latch.raise_fault(kind, round(self.time(), 6), detail)
 
@@ -274,11 +314,14 @@ class CanChassisBridge(ChassisPort):
             self._coast(step_us)
             return
         with self._done:
-            if not self._done.wait_for(lambda: self._done_echo == self._step, timeout=self.reply_timeout):
-                self._raise("ecu_lost", f"no step reply from the ECU within {self.reply_timeout} s")
-                self._ecu_lost = self._feedback_lost = True
-                self._coast(step_us)
-                return
+            replied = self._done.wait_for(lambda: self._done_echo == self._step or self._ecu_lost,
+                                          timeout=self.reply_timeout)
+        if not replied:
+            self._raise("ecu_lost", f"no step reply from the ECU within {self.reply_timeout} s")
+            self._ecu_lost = self._feedback_lost = True
+        if self._ecu_lost:
+            self._coast(step_us)
+            return
         self._close_step(step_us)
 
     def _close_step(self, step_us: int) -> None:
@@ -344,13 +387,17 @@ class CanChassisBridge(ChassisPort):
         frame.timestamp = self._rx_t_us / 1e6 if self.clock is ClockMode.LOCKSTEP else time.time()
 
     def _transmit(self, frame: can.Message) -> bool:
-        """Send one frame; a refusal by the bus latches send_error (the loop learns of it) and returns False."""
+        """Send one frame; a refusal by the bus latches send_error, a gone device link_lost (the loop learns of
+        either) and returns False."""
         with self._tx_lock:
             self._stamp(frame)
             try:
                 self.bus.send(frame)
             except (can.CanError, OSError) as exc:
-                self._raise("send_error", f"bus refused 0x{frame.arbitration_id:03X}: {exc}")
+                if link_died(exc):
+                    self.link_lost(f"sending 0x{frame.arbitration_id:03X} failed: {exc}")
+                else:
+                    self._raise("send_error", f"bus refused 0x{frame.arbitration_id:03X}: {exc}")
                 return False
             self.frames_tx += 1
             frame.is_rx = False

@@ -24,16 +24,18 @@ from pathlib import Path
 
 import can
 
-from hil.bridge import BridgeError
-from hil.bus_config import INTERFACES, BusConfig, is_simulated_bus
+from hil.bus_config import BusConfig, interfaces, parse_options
 from hil.ecu import EcuEmulator, EcuLimits
-from hil.ecu_process import READY_PREFIX, EcuProcessError
+from hil.ecu_process import READY_PREFIX
 from hil.kinematic_plant import KinematicBicyclePlant
+from hil.link_errors import LINK_ERRORS, link_error_line
 from hil.profile import DEFAULT_PROFILE, load_profile
 from hil.replay import replay_log
+from hil.replay_cli import add_replay_parser
 from hil.secoc_key import link_key
 from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
+from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
@@ -41,13 +43,6 @@ from testbed.eval.outputs import chassis_faults
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
 EXIT_USAGE, EXIT_CHASSIS_FAULT, EXIT_LINK = 2, 3, 4
-LINK_ERRORS = (can.CanError, OSError, BridgeError, EcuProcessError)
-
-
-def link_error_line(exc: BaseException) -> str:
-    """One line for a failure of the CAN link (python-can, the serial device, the ECU)."""
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return f"ld3: CAN link error: {text}"
 
 
 def resolve_plant(spec: str) -> PlantFactory:
@@ -65,11 +60,31 @@ def resolve_plant(spec: str) -> PlantFactory:
         raise UserError(f"cannot load plant {spec!r}: {exc}") from None
 
 
+# ---------------------------------------------------------------------- bus
+def add_bus_arguments(parser: argparse.ArgumentParser, interface_help: str, *extra: str) -> None:
+    """--interface (any python-can interface, and `extra` names), --channel, --bitrate, --can-option and
+    --can-config (a section of python-can's configuration file)."""
+    parser.add_argument("--interface", choices=(*interfaces(), *extra), default="virtual", metavar="NAME",
+                        help=f"{interface_help}; any python-can interface: {', '.join((*interfaces(), *extra))}")
+    parser.add_argument("--channel", default=None,
+                        help="virtual channel name, serial path, netdev or adapter channel (default: python-can's "
+                             "configuration, CAN_CHANNEL or ~/.canrc, where it names the same interface)")
+    parser.add_argument("--bitrate", type=int, default=None, help="bit/s (default: python-can's configuration, "
+                                                                  "else 500000 where the interface sets one)")
+    parser.add_argument("--can-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="a keyword argument of the python-can interface, e.g. fd=true (repeatable)")
+    parser.add_argument("--can-config", default=None, metavar="SECTION",
+                        help="section of python-can's configuration file (~/.canrc) to read, default [default]")
+
+
+def bus_from_args(args: argparse.Namespace) -> BusConfig:
+    return BusConfig(args.interface, args.channel, args.bitrate, parse_options(args.can_option), args.can_config)
+
+
 # ---------------------------------------------------------------------- ecu
 def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--interface", choices=(*INTERFACES, "slcan-pty"), default="virtual",
-                        help="slcan-pty: open a pty and act as an SLCAN adapter (prints SLCAN_PTY <path>)")
-    parser.add_argument("--channel", default=None, help="virtual channel name, serial path or netdev")
+    add_bus_arguments(parser, "slcan-pty: open a pty and act as an SLCAN adapter (prints SLCAN_PTY <path>)",
+                      "slcan-pty")
     parser.add_argument("--clock", choices=[m.value for m in ClockMode], default=ClockMode.LOCKSTEP.value)
     parser.add_argument("--profile", default=DEFAULT_PROFILE, help="chassis profile: shipped name or folder")
     parser.add_argument("--truth", action=argparse.BooleanOptionalAction, default=None,
@@ -115,8 +130,7 @@ def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None)
         estop_decel=args.estop_decel,
     )
     try:
-        bus: can.BusABC = SlcanPtyBus() if args.interface == "slcan-pty" else BusConfig(args.interface,
-                                                                                         args.channel).open()
+        bus: can.BusABC = SlcanPtyBus() if args.interface == "slcan-pty" else bus_from_args(args).open()
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -150,18 +164,18 @@ def parse_ids(text: str | None, default: frozenset[int]) -> frozenset[int] | Non
         raise UserError(f"--ids takes 'all' or comma-separated frame IDs such as 0x130,0x131, got {text!r}") from None
 
 
-def replay_main(log_path: Path, interface: str = "virtual", channel: str | None = None, *, ids: str | None = None,
-                yes: bool = False, profile: str = DEFAULT_PROFILE) -> int:
+def replay_main(log_path: Path, bus_config: BusConfig, *, ids: str | None = None, yes: bool = False,
+                profile: str = DEFAULT_PROFILE) -> int:
     """Play the command frames (or `ids`) of a .asc/.blf log onto the bus, paced by the log's timestamps; a
     hardware bus needs `yes`."""
     if not log_path.is_file():
         raise FileNotFoundError(f"CAN log not found: {log_path}")
     chosen = parse_ids(ids, load_profile(profile).command_ids)
-    if not yes and not is_simulated_bus(interface, channel):
-        raise UserError(f"refusing to replay onto {interface}:{channel} (a hardware bus can move a vehicle); "
-                         "add --yes to confirm")
+    where = f"{bus_config.interface}:{bus_config.kwargs().get('channel') or 'default'}"
+    if not yes and bus_config.hardware:
+        raise UserError(f"refusing to replay onto {where} (a hardware bus can move a vehicle); add --yes to confirm")
     try:
-        bus = BusConfig(interface, channel).open()
+        bus = bus_config.open()
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -170,7 +184,7 @@ def replay_main(log_path: Path, interface: str = "virtual", channel: str | None 
     finally:
         bus.shutdown()
     which = "all" if chosen is None else ",".join(f"0x{i:03X}" for i in sorted(chosen))
-    print(f"replayed {count} frames (IDs {which}) from {log_path} onto {interface}:{channel or 'default'}")
+    print(f"replayed {count} frames (IDs {which}) from {log_path} onto {where}")
     return 0
 
 
@@ -180,7 +194,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     if args.scenario == REPLAY:
         if args.log is None:
             raise UserError("hil replay needs the log file: ld3 hil replay LOG.asc")
-        return replay_main(args.log, args.interface, args.channel, ids=args.ids, yes=args.yes, profile=args.profile)
+        return replay_main(args.log, bus_from_args(args), ids=args.ids, yes=args.yes, profile=args.profile)
     if args.log is not None:
         raise UserError(f"unexpected argument {str(args.log)!r} after the scenario")
     from hil.scenario_run import LinkConfig, run_hil_scenario
@@ -190,7 +204,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     load_profile(args.profile)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
     config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None,
-                        args.profile, args.truth)
+                        args.profile, args.truth, args.bitrate, parse_options(args.can_option), args.can_config)
     drill: dict[str, object] = {}
     if args.drill:
         from hil.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
@@ -200,7 +214,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
-                                  record=args.record, **drill)
+                                  record=args.record, sensors=args.sensors, **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -222,7 +236,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add `ld3 hil` and `ld3 ecu` to the ld3 command (entry point group "ld3.commands")."""
+    """Add `ld3 hil`, `ld3 ecu`, `ld3 vehicle` and `ld3 replay` to the ld3 command (entry points "ld3.commands")."""
     from testbed.cli import _add_run_overrides
 
     p = sub.add_parser("hil", help="run a scenario over CAN (or `ld3 hil replay LOG`: play a CAN log onto a bus)",
@@ -230,12 +244,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "the CAN log), or `ld3 hil replay LOG` to play a recorded log onto a bus.")
     _add_run_overrides(p)
     p.add_argument("log", nargs="?", type=Path, help="with `replay`: the .asc/.blf log to play")
-    p.add_argument("--interface", choices=INTERFACES, default="virtual",
-                   help="virtual: in-process ECU; slcan: ECU process on a pty (or the adapter at --channel); "
-                        "socketcan: the chassis on --channel")
-    p.add_argument("--channel", default=None, help="virtual channel name, serial path or netdev")
+    add_bus_arguments(p, "virtual: in-process ECU; slcan: ECU process on a pty (or the adapter at --channel); "
+                         "any other: the chassis on that interface and --channel (hardware rules)")
     p.add_argument("--clock", choices=[m.value for m in ClockMode], default=None,
-                   help="lockstep (default) or realtime (default on socketcan)")
+                   help="lockstep (default on an emulator's bus) or realtime (default on hardware)")
     p.add_argument("--log", dest="can_log", type=Path, default=None,
                    help="CAN log file (.asc or .blf; default OUT/can.asc)")
     p.add_argument("--record", action="store_true",
@@ -248,6 +260,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ids", default=None, help="with `replay`: frame IDs to send (default the profile's commands; "
                                                 "'all' for every frame)")
     p.add_argument("--yes", action="store_true", help="with `replay`: allow a hardware bus")
+    p.add_argument("--sensors", choices=("sim", "io"), default="sim",
+                   help="io: the simulated GNSS goes out as NMEA on a pty and comes back through the NMEA reader, "
+                        "the camera frames through the camera reader (needs --localization msf)")
     p.add_argument("--drill", default=None, metavar="KIND[@T]",
                    help="inject a fault into the emulated chassis at T s (see hil.fault_drill), e.g. chassis_estop@2")
     p.set_defaults(func=cmd_hil)
@@ -255,6 +270,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)
     add_ecu_arguments(p)
     p.set_defaults(func=run_ecu)
+
+    add_vehicle_parser(sub, add_bus_arguments, bus_from_args)
+    add_replay_parser(sub)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -265,14 +283,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if argv[:1] == [REPLAY]:
             parser = argparse.ArgumentParser(prog="python -m hil replay", description="Play a CAN log onto a bus.")
             parser.add_argument("log", type=Path)
-            parser.add_argument("--interface", choices=INTERFACES, default="virtual")
-            parser.add_argument("--channel", default=None)
+            add_bus_arguments(parser, "the bus to play onto")
             parser.add_argument("--ids", default=None)
             parser.add_argument("--yes", action="store_true")
             parser.add_argument("--profile", default=DEFAULT_PROFILE)
             args = parser.parse_args(argv[1:])
-            return replay_main(args.log, args.interface, args.channel, ids=args.ids, yes=args.yes,
-                               profile=args.profile)
+            return replay_main(args.log, bus_from_args(args), ids=args.ids, yes=args.yes, profile=args.profile)
     except (ValueError, FileNotFoundError) as exc:
         print(f"ld3: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -36,7 +36,8 @@ class EcuProcess:
             command += ["--truth" if truth else "--no-truth"]
         for key, value in (plant_args or {}).items():
             command += ["--plant-arg", f"{key}={value}"]
-        self.popen = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+        # its own session: a Ctrl-C meant for the run reaches the bridge, which brakes and then stops the ECU
+        self.popen = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, start_new_session=True)
         assert self.popen.stdout is not None
         line = self.popen.stdout.readline()
         if not line.startswith(READY_PREFIX):

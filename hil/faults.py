@@ -3,12 +3,18 @@
 Kinds: report_timeout (lost feedback), chassis_estop, chassis_fault (a fault signal reported nonzero),
 control_lost (the chassis left self-driving), foreign_sender (a frame on a command ID, or more report frames
 than the chassis sends), bad_frames (a run of rejected report frames), bus_error (error frame or bus-off),
-send_error (the bus refused a frame), ecu_lost (no lockstep reply), bad_command (a non-finite command).
+send_error (the bus refused a frame), ecu_lost (no lockstep reply), bad_command (a non-finite command),
+link_lost (the bus device or its peer is gone), interrupted (the operator stopped the run).
 """
 
 from __future__ import annotations
 
 from testbed.chassis import ChassisFault
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception's text on one line (its type's name where it has none), for a fault's detail."""
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 class FaultLatch:

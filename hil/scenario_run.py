@@ -3,34 +3,40 @@ chassis port and every frame the bridge sends or receives logged next to the out
 
 Where the vehicle sits, by interface: `virtual` -> an ECU emulator in this process (lockstep) on its own
 virtual channel, its plant the PyBullet world the run also checks for curb and barrier contacts; `slcan`
-without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); `slcan` with
-a channel or `socketcan` -> an external VCU (socketcan defaults to the realtime clock, real hardware).
+without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); any other
+interface, or `slcan` with a channel -> an external VCU (realtime by default unless the bus is a pty).
 The chassis profile (`LinkConfig.profile`) sets the protocol of bridge and emulator (a secured profile's key:
 `hil.secoc_key.link_key`, resolved before any bus opens); the bridge's pose is its odometry from the scenario's
 start pose and the vehicle's geometry. A run that latches a fault brakes to standstill in lane and ends as
-chassis_fault (summary `faults`); the outputs and the CAN log are still written.
+chassis_fault (summary `faults`); the outputs and the CAN log are still written. A lost link (link_lost) and
+an operator's SIGINT or SIGTERM (interrupted) are such faults too.
 """
 
 from __future__ import annotations
 
 import contextlib
 import uuid
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import can
 
 from hil.bridge import BridgeError, CanChassisBridge
-from hil.bus_config import INTERFACES, BusConfig
+from hil.bus_config import BusConfig
 from hil.ecu import EcuEmulator, EcuLimits
 from hil.ecu_process import EcuProcess
+from hil.faults import one_line
+from hil.interruption import interruptible
+from hil.link_errors import LINK_ERRORS
 from hil.mcap_can import CanToRecording
 from hil.odometry import KinematicOdometry, OdometryGeometry
 from hil.plants import plant_args_for, scenario_plant
 from hil.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
 from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
+from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
 from testbed.errors import UserError
 from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
@@ -43,26 +49,38 @@ ECU_PLANT = "hil.plants:pybullet_plant"
 
 @dataclass(frozen=True)
 class LinkConfig:
-    """Which bus carries the run, how time advances on it (None: lockstep, realtime on socketcan), the chassis
-    profile (shipped name or folder) and whether an emulator publishes truth frames (None: the profile's)."""
+    """Which bus carries the run (any python-can interface, its channel, bitrate, options and configuration
+    section: `hil.bus_config`), how time advances on it (None: lockstep on an emulator's bus, realtime on
+    hardware), the chassis profile (shipped name or folder) and whether an emulator publishes truth frames
+    (None: the profile's)."""
 
     interface: str = "virtual"
     channel: str | None = None
     clock: ClockMode | None = None
     profile: str = DEFAULT_PROFILE
     truth: bool | None = None
+    bitrate: int | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
+    context: str | None = None
 
     def __post_init__(self) -> None:
-        if self.interface not in INTERFACES:
-            raise UserError(f"unknown CAN interface {self.interface!r}; choose one of {', '.join(INTERFACES)}")
-        if self.interface == "socketcan" and not self.channel:
-            raise UserError("socketcan needs --channel: the CAN network interface, e.g. can0")
+        if not self.spawns_ecu:
+            self.bus(self.channel).kwargs()  # an unknown interface or a missing channel is refused here
+
+    @property
+    def spawns_ecu(self) -> bool:
+        """SLCAN without a channel: the ECU emulator runs in its own process on a pty."""
+        return self.interface == "slcan" and not self.channel
+
+    def bus(self, channel: str | None) -> BusConfig:
+        return BusConfig(self.interface, channel, self.bitrate, self.options, self.context)
 
     @property
     def clock_mode(self) -> ClockMode:
         if self.clock is not None:
             return self.clock
-        return ClockMode.REALTIME if self.interface == "socketcan" else ClockMode.LOCKSTEP
+        hardware = not self.spawns_ecu and self.bus(self.channel).hardware
+        return ClockMode.REALTIME if hardware else ClockMode.LOCKSTEP
 
 
 def scenario_odometry(sc: Scenario) -> KinematicOdometry:
@@ -85,8 +103,10 @@ class HilLink:
         self._ecu: EcuEmulator | None = None
         self._ecu_bus: can.BusABC | None = None
         self._process: EcuProcess | None = None
+        self.sensor_io: SensorIo | None = None
+        """The sensor readers of a `--sensors io` run (None: the simulated sensors feed the loop directly)."""
         clock = config.clock_mode
-        spawns_ecu = config.interface == "slcan" and not config.channel
+        spawns_ecu = config.spawns_ecu
         self.key = link_key(self.profile, "slcan-pty" if spawns_ecu else config.interface, config.channel)
         if config.interface == "virtual":
             self.channel = config.channel or f"ld3-hil-{uuid.uuid4().hex[:12]}"
@@ -101,7 +121,7 @@ class HilLink:
                                        profile=str(self.profile.root), truth=config.truth)
             self.channel = self._process.tty_path
         try:
-            self.bus = BusConfig(config.interface, self.channel).open()
+            self.bus = config.bus(self.channel).open()
         except Exception:
             self._stop_vehicle()
             raise
@@ -125,7 +145,8 @@ class HilLink:
         with contextlib.suppress(BridgeError, can.CanError, OSError):  # must not mask the run's own outcome
             self.bridge.stop_and_release(timeout=10.0)
         self.bridge.close()
-        self.bus.shutdown()
+        with contextlib.suppress(can.CanError, OSError):  # a dead device cannot be closed cleanly
+            self.bus.shutdown()
         self._stop_vehicle()
 
     def _stop_vehicle(self) -> None:
@@ -137,15 +158,30 @@ class HilLink:
             self._process.stop()
 
 
+def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
+    """Run the loop to its end; a link error in the loop's own thread latches link_lost and a second
+    interruption cuts the in-lane stop short, both ending the run with the ticks so far."""
+    try:
+        return sim.run(progress=progress)
+    except LINK_ERRORS as exc:
+        bridge.link_lost(one_line(exc))
+    except KeyboardInterrupt:
+        pass
+    return sim.result()
+
+
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
-                     record: bool = False) -> RunResult:
+                     record: bool = False, sensors: str = "sim") -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
     (`log_path`, default OUT/can.asc), and with `record` run.mcap with the CAN frames decoded by the profile's
     DBC. The summary gains interface, channel, clock, profile, frame counts and the odometry's largest and
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
-    before engaging (fault drills install their injections there)."""
+    before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
+    through the real readers (`hil.sensor_io`; the link's `sensor_io` then)."""
+    if sensors not in SENSOR_MODES:
+        raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     if out_dir is not None:
@@ -158,15 +194,21 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         if log_path is not None:
             recorder = FrameRecorder(log_path)
             link.bridge.add_listener(recorder)
+        if sensors == "io":
+            link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
         if prepare is not None:
             prepare(link)
-        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record)
+        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
+                     sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
         if sim.recording is not None:
             link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
-        link.engage()  # last before the run: a realtime bridge starts its clock here
-        result = sim.run(progress=progress)
+        with interruptible(link.bridge.interrupt):
+            link.engage()  # last before the run: a realtime bridge starts its clock here
+            result = _drive(sim, link.bridge, progress)
     finally:
         link.close()
+        if link.sensor_io is not None:
+            link.sensor_io.close()
         if recorder is not None:
             recorder.stop()
         if sim is not None:
@@ -182,6 +224,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
         "can_frames_rejected": sum(bridge.rejected.values()),
         "can_frames_logged": recorder.frames if recorder is not None else 0,
+        "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
     })
     if out_dir is not None:
         sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")

@@ -2,7 +2,8 @@
 
 `SlcanPtyBus` opens a pty pair and speaks the SLCAN ASCII protocol of common USB-CAN adapters on the master
 side: it answers the host's O/L/C/S<n>/s<btr>/V/v/N/F/Z commands with CR (ok) or BEL (error), turns host
-t/T/r/R lines into received frames (answering z/Z), and writes frames it sends as t<id><dlc><data>CR. The host
+t/T/r/R lines into received frames (answering z/Z), and writes frames it sends as t<id><dlc><data>CR while the
+host has the channel open. The host
 opens the slave path with python-can's slcan interface: can.Bus(interface="slcan", channel=bus.tty_path).
 """
 
@@ -33,11 +34,15 @@ class SlcanPtyBus(can.BusABC):
         self._frames: deque[can.Message] = deque()
         self.is_open = False
         self.errors = 0
+        self.dropped = 0
         super().__init__(channel=channel or self.tty_path, **kwargs)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Forward `msg` to the host; while the host has its channel closed (before O, after C) the frame is
+        dropped and counted in `dropped`, as an adapter forwards nothing to a closed channel."""
         if not self.is_open:
-            raise can.CanOperationError("SLCAN channel is closed (the host has not sent O)")
+            self.dropped += 1
+            return
         data = bytes(msg.data)[: msg.dlc].hex().upper()
         if msg.is_extended_id:
             line = f"{'R' if msg.is_remote_frame else 'T'}{msg.arbitration_id:08X}{msg.dlc:d}"

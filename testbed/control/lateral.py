@@ -3,7 +3,7 @@
 δ = δ_ss(v, κ) − K(v)·[e_y, v·sin e_ψ − v·e_ψss, e_ψ − e_ψss, r − v·κ_local], clamped to ±max_steer.
 δ_ss and e_ψss are the steady-state cornering steer (kinematic + understeer) and sideslip heading error,
 so the loop regulates around the cornering equilibrium and holds e_y → 0 on arcs. K(v) comes from
-control.dlqr on the ZOH-discretised model at speeds 1..40 m/s and is linearly interpolated per tick.
+the discrete LQR (`dlqr`) on the ZOH-discretised model at speeds 1..40 m/s and is linearly interpolated per tick.
 """
 
 from __future__ import annotations
@@ -11,9 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import control
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, solve, solve_discrete_are
 
 from testbed.control.lateral_model import LateralModel
 from testbed.control.plan import Plan
@@ -30,6 +29,14 @@ def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     block[:n, :n], block[:n, n:] = a, b
     phi = expm(block * dt)
     return phi[:n, :n], phi[:n, n:]
+
+
+def dlqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Gain K of u = −K·x minimising Σ xᵀQx + uᵀRu for x⁺ = A·x + B·u (the stabilising solution of the DARE)."""
+    a, b = np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float)
+    cross = np.zeros((a.shape[0], b.shape[1]))
+    x = solve_discrete_are(a, b, q, r, s=cross)
+    return solve(b.T @ x @ b + r, b.T @ x @ a + cross.T)
 
 
 class LqrLateralController:
@@ -53,8 +60,7 @@ class LqrLateralController:
         gains = []
         for v in self.speeds:
             ad, bd = discretise(*model.error_dynamics(float(v)), dt)
-            k, _, _ = control.dlqr(ad, bd, q_mat, r_mat)
-            gains.append(np.asarray(k, dtype=float).ravel())
+            gains.append(dlqr(ad, bd, q_mat, r_mat).ravel())
         self.gains = np.array(gains)
         self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
         self._kv = model.understeer_gradient

@@ -134,3 +134,21 @@ CAN_FRAME = _obj(
     signals={"type": "object", "description": "decoded signals by DBC name (numbers; enum choices as strings)",
              "additionalProperties": {"type": ["number", "string"]}},
 )
+
+_CUBIC = {"type": ["array", "null"], "items": {"type": "number"}, "minItems": 4, "maxItems": 4,
+          "description": "y(x) = c0 + c1 x + c2 x² + c3 x³ in the vehicle frame (m), null: no line"}
+
+LD3_INPUT = _obj(
+    "ld3.Ld3Input", "What LD3's detection read at one camera frame: the lane detection and the localization estimate",
+    t=_num("simulated time of the frame (s)"),
+    detection=_obj("ld3.LaneDetection", "the lane detection handed to the defense", left=_CUBIC, right=_CUBIC,
+                   left_prob=_num("left line existence probability"), right_prob=_num("right line existence "
+                                                                                     "probability"),
+                   x_range={"type": "array", "items": {"type": "number"}, "description": "valid x range (m)"},
+                   left_var=_nullable_number("c0 variance of the left line (m²)"),
+                   right_var=_nullable_number("c0 variance of the right line (m²)")),
+    msf=_obj("ld3.LocalizationEstimate", "the localization estimate paired with it (after any MSF-side attack)",
+             t=_num("estimate time (s)"), x=_num("world x (m)"), y=_num("world y (m)"), yaw=_num("yaw (rad)"),
+             cov={"type": "array", "items": {"type": "number"}, "description": "3×3 covariance of (x, y, yaw), "
+                  "row-major"}),
+)

@@ -18,11 +18,13 @@ from typing import Any
 
 import cv2
 import numpy as np
-from mcap.writer import Writer
 
+from testbed.errors import UserError
 from testbed.eval import mcap_schemas
+from testbed.eval.ld3_input import ld3_input_message
 from testbed.eval.video import draw_detection
 from testbed.lane_detection import LaneDetection
+from testbed.localization.estimate import LocalizationEstimate
 from testbed.loop import TickRecord
 from tracks.lane import Lane
 from tracks.pose import Pose
@@ -48,6 +50,7 @@ LANES = Channel("/map/lanes", mcap_schemas.SCENE_UPDATE)
 SIGNALS = Channel("/signals", mcap_schemas.SIGNALS)
 ATTACK = Channel("/attack", mcap_schemas.ATTACK)
 CAN = Channel("/can", mcap_schemas.CAN_FRAME)
+LD3_INPUT = Channel("/ld3/input", mcap_schemas.LD3_INPUT)
 CHANNELS = (CAMERA, POSE_TRUE, POSE_MSF, POSE_FUSED, LANES, SIGNALS, ATTACK, CAN)
 
 
@@ -89,6 +92,12 @@ class Recording:
     A channel is in the file when it has at least one message."""
 
     def __init__(self, rig: CameraRig, jpeg_quality: int = 85) -> None:
+        """Refuses to start (one line naming the extra) where the mcap package is not installed."""
+        try:
+            from mcap.writer import Writer
+        except ImportError:
+            raise UserError("run.mcap needs the mcap package: pip install 'ld3-testbed[record]'") from None
+        self._writer = Writer
         self.rig = rig
         self.jpeg_quality = jpeg_quality
         self._messages: list[tuple[int, Channel, bytes]] = []
@@ -106,6 +115,10 @@ class Recording:
             raise ValueError(f"cannot JPEG-encode a camera image of shape {image.shape}")
         self._add(CAMERA, t, {"timestamp": _stamp(t), "frame_id": CAMERA_FRAME,
                               "data": base64.b64encode(jpeg.tobytes()).decode(), "format": "jpeg"})
+
+    def add_ld3_input(self, ld: LaneDetection, est: LocalizationEstimate) -> None:
+        """What the defense read at one camera frame (`testbed.eval.ld3_input`), for `ld3 replay`."""
+        self._add(LD3_INPUT, ld.timestamp, ld3_input_message(ld, est))
 
     def add_tick(self, rec: TickRecord, msf_pose: Pose | None, fused: Pose | None, tau: float | None) -> None:
         """One control tick: its record (true pose, signals, attack state), the MSF pose, the fused pose control
@@ -153,7 +166,7 @@ class Recording:
         """Write every collected message, in log-time order (ties keep the order they arrived in)."""
         messages = sorted(self._messages + self._lane_messages(), key=lambda m: m[0])
         with open(path, "wb") as stream:
-            writer = Writer(stream)
+            writer = self._writer(stream)
             writer.start(profile="", library="ld3-testbed")
             ids: dict[str, int] = {}
             sequence: dict[str, int] = {}

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -76,7 +77,8 @@ class SimRun:
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
-                 attack: Attack | list[Attack] | None = None, tracking: bool | None = None) -> None:
+                 attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
+                 sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
         """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
         is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
         `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
@@ -84,7 +86,8 @@ class SimRun:
         own objects, or a passive detection recorder; a list of attacks is composed in order); the summary
         records their own names. `tracking` puts a
         `LaneTracker` after the detector (default: the scenario's `detector.tracking`, or for an injected
-        detector, whether it reads the camera)."""
+        detector, whether it reads the camera). `sensor_ports` wraps the sensor ports the run builds
+        (sensor-level HIL passes them through real readers)."""
         self.sc = sc
         self.track = build_track(sc.track)
         self.params = vehicle(sc.vehicle)
@@ -148,9 +151,10 @@ class SimRun:
         self.defense = defense if defense is not None else DEFENSES.get(sc.defense).factory(
             self.defense_config, BicycleCoefficients(wheelbase=self.params.wheelbase))
         dt = 1.0 / rates.control_hz
+        sensors = SensorPorts(self.localization, self._capture if self.camera else None)
         self.loop = ControlLoop(
             self.chassis,
-            SensorPorts(self.localization, self._capture if self.camera else None),
+            sensor_ports(sensors) if sensor_ports is not None else sensors,
             PerceptionPorts(self.detector, self.defense_config.existence_threshold,
                             self._keep_frame if (video or record) else None, self.tracker),
             self.defense,
@@ -192,6 +196,7 @@ class SimRun:
                 self.video.add(frame, ld, FrameSignals.of(rec, tau))
             if self.recording is not None:
                 self.recording.add_camera(frame.t, frame.image, ld)
+                self.recording.add_ld3_input(ld, self.loop.last_estimate)
         self._frames.clear()
         if self.recording is not None:
             control = self.loop.last_control_pose if rec.mode == "ar" else None

@@ -1,8 +1,9 @@
 """The localization stack the loop steps at the control rate: sensors → (attacker) → MSF → estimate.
 
-Each tick: the IMU propagates the MSF; a due GNSS fix passes through the attacker's spoofer (if any)
-and updates the MSF; a due LiDAR fix, searched from the MSF prediction, updates it. `GroundTruthLocalization`
-is the same contract returning the true pose, for runs that do not exercise localization.
+Each tick: the IMU propagates the MSF; a due GNSS fix passes through the attacker's spoofer (if any) and
+the stack's `gnss_port` (if any) and updates the MSF; a due LiDAR fix, searched from the MSF prediction,
+updates it. `GroundTruthLocalization` is the same contract returning the true pose, for runs that do not
+exercise localization.
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ from testbed.params import ParamsError
 from tracks.pose import Pose
 
 GnssSpoofer = Callable[[GnssFix], GnssFix]
+GnssPort = Callable[[GnssFix], GnssFix | None]
+"""A fix's way from the receiver to the MSF (sensor-level HIL: out as NMEA, back through the reader); None:
+the fix did not arrive."""
 
 
 def _section(cls: type, values: Any, name: str) -> Any:
@@ -127,6 +131,8 @@ class LocalizationStack:
         self.imu = Imu(rng, config.imu_hz, config.imu)
         self.msf = MultiSensorFusion(start_pose, start_speed, config.msf)
         self.last_gnss: GnssFix | None = None
+        self.gnss_port: GnssPort | None = None
+        """Where a fix goes between the receiver (and attacker) and the MSF; None: straight in."""
 
     def step(
         self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None
@@ -143,8 +149,11 @@ class LocalizationStack:
             fix = self.gnss.measure(t, pose)
             if spoof_gnss is not None:
                 fix = spoof_gnss(fix)
+            if self.gnss_port is not None:
+                fix = self.gnss_port(fix)
             self.last_gnss = fix
-            self.msf.update_gnss(fix)
+            if fix is not None:
+                self.msf.update_gnss(fix)
         if self.lidar.due(t):
             self.msf.update_lidar(self.lidar.measure(t, pose, prior=self.msf.pose))
         return self.msf.estimate(t)

@@ -49,9 +49,13 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int)
     p.set_defaults(func=_eval)
 
-    p = sub.add_parser("export-onnx", help="export LaneNet to an ONNX file (run by detector neural-onnx)")
+    p = sub.add_parser("export-onnx", help="export LaneNet to an ONNX file: the whole detector (frame in, lines "
+                                           "out), which detector neural-onnx runs without torch or OpenCV "
+                                           "(detector.weights = the file)")
     p.add_argument("--weights", type=Path, help="checkpoint (default: the shipped weights)")
     p.add_argument("--out", type=Path, default=Path("lanenet.onnx"))
+    p.add_argument("--network-only", action="store_true",
+                   help="export only the network (preprocessed input in, column and existence logits out)")
     p.set_defaults(func=_export_onnx)
 
     from testbed.perception.registry import DETECTORS
@@ -114,9 +118,11 @@ def _eval(args: argparse.Namespace) -> int:
 
 def _export_onnx(args: argparse.Namespace) -> int:
     from testbed.perception.neural import load_model
+    from testbed.perception.onnx_detector_graph import export_detector_onnx
     from testbed.perception.onnx_runtime import export_onnx
 
-    data = export_onnx(load_model(args.weights), args.out)
+    export = export_onnx if args.network_only else export_detector_onnx
+    data = export(load_model(args.weights), args.out)
     print(f"wrote {args.out} ({len(data) / 1024:.0f} KiB)")
     return 0
 

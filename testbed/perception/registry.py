@@ -32,7 +32,8 @@ class CameraDetectorParams(Params):
 class NeuralParams(CameraDetectorParams):
     """Parameters of the neural detectors (torch and onnxruntime)."""
 
-    weights: str | None = Field(None, description="checkpoint path (default: the shipped weights)")
+    weights: str | None = Field(None, description="checkpoint path (default: the shipped weights); for neural-onnx "
+                                                  "also a detector graph (.onnx) from `ld3 ld export-onnx`")
 
     @field_validator("weights")
     @classmethod
@@ -56,6 +57,10 @@ def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) ->
 
 
 def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+    if weights is not None and weights.endswith(".onnx"):  # an exported detector graph: no torch needed
+        from testbed.perception.onnx_file import OnnxFileLaneDetector
+
+        return OnnxFileLaneDetector(Path(weights).expanduser())
     from testbed.perception.neural import load_model
     from testbed.perception.onnx_runtime import OnnxLaneDetector
 

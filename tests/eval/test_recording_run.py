@@ -22,7 +22,8 @@ def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):
     with open(tmp_path / "run.mcap", "rb") as f:
         messages = [(c.topic, json.loads(m.data)) for _, c, m in make_reader(f).iter_messages()]
     counts = Counter(topic for topic, _ in messages)
-    assert counts == {"/camera/image": 40, "/pose/true": 200, "/pose/msf": 200, "/signals": 200, "/map/lanes": 1}
+    assert counts == {"/camera/image": 40, "/ld3/input": 40, "/pose/true": 200, "/pose/msf": 200, "/signals": 200,
+                      "/map/lanes": 1}
     signals = [m for topic, m in messages if topic == "/signals"]
     assert all(m["tau"] == DefenseConfig().tau and m["mode"] == "normal" for m in signals)
     assert signals[-1]["cusum"] is not None and signals[-1]["ld_dev"] is not None

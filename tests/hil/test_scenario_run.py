@@ -80,7 +80,7 @@ def test_ecu_process_plant_arguments_rebuild_the_scenario_plant():
 
 def test_link_config_rejects_unknown_interfaces_and_socketcan_without_a_channel():
     with pytest.raises(ValueError, match="unknown CAN interface"):
-        LinkConfig("pcan")
+        LinkConfig("no-such-interface")
     with pytest.raises(ValueError, match="socketcan needs --channel"):
         LinkConfig("socketcan")
     assert LinkConfig("socketcan", "can0").clock_mode.value == "realtime"
