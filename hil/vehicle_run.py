@@ -226,6 +226,7 @@ class VehicleRun:
         return {
             **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()}},
             "scenario": "vehicle", "seed": None, "track": config.map, "vehicle": config.vehicle, "attack": None,
+            "threat_model": "none",
             "defense": defense.name, "detector": config.detector,
             "localization": "msf: chassis reports + NMEA GNSS", "condition": "real", "sim_time_s": run_time,
             "wall_time_s": wall, "real_time_factor": run_time / wall if wall > 0 else None,
