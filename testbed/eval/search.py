@@ -15,7 +15,7 @@ import dataclasses
 import json
 import math
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +29,7 @@ from testbed.attacks.space import START, ChoiceDim, FloatDim, IntDim
 from testbed.attacks.threat import ThreatCapability, threat_label, within_ld3_threat_model
 from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
-from testbed.eval.scenario import Scenario, ScenarioError, check_needs, validate
+from testbed.eval.scenario import Scenario, check_needs, validate
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.registry import FIXES, Component, missing_needs
 
@@ -165,6 +165,11 @@ def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | No
                         dev_before, dev_all, str(summary["consequence"]), summary.get("lane_straddle_dev_m"), value)
 
 
+def trial_id(number: int) -> str:
+    """A trial's run id and folder name under `trials/`."""
+    return f"trial-{number:04d}"
+
+
 def attack_spec(attack: dict[str, Any]) -> str:
     """The attack table as an `--attack` spec string."""
     args = ",".join(f"{k}={v}" for k, v in attack.items() if k != "kind")
@@ -215,9 +220,9 @@ class AttackSearch:
                                    load_if_exists=True)
 
     def _scenario(self, number: int, attack: dict[str, Any]) -> Scenario:
-        return validate(dataclasses.replace(self.spec.victim, name=f"trial-{number:04d}", attack=attack))
+        return validate(dataclasses.replace(self.spec.victim, name=trial_id(number), attack=attack))
 
-    def run(self, on_batch: Callable[[list[TrialOutcome]], None] | None = None) -> list[TrialOutcome]:
+    def run(self) -> list[TrialOutcome]:
         """Run trials until `budget` have been told; write trials.csv after every batch."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
@@ -248,8 +253,6 @@ class AttackSearch:
                 if best is not None:
                     bar.set_postfix(best=f"{best:.2f}")
                 self.write_trials()
-                if on_batch is not None:
-                    on_batch(finished)
             bar.close()
         self.write_trials()
         return self.sorted_outcomes()
@@ -257,25 +260,20 @@ class AttackSearch:
     def _read_told(self, study: optuna.Study) -> None:
         for t in study.get_trials(deepcopy=False):
             if t.state in (TrialState.COMPLETE, TrialState.FAIL):
-                summary = load_summary(self.out / TRIALS_DIR / f"trial-{t.number:04d}")
+                summary = load_summary(self.out / TRIALS_DIR / trial_id(t.number))
                 self.outcomes[t.number] = outcome_of(t.number, t.user_attrs["attack"],
                                                      summary if isinstance(summary, dict) else None,
                                                      self.spec.objective)
 
     def _run_batch(self, study: optuna.Study, asked: list[tuple[int, dict[str, Any]]]) -> list[TrialOutcome]:
-        runs = [CampaignRun(f"trial-{n:04d}", self._scenario(n, attack), {"trial": n, "family": attack["kind"]})
+        runs = [CampaignRun(trial_id(n), self._scenario(n, attack), {"trial": n, "family": attack["kind"]})
                 for n, attack in asked]
-        for run in runs:
-            try:
-                check_needs(run.scenario)
-            except ScenarioError as exc:
-                raise UserError(f"search trial {run.run_id}: {exc}") from None
         done = {run.run_id: summary for run, summary in
                 run_campaign(runs, self.out / TRIALS_DIR, workers=self.workers, progress=False, execute=self.execute,
                              timeout=self.timeout, backend=self.backend, address=self.address)}
         finished = []
         for n, attack in asked:
-            outcome = outcome_of(n, attack, done.get(f"trial-{n:04d}"), self.spec.objective)
+            outcome = outcome_of(n, attack, done.get(trial_id(n)), self.spec.objective)
             if outcome.score is None:
                 study.tell(n, state=TrialState.FAIL)
             else:
