@@ -10,6 +10,7 @@ what a white-box attacker knows (`WhiteBox`: the map, the defense's public param
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -57,6 +58,22 @@ def left_normal(heading: float) -> np.ndarray:
     return np.array([-math.sin(heading), math.cos(heading)])
 
 
+def shift_lines(ld: LaneDetection, offset: float, slope: float = 0.0) -> LaneDetection:
+    """`ld` with both lines moved by −`offset` (the car appears `offset` m further left, + left) and their
+    slope c1 raised by `slope`."""
+
+    def moved(c: np.ndarray | None) -> np.ndarray | None:
+        if c is None:
+            return None
+        c = c.copy()
+        c[0] -= offset
+        if len(c) > 1:
+            c[1] += slope
+        return c
+
+    return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+
+
 def shift_pose(pose: Pose, heading: float, offset: float) -> Pose:
     """`pose` moved `offset` metres to the left (+) or right (−) of a direction of travel `heading`."""
     n = left_normal(heading)
@@ -75,6 +92,11 @@ class Attack(ABC):
             raise UserError(f"attack start must be a time >= 0 s, got {start_time}")
         self.start_time = start_time
         self.whitebox: WhiteBox | None = None
+
+    @property
+    def threat_model(self) -> frozenset[ThreatCapability]:
+        """The capabilities this attack acts through (a composition: its members' union)."""
+        return self.capabilities
 
     def know(self, whitebox: WhiteBox) -> None:
         """What a white-box attacker knows, handed over once before the first tick."""

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.base import Attack, AttackerView, WhiteBox, shift_pose
 from testbed.attacks.profile import check_finite, side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
@@ -22,10 +22,15 @@ PROFILES = ("flat", "rise", "fall")
 IDLE, BURST, SUSTAIN = "idle", "burst", "sustain"
 
 
-def burst_weights(n: int, profile: str, total: float) -> np.ndarray:
-    """n non-negative excesses over b summing to `total`, shaped by `profile`."""
+def check_profile(profile: str) -> None:
+    """UserError unless `profile` is one of `PROFILES`."""
     if profile not in PROFILES:
         raise UserError(f"burst profile must be one of {', '.join(PROFILES)}, got {profile!r}")
+
+
+def burst_weights(n: int, profile: str, total: float) -> np.ndarray:
+    """n non-negative excesses over b summing to `total`, shaped by `profile`."""
+    check_profile(profile)
     shape = {"flat": np.ones(n), "rise": np.arange(1.0, n + 1), "fall": np.arange(float(n), 0.0, -1.0)}[profile]
     return total * shape / shape.sum()
 
@@ -42,29 +47,27 @@ class BurstAttack(Attack):
         check_finite("burst spend", spend, 0.0)
         check_finite("burst spread", spread, 0.0)
         check_finite("burst sustain", sustain, 0.0)
-        if profile not in PROFILES:
-            raise UserError(f"burst profile must be one of {', '.join(PROFILES)}, got {profile!r}")
+        check_profile(profile)
         self.spend, self.spread, self.profile, self.sustain = spend, spread, profile, sustain
         self.direction, self.sign = direction, side_sign(direction, "burst")
         self.stage = IDLE
         self.offset = 0.0
-        self._schedule: np.ndarray | None = None
+        self._plan: tuple[np.ndarray, float, float] | None = None
+        """(offsets per detection of the burst, detection period, sustained offset), from the white box."""
 
-    def _plan(self) -> tuple[np.ndarray, float, float]:
-        """(offsets per detection of the burst, detection period, sustained offset)."""
-        wb = self.whitebox
-        if wb is None:
-            raise RuntimeError("burst attack used before know(): it needs the defense's b, τ and rate")
-        b, tau = float(getattr(wb.defense, "b", 0.0)), float(getattr(wb.defense, "tau", 0.0))
-        n = max(1, round(self.spread * wb.detector_hz))
-        if self._schedule is None:
-            self._schedule = b + burst_weights(n, self.profile, self.spend * tau)
-        return self._schedule, 1.0 / wb.detector_hz, self.sustain * b
+    def know(self, whitebox: WhiteBox) -> None:
+        super().know(whitebox)
+        b, tau = float(getattr(whitebox.defense, "b", 0.0)), float(getattr(whitebox.defense, "tau", 0.0))
+        n = max(1, round(self.spread * whitebox.detector_hz))
+        self._plan = (b + burst_weights(n, self.profile, self.spend * tau), 1.0 / whitebox.detector_hz,
+                      self.sustain * b)
 
     def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
         if view.t < self.start_time:
             return est
-        schedule, period, held = self._plan()
+        if self._plan is None:
+            raise RuntimeError("burst attack used before know(): it needs the defense's b, τ and rate")
+        schedule, period, held = self._plan
         i = int((view.t - self.start_time) / period + 1e-9)
         self.stage = BURST if i < len(schedule) else SUSTAIN
         self.offset = self.sign * (schedule[i] if i < len(schedule) else held)

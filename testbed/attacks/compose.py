@@ -29,7 +29,7 @@ class AttackChain(Attack):
 
     @property
     def threat_model(self) -> frozenset[ThreatCapability]:
-        return frozenset().union(*(m.capabilities for m in self.members))
+        return frozenset().union(*(m.threat_model for m in self.members))
 
     def know(self, whitebox: WhiteBox) -> None:
         super().know(whitebox)
@@ -65,7 +65,5 @@ class AttackChain(Attack):
 
 
 def threat_model_of(attack: Attack | None) -> frozenset[ThreatCapability]:
-    """The capabilities a run's attack (single or chain) acts through; empty without an attack."""
-    if attack is None:
-        return frozenset()
-    return attack.threat_model if isinstance(attack, AttackChain) else attack.capabilities
+    """The capabilities a run's attack acts through; empty without an attack."""
+    return frozenset() if attack is None else attack.threat_model

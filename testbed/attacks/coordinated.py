@@ -5,10 +5,9 @@ outside LD3's threat model, measured to show what LD3 cannot see, never counted 
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
-from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.base import Attack, AttackerView, shift_lines, shift_pose
 from testbed.attacks.profile import check_finite, side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.lane_detection import LaneDetection
@@ -47,17 +46,7 @@ class CoordinatedShift(Attack):
     def tamper_ld(self, ld: LaneDetection, view: AttackerView) -> LaneDetection:
         """Lines moved by −o, so that the car appears o further left (+) in them, as on the MSF."""
         o = self._offset(view.t)
-        if o == 0.0:
-            return ld
-
-        def moved(c):
-            if c is None:
-                return None
-            c = c.copy()
-            c[0] -= o
-            return c
-
-        return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+        return ld if o == 0.0 else shift_lines(ld, o)
 
     def state(self) -> dict[str, Any]:
         return {"stage": self.stage, "switch_time": None, "offset": self.offset}

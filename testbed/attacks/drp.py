@@ -11,11 +11,10 @@ detector reacts to on its own.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
-from testbed.attacks.base import Attack, AttackerView
+from testbed.attacks.base import Attack, AttackerView, shift_lines
 from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
@@ -63,17 +62,7 @@ class DrpTrace(Attack):
         slope = self._slope(view.t)
         if self.offset == 0.0 and slope == 0.0:
             return ld
-
-        def moved(c):
-            if c is None:
-                return None
-            c = c.copy()
-            c[0] -= self.offset
-            if len(c) > 1:
-                c[1] += slope
-            return c
-
-        return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+        return shift_lines(ld, self.offset, slope)
 
     def _slope(self, t: float) -> float:
         """Added to the lines' c1 at time t (none for a pure deviation trace)."""

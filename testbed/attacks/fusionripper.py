@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from testbed.attacks.base import Attack, AttackerView, left_normal
+from testbed.attacks.profile import side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.sensors import GnssFix
@@ -45,15 +46,13 @@ class FusionRipper(Attack):
             raise UserError(f"fusionripper d must be a distance > 0 m, got {d}")
         if not (math.isfinite(f) and f >= 1.0):
             raise UserError(f"fusionripper f must be a factor >= 1, got {f}")
-        if direction not in ("left", "right"):
-            raise UserError(f"fusionripper direction must be 'left' or 'right', got {direction!r}")
         if not (math.isfinite(trigger) and trigger > 0):
             raise UserError(f"fusionripper trigger must be a deviation > 0 m, got {trigger}")
         if not (math.isfinite(obs_std) and obs_std >= 0):
             raise UserError(f"fusionripper obs_std must be a deviation >= 0 m, got {obs_std}")
         self.d, self.f, self.direction, self.trigger = d, f, direction, trigger
         self.obs_std, self.rng = obs_std, rng
-        self.sign = 1.0 if direction == "left" else -1.0
+        self.sign = side_sign(direction, "fusionripper")
         self.stage = IDLE
         self.switch_time: float | None = None
         self.offset = 0.0

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.profile import side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
@@ -59,8 +60,6 @@ class StealthyAttack(Attack):
         spread: float = 0.0,
     ) -> None:
         super().__init__(start)
-        if direction not in ("left", "right"):
-            raise UserError(f"stealthy direction must be 'left' or 'right', got {direction!r}")
         if not (math.isfinite(spread) and spread >= 0):
             raise UserError(f"stealthy spread must be a duration >= 0 s, got {spread}")
         self.spread = spread
@@ -69,7 +68,7 @@ class StealthyAttack(Attack):
         if not (math.isfinite(self.margin) and self.margin >= 0):
             raise UserError(f"stealthy margin must be a distance >= 0 m, got {margin}")
         self.knowledge, self.direction = knowledge, direction
-        self.sign = 1.0 if direction == "left" else -1.0
+        self.sign = side_sign(direction, "stealthy")
         self.s_hat = 0.0
         self.offset = 0.0
         self.stage = IDLE
