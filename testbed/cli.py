@@ -273,6 +273,7 @@ def cmd_search(args: argparse.Namespace) -> int:
 def search_victim(args: argparse.Namespace):
     """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
     from testbed.defense.config import PAPER_MODE
+    from testbed.defense.registry import DEFENSES
     from testbed.eval.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
@@ -280,10 +281,12 @@ def search_victim(args: argparse.Namespace):
         raise UserError(f"scenario {args.scenario} already has an attack; the search chooses the attack: give a "
                         f"scenario without one")
     sc = sc.with_overrides(detector=args.detector, localization=args.localization, defense=args.defense)
-    paper = [f"defense.{k}={json.dumps(v)}" for k, v in PAPER_MODE.items()]
-    if args.paper_mode and sc.defense not in ("ld3", "ld3-naive-ar"):
-        raise UserError(f"--paper-mode sets LD3's options; the victim's defense is {sc.defense!r}: add --defense ld3")
-    return apply_settings(sc, (paper if args.paper_mode else []) + args.set)
+    if args.paper_mode:
+        if not set(PAPER_MODE) <= DEFENSES.get(sc.defense).reads:
+            raise UserError(f"--paper-mode sets LD3's options, which defense {sc.defense!r} does not read: add "
+                            f"--defense ld3")
+        sc = sc.with_overrides(defense_params={**sc.defense_params, **PAPER_MODE})
+    return apply_settings(sc, args.set)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -112,7 +112,11 @@ def build_attack(value: AttackValue, rng: np.random.Generator | None = None, def
     return attacks[0] if len(attacks) == 1 else AttackChain(attacks)
 
 
-def specs_to_value(specs: list[str]) -> AttackValue:
-    """Repeated `--attack` specs as a scenario's `attack`: None, one table, or a list of tables."""
-    tables = [attack_spec_to_dict(s) for s in specs]
+def attack_value(tables: list[Mapping[str, Any]]) -> AttackValue:
+    """Attack tables as a scenario's `attack` (the inverse of `attack_tables`): None, one table, or the list."""
     return None if not tables else tables[0] if len(tables) == 1 else tables
+
+
+def specs_to_value(specs: list[str]) -> AttackValue:
+    """Repeated `--attack` specs as a scenario's `attack`."""
+    return attack_value([attack_spec_to_dict(s) for s in specs])

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
-from testbed.attacks.spec import AttackValue, attack_settings, attack_tables
+from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
@@ -191,9 +191,7 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
                                 f"attack.KEY or KEY")
     try:
         changed = dataclasses.replace(sc, defense=defense, defense_params=params, detector=detector,
-                                      detector_params=detector_params,
-                                      attack=None if not attacks else attacks[0] if len(attacks) == 1 else attacks,
-                                      **top)
+                                      detector_params=detector_params, attack=attack_value(attacks), **top)
     except TypeError as exc:
         raise ScenarioError(f"--set: {exc}") from None
     return validate(changed)
@@ -201,12 +199,10 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
 
 def add_attacks(sc: Scenario, specs: list[str]) -> Scenario:
     """`sc` with the `--attack` specs composed after its own attacks (hooks run in that order)."""
-    from testbed.attacks.spec import attack_spec_to_dict
-
-    tables = [dict(t) for t in attack_tables(sc.attack)] + [attack_spec_to_dict(spec) for spec in specs]
     if not specs:
         return sc
-    return validate(dataclasses.replace(sc, attack=tables[0] if len(tables) == 1 else tables))
+    tables = [*attack_tables(sc.attack), *(attack_spec_to_dict(spec) for spec in specs)]
+    return validate(dataclasses.replace(sc, attack=attack_value(tables)))
 
 
 def shipped_scenarios() -> list[str]:

@@ -7,7 +7,7 @@ from typing import Any
 
 import tomli_w
 
-from testbed.attacks.spec import attack_tables
+from testbed.attacks.spec import attack_tables, attack_value
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.eval.scenario import Scenario
@@ -28,9 +28,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
     reads = DEFENSES.get(sc.defense).reads
     doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}
-    tables = [dict(t) for t in attack_tables(sc.attack)]
-    if tables:
-        doc["attack"] = tables[0] if len(tables) == 1 else tables
+    if sc.attack:
+        doc["attack"] = attack_value([dict(t) for t in attack_tables(sc.attack)])
     return doc
 
 
