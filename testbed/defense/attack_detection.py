@@ -135,8 +135,8 @@ class LaneConsistencyMonitor:
         return odo.pose if odo.pose is not None and odo.samples > 0 else None
 
     def step(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
-        """One detection step; True at (and after) the alarm."""
-        if self.detector.alarmed:
+        """One detection step; True at (and after) the alarm of either CUSUM."""
+        if self.detector.alarmed or self.heading.alarmed:
             return True
         self.fresh_d_ld = None
         if self.fail_closed:
@@ -207,11 +207,8 @@ class LaneConsistencyMonitor:
         return self._update(d_msf, d_ld, lane)
 
     def _check_heading(self, residual: float, lane: int | None) -> bool:
-        """Feed the heading CUSUM the wrapped heading residual (rad); on its alarm fix `ego_lane` as `_update`."""
-        if not self.heading.update(math.remainder(residual, math.tau)):
-            return False
-        self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
-        return True
+        """Feed the heading CUSUM the wrapped heading residual (rad); True (and `ego_lane` fixed) on its alarm."""
+        return self.heading.update(math.remainder(residual, math.tau)) and self._latch(lane)
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: the MSF pose's station, D_LD across the
@@ -223,9 +220,11 @@ class LaneConsistencyMonitor:
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
-        """Feed the CUSUM D_MSF − D_ref; on the alarm fix `ego_lane` (the last agreed lane, else `lane`)."""
-        if not self.detector.update(d_msf, d_ref):
-            return False
+        """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""
+        return self.detector.update(d_msf, d_ref) and self._latch(lane)
+
+    def _latch(self, lane: int | None) -> bool:
+        """At an alarm: fix `ego_lane` (the last agreed lane, else `lane`); True."""
         self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
         return True
 
