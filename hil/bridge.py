@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable
 
 import can
@@ -32,12 +32,12 @@ from hil.faults import FaultLatch, one_line
 from hil.odometry import KinematicOdometry
 from hil.profile import ChassisProfile, default_profile
 from hil.report_map import ReportFollower
+from hil.report_rate import ReportRateGuard
 from hil.timing import ClockMode, CommandSchedule
 from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
 
 STANDSTILL_MPS = 0.05
 BAD_REPORT_RUN = 3
-RATE_WINDOW_CYCLES = 5
 COMM_FAULTS = ("command_timeout", "bad_frames", "foreign_node")
 FEEDBACK_FAULTS = ("report_timeout", "ecu_lost", "link_lost")
 
@@ -116,7 +116,8 @@ class CanChassisBridge(ChassisPort):
         self._speed_seen_us: int | None = None
         self._speed_seen_wall: float | None = None
         self._window: Counter[int] = Counter()
-        self._arrivals: dict[int, deque[float]] = {i: deque() for i in self._report_ids}
+        self._report_rate = ReportRateGuard.for_timeout(self._report_ids, self.profile.timing.cycle_s,
+                                                        self.profile.timing.report_timeout_s)
         self._reject_run: Counter[int] = Counter()
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.frames_tx = 0
@@ -455,14 +456,9 @@ class CanChassisBridge(ChassisPort):
         if self.clock is ClockMode.LOCKSTEP:
             self._window[frame_id] += 1
             return
-        now = self._wall_clock()
-        arrivals = self._arrivals[frame_id]
-        arrivals.append(now)
-        window = RATE_WINDOW_CYCLES * self.profile.timing.cycle_s
-        while arrivals and arrivals[0] <= now - window:
-            arrivals.popleft()
-        if len(arrivals) > RATE_WINDOW_CYCLES + 2:
-            self._raise("foreign_sender", f"{len(arrivals)} frames on report ID 0x{frame_id:03X} in {window:.2f} s")
+        if not self._report_rate.arrive(frame_id, self._wall_clock()):
+            self._raise("foreign_sender", f"report ID 0x{frame_id:03X} arrives faster than one frame per "
+                        f"{self.profile.timing.cycle_s * 1e3:.0f} ms cycle")
 
     def _wait_until(self, t_us: int) -> None:
         self._t_us = t_us

@@ -59,9 +59,8 @@ class NmeaFeeder:
 
 @pytest.fixture
 def ecu(tmp_path):
-    """A realtime ECU process on a pty, speaking ld3-dev at a 50 ms cycle with 500 ms time-outs: on the shared
-    test machine a starved receive thread hands over 20 ms frames in bursts that the report-rate check reads
-    as a foreign sender (docs/decisions.md), which is not what these tests are about."""
+    """A realtime ECU process on a pty, speaking ld3-dev at a 50 ms cycle with 500 ms time-outs, so that a
+    starved process on the shared test machine does not trip the time-outs, which these tests are not about."""
     profile = tmp_path / "slow-dev"
     shutil.copytree(PROFILES_DIR / "ld3-dev", profile)
     text = (profile / "profile.toml").read_text()
