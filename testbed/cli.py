@@ -65,14 +65,17 @@ def scenario_from_args(args: argparse.Namespace):
 
 def cmd_run(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_tables
+    from testbed.eval.run_folder import check_out_dir
     from testbed.eval.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
+    check_out_dir(out, args.force)
     attack = "+".join(t["kind"] for t in attack_tables(sc.attack)) or "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
-    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
+    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty(),
+                          force=args.force)
     s = result.summary
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
           f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
@@ -300,6 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                         "overlay and the signals")
     p.add_argument("--record", action="store_true", help="also write run.mcap (Foxglove): camera, poses, map lines, "
                                                          "signals, attack")
+    p.add_argument("--force", action="store_true", help="replace a finished run already in --out")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("scenarios", help="list the shipped scenarios")

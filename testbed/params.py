@@ -72,7 +72,8 @@ def reference_rows(model: type[BaseModel]) -> list[tuple[str, str, str, str]]:
     rows = []
     for key, field in model.model_fields.items():
         typ = _type_name(field.annotation)
-        default = "required" if field.is_required() else repr(field.default)
+        default = ("required" if field.is_required() else repr(field.default_factory()) if field.default_factory
+                   else repr(field.default))
         rows.append((key, typ, default, field.description or ""))
     return rows
 

@@ -91,10 +91,10 @@ class BackendUnavailable(UserError):
 
 
 def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
-    """The default executor: `run_scenario` with the standard outputs."""
-    from testbed.eval.runner import run_scenario
+    """The default executor: the run's standard outputs into the campaign's temporary run folder."""
+    from testbed.eval.runner import run_into
 
-    return run_scenario(run.scenario, run_dir).summary
+    return run_into(run.scenario, run_dir).summary
 
 
 def run_timeout(run: CampaignRun) -> float:

@@ -29,7 +29,7 @@ def test_overrides_replace_fields_and_validate():
         ("track = ", "malformed TOML"),
         ('speed = 3.0\n', "'track' is required"),
         ('track = "slr"\nwheels = 3\n', "unknown keys"),
-        ('track = "slr"\nspeed = "fast"\n', "wrong type"),
+        ('track = "slr"\nspeed = "fast"\n', "scenario bad: speed must be a number, got 'fast'"),
     ],
 )
 def test_bad_files_raise_one_line_errors(tmp_path, text, message):
