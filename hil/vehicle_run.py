@@ -12,6 +12,7 @@ true pose on a vehicle), summary.json and the CAN log.
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -79,6 +80,14 @@ class VehicleConfig:
     lane: int | None = None
     profile: str = "ld3-dev"
     first_fix_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        for key in ("speed", "duration", "first_fix_s"):
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise UserError(f"--{key.replace('_', '-')} must be a number > 0, got {value!r}")
+        if self.lane is not None and self.lane < 0:
+            raise UserError(f"--lane must be >= 0, got {self.lane}")
 
 
 class ReportedChassis(ChassisPort):

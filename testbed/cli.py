@@ -12,6 +12,7 @@ import sys
 from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import NoReturn
 
 from testbed.errors import UserError
 
@@ -20,6 +21,13 @@ PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcom
 
 
 DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that refuses bad arguments in one line pointing at --help (its sub-parsers too)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:
@@ -49,6 +57,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
     p.add_argument("--out", type=Path, help="output directory (default runs/<scenario>-<seed>)")
+    p.add_argument("--force", action="store_true", help="replace a finished run already in --out")
 
 
 def scenario_from_args(args: argparse.Namespace):
@@ -293,7 +302,7 @@ def search_victim(args: argparse.Namespace):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="ld3", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
     sub = parser.add_subparsers(dest="cmd", required=True)
 
@@ -303,7 +312,6 @@ def build_parser() -> argparse.ArgumentParser:
                                                         "overlay and the signals")
     p.add_argument("--record", action="store_true", help="also write run.mcap (Foxglove): camera, poses, map lines, "
                                                          "signals, attack")
-    p.add_argument("--force", action="store_true", help="replace a finished run already in --out")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("scenarios", help="list the shipped scenarios")
@@ -438,10 +446,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, PermissionError, IsADirectoryError,
-                                                NotADirectoryError)
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, FileExistsError, PermissionError,
+                                                IsADirectoryError, NotADirectoryError)
 """What the user can fix: printed as one line, exit 2. Anything else is a bug (internal error, exit 70)."""
 EXIT_INTERNAL = 70
+
+
+def _user_message(exc: BaseException) -> str:
+    """One line for the user: a path error names the path and what is wrong with it."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"cannot use {exc.filename}: {exc.strerror} (check --out and the paths given)"
+    return str(exc)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -453,7 +468,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return func(args)
     except USER_ERRORS as exc:
-        print(f"ld3: error: {exc}", file=sys.stderr)
+        print(f"ld3: error: {_user_message(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("ld3: interrupted", file=sys.stderr)

@@ -7,6 +7,7 @@ A track component's factory is `factory(seed) -> tracks.road.Track`; a vehicle c
 
 from __future__ import annotations
 
+from testbed.errors import UserError
 from testbed.registry import Component, Registry
 from tracks.presets import PRESETS, list_presets, parse_track_spec
 from tracks.road import Track
@@ -25,8 +26,11 @@ for _params in VEHICLE_PARAMS.values():
 
 
 def build_track(spec: str) -> Track:
-    """The track `NAME` or `NAME@SEED` of the registry (ValueError naming the known ones)."""
-    name, seed = parse_track_spec(spec)
+    """The track `NAME` or `NAME@SEED` of the registry (a UserError naming the known ones)."""
+    try:
+        name, seed = parse_track_spec(spec)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     return TRACKS.get(name).factory(seed)
 
 

@@ -28,6 +28,18 @@ def check_out_dir(out: Path, force: bool) -> None:
         raise UserError(f"--out {out} holds a finished run; pass --force to replace it, or choose another folder")
 
 
+def claim_out_dir(out: Path, force: bool) -> None:
+    """Make `out` an empty folder for a run that writes in place as it goes (a CAN log, a vehicle drive):
+    refused as `check_out_dir` refuses; a finished run there is removed first when `force`."""
+    check_out_dir(out, force)
+    try:
+        if (out / SUMMARY).is_file():
+            shutil.rmtree(out)
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot write to output directory {out}: {exc.strerror}") from None
+
+
 @contextmanager
 def run_folder(out: Path, force: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary folder beside `out`; when the body returns, it becomes `out` (an earlier run

@@ -103,6 +103,9 @@ class SimRun:
         self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
         if not 0 <= self.lane < len(self.track.lanes):
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
+        if sc.start_s > self.track.length - END_MARGIN_M:
+            raise ScenarioError(f"start_s = {sc.start_s:g} m lies beyond the end of {sc.track} "
+                                f"({self.track.length:.0f} m long, runs end {END_MARGIN_M:g} m before it)")
         start = self.track.start_pose(self.lane, sc.start_s)
         self.start = start
         if chassis is None:

@@ -118,7 +118,8 @@ class Scenario(BaseModel):
 
 
 _PLAIN = {"float_type": "must be a number", "int_type": "must be an integer", "finite_number": "must be finite",
-          "string_type": "must be a string", "bool_type": "must be true or false", "dict_type": "must be a table"}
+          "string_type": "must be a string", "bool_type": "must be true or false", "dict_type": "must be a table",
+          "model_type": "must be a table"}
 
 _BOUNDS = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
 
@@ -133,6 +134,8 @@ def _one_line(exc: ValidationError) -> str:
         return f"unknown scenario key {key!r}; known{' in [rates]' if section == 'rates' else ''}: " \
                f"{', '.join(sorted(known))}"
     message = err["msg"].removeprefix("Value error, ")
+    if err["loc"][:1] == ("attack",) and err["type"] != "value_error":
+        return f"attack must be a table with a 'kind' or a non-empty list of such tables, got {err['input']!r}"
     if not key or err["type"] == "value_error":
         return message
     if err["type"] == "string_pattern_mismatch" and key == "name":
@@ -284,7 +287,10 @@ def load_scenario(name_or_path: str) -> Scenario:
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         _check(path.is_file(), f"scenario file not found: {path}")
-        text, name = path.read_text(), path.stem
+        try:
+            text, name = path.read_text(encoding="utf-8"), path.stem
+        except (UnicodeDecodeError, OSError) as exc:
+            raise ScenarioError(f"scenario file {path} is not a text TOML file: {exc}") from None
     else:
         res = resources.files("testbed.eval") / "scenarios" / f"{name_or_path}.toml"
         _check(res.is_file(),
