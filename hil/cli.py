@@ -41,7 +41,7 @@ from testbed.chassis import ChassisPort
 from testbed.cli import OneLineParser
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
-from testbed.eval.run_folder import claim_out_dir
+from testbed.eval.run_folder import check_out_dir
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
@@ -212,7 +212,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     load_profile(args.profile)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
-    claim_out_dir(out, args.force)
+    check_out_dir(out, args.force)
     config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None,
                         args.profile, args.truth, args.bitrate, parse_options(args.can_option), args.can_config)
     drill: dict[str, object] = {}
@@ -224,7 +224,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
-                                  record=args.record, sensors=args.sensors, **drill)
+                                  record=args.record, sensors=args.sensors, force=args.force, **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK

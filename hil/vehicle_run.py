@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -140,11 +141,12 @@ class VehicleRun:
         key = link_key(self.profile, bus.interface, bus.kwargs().get("channel"))
         calibration = CameraCalibration.load(config.calibration) if config.calibration else None
         self.rig = CameraRig(calibration.rig_params(self.params.camera) if calibration else self.params.camera)
-        out_dir.mkdir(parents=True, exist_ok=True)
         self.bus = bus.open()
         self.interface = bus.interface
         self.readers: list[Any] = []
+        created = not out_dir.exists()
         try:
+            out_dir.mkdir(parents=True, exist_ok=True)
             self.recorder = FrameRecorder(out_dir / "can.asc")
             geometry = OdometryGeometry(wheelbase=self.params.wheelbase, ref_ahead=-self.params.rear_axle_x)
             self.bridge = CanChassisBridge(self.bus, clock=ClockMode.REALTIME, reply_timeout=5.0,
@@ -159,6 +161,8 @@ class VehicleRun:
                 self.readers.append(self.camera)
         except BaseException:
             self.close()
+            if created:  # a refused start leaves no folder behind
+                shutil.rmtree(out_dir, ignore_errors=True)
             raise
 
     def _start_pose(self) -> tuple[Pose, int]:
