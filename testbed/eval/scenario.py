@@ -19,6 +19,7 @@ from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
 from testbed.eval.rates import STRICT, Rates
 from testbed.localization.registry import LOCALIZATIONS
+from testbed.params import error_key, error_problem
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
@@ -117,36 +118,23 @@ class Scenario(BaseModel):
         return {name: getattr(self, name) for name in type(self).model_fields}
 
 
-_PLAIN = {"float_type": "must be a number", "int_type": "must be an integer", "finite_number": "must be finite",
-          "string_type": "must be a string", "bool_type": "must be true or false", "dict_type": "must be a table",
-          "model_type": "must be a table"}
-
-_BOUNDS = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
-
-
 def _one_line(exc: ValidationError) -> str:
     """The first error of a scenario validation as one line naming its key."""
     err = exc.errors()[0]
-    key = ".".join(str(p) for p in err["loc"])
+    key = error_key(err)
     if err["type"] == "extra_forbidden":
         section = key.rpartition(".")[0]
         known = Rates.model_fields if section == "rates" else _TOP_KEYS
         return f"unknown scenario key {key!r}; known{' in [rates]' if section == 'rates' else ''}: " \
                f"{', '.join(sorted(known))}"
-    message = err["msg"].removeprefix("Value error, ")
     if err["loc"][:1] == ("attack",) and err["type"] != "value_error":
         return f"attack must be a table with a 'kind' or a non-empty list of such tables, got {err['input']!r}"
     if not key or err["type"] == "value_error":
-        return message
+        return error_problem(err)
     if err["type"] == "string_pattern_mismatch" and key == "name":
         return (f"name {err['input']!r} must be one path component: letters, digits and _ . @ + = , -, "
                 f"not starting with a dot")
-    bound = _BOUNDS.get(err["type"])
-    if bound is not None:
-        limit = next(iter(err["ctx"].values()))
-        return f"{key} must be {bound} {limit}, got {err['input']!r}"
-    what = _PLAIN.get(err["type"], message.lower().removeprefix("input should be ").join(("should be ", "")))
-    return f"{key} {what}, got {err['input']!r}"
+    return f"{key} {error_problem(err)}"
 
 
 def _check(cond: bool, msg: str) -> None:
