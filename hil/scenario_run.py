@@ -15,6 +15,7 @@ an operator's SIGINT or SIGTERM (interrupted) are such faults too.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -42,6 +43,7 @@ from testbed.errors import UserError
 from testbed.eval.run_folder import claim_out_dir
 from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
+from testbed.eval.summary import HilSummary
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -222,7 +224,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         elif link.world is not None:
             link.world.close()
     bridge = link.bridge
-    result.summary.update({
+    result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
         "profile": link.profile.name, "pose_source": "odometry",
         "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
@@ -231,7 +233,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         "can_frames_rejected": sum(bridge.rejected.values()),
         "can_frames_logged": recorder.frames if recorder is not None else 0,
         "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
-    })
+    }))
     if out_dir is not None:
         sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
     return result

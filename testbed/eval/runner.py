@@ -34,10 +34,11 @@ from testbed.direct_chassis import DirectChassis
 from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
-from testbed.eval.outputs import provenance, write_summary, write_trajectory
+from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.recording import Recording, ego_lane_lines
 from testbed.eval.run_folder import run_folder
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs
+from testbed.eval.summary import RunSummary
 from testbed.eval.video import FrameSignals, VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
@@ -58,12 +59,17 @@ END_MARGIN_M = 30.0
 
 @dataclass
 class RunResult:
-    """A finished run: its summary, one record per control tick, the believed (MSF) path, the stop time."""
+    """A finished run: its summary (`record`, and as the plain dict campaigns read), one record per control tick,
+    the believed (MSF) path, the stop time."""
 
-    summary: dict[str, Any]
+    record: RunSummary
     rows: list[TickRecord] = field(default_factory=list)
     believed_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     stop_t: float | None = None
+    summary: dict[str, Any] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.summary = self.record.as_dict()
 
 
 def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
@@ -268,7 +274,7 @@ class SimRun:
         """The summary and records of the ticks run so far (the whole run once `done`)."""
         return RunResult(self._summary(), list(self.rows), np.array(self.believed).reshape(-1, 2), self.stop_t)
 
-    def _summary(self) -> dict[str, Any]:
+    def _summary(self) -> RunSummary:
         sc, rows, wall, stop_t = self.sc, self.rows, self.wall_time, self.stop_t
         status = self.defense.status()
         det_t = status.detection_time
@@ -282,7 +288,7 @@ class SimRun:
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         defense_params = self.defense_config.model_dump()
-        return {
+        return RunSummary(**{
             **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
                                                  "detector_params": self.detector_settings.model_dump()
                                                  if self.detector_settings is not None else {}},
@@ -305,13 +311,13 @@ class SimRun:
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
             "attack_state": self.attack.state() if self.attack is not None else None,
-        }
+        })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
         """summary.json, trajectory.csv, birdseye.png (and camera.mp4 when recorded) of a finished run."""
         sc = self.sc
         write_trajectory(out_dir / "trajectory.csv", result.rows)
-        write_summary(out_dir / "summary.json", result.summary)
+        result.record.write(out_dir / "summary.json")
         save_birdseye(out_dir / "birdseye.png", self.track, result.rows, lane_width=self.lane_width,
                       straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
                       detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
