@@ -9,6 +9,7 @@ are indexed 0 = rightmost; lateral offsets t are + left.
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 from collections.abc import Sequence
@@ -162,6 +163,9 @@ class Track:
         last = min(self.n_tiles - 1, math.ceil((s + radius) / self.tile_length) - 1)
         return list(range(first, last + 1))
 
-    def add_painter(self, painter: Painter) -> None:
-        """Append a painter; it runs after the existing ones on every tile painted from now on."""
-        self.painters.append(painter)
+    def with_painters(self, painters: Sequence[Painter]) -> Track:
+        """A copy of this track whose tiles `painters` paint after its own (a condition's wear, an attack's
+        patch); the track itself is left as it is."""
+        painted = copy.copy(self)
+        painted.painters = [*self.painters, *painters]
+        return painted

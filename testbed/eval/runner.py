@@ -123,11 +123,8 @@ class SimRun:
         self.attack: Attack | None = AttackChain(attack) if isinstance(attack, list) else attack
         if attack is None:
             self.attack = build_attack(sc.attack, rng=rng_attack, defense=self.defense_config)
-        for painter in self.condition.track_painters(sc.seed):
-            self.track.add_painter(painter)
-        if self.attack is not None:
-            for painter in self.attack.painters():
-                self.track.add_painter(painter)
+        self.track = self.track.with_painters([*self.condition.track_painters(sc.seed),
+                                               *(self.attack.painters() if self.attack is not None else [])])
         reads_camera = Capability.CAMERA_IMAGE in provided if detector is None else detector.reads_camera
         needs_camera = reads_camera if render is None else render
         self.rig = CameraRig(self.params.camera)
