@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from testbed.direct_chassis import DirectChassis
 from testbed.errors import UserError
-from testbed.eval.runner import physics_world_for
+from testbed.eval.run_build import physics_world_for
 from testbed.eval.scenario import Scenario
 from testbed.loop import PHYSICS_HZ
 from testbed.presets import build_track, vehicle

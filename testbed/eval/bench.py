@@ -128,7 +128,7 @@ def _bare_physics(sc, steps: int) -> dict[str, float]:
     scenario speed under a constant command: wall and CPU seconds."""
     import pybullet as pb
 
-    from testbed.eval.runner import physics_world_for
+    from testbed.eval.run_build import physics_world_for
     from tracks.presets import load_track
     from vehicles.params import get_vehicle
 

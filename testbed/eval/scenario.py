@@ -13,7 +13,6 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from testbed.attacks.registry import ATTACKS
 from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
-from testbed.conditions import get_condition
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
@@ -74,6 +73,8 @@ class Scenario(BaseModel):
             parse_track_spec(self.track)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
+        from testbed.conditions import get_condition  # the camera's conditions need OpenCV (not on a vehicle)
+
         get_condition(self.condition)
         track = parse_track_spec(self.track)[0]
         for registry, name in ((TRACKS, track), (VEHICLES, self.vehicle), (LOCALIZATIONS, self.localization),

@@ -22,7 +22,8 @@ from tqdm import tqdm
 from testbed.conditions import get_condition
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
-from testbed.eval.runner import END_MARGIN_M, SimRun
+from testbed.eval.run_build import END_MARGIN_M
+from testbed.eval.runner import SimRun
 from testbed.eval.scenario import load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.registry import make_detector
