@@ -21,4 +21,4 @@ def load_xodr(spec: str) -> Track:
     ids = [r.strip() for r in route_text.split(",") if r.strip()]
     legs = resolve_route(od, ids) if ids else default_route(od)
     name = f"{PREFIX}{path.name}" + (f"#{route_text}" if route_text else "")
-    return route_track(legs, name, path.name)
+    return route_track(legs, name, str(path))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import Counter
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -86,8 +87,8 @@ def _side(leg: Leg) -> int:
 class _Sampler:
     """The ego lane's centre and the cross sections at knots of a route whose ego lane is lane `first`."""
 
-    def __init__(self, legs: list[Leg]) -> None:
-        self.legs = legs
+    def __init__(self, legs: list[Leg], source: str) -> None:
+        self.legs, self.source = legs, source
         self.views = [PlanView(leg.road.geometries) for leg in legs]
 
     def sections(self, k: _Knot) -> tuple[CrossSection, CrossSection]:
@@ -111,8 +112,8 @@ class _Sampler:
     def sample(self, k: _Knot) -> _Sample:
         near, far = self.sections(k)
         if near.drivable()[1] == 0:
-            raise OpenDriveError(f"road {self.legs[k.leg].road.id} at s={k.p:.1f}: no drivable lane in the "
-                                 f"driving direction")
+            raise OpenDriveError(f"{self.source}: road {self.legs[k.leg].road.id} at s={k.p:.1f}: no drivable lane "
+                                 f"in the driving direction")
         step = DELTA * self.legs[k.leg].direction
         ps = np.array([k.p, min(max(k.p - step, k.lo), k.hi), min(max(k.p + step, k.lo), k.hi)])
         x, y = self.centre(k, ps)
@@ -120,15 +121,16 @@ class _Sampler:
 
 
 def route_track(legs: list[Leg], name: str, source: str) -> Track:
-    """The track `name` of a route (its legs in driving order) through the file `source`; OpenDriveError where
-    the roads cannot make one."""
-    sampler = _Sampler(legs)
+    """The track `name` of a route (its legs in driving order) through the file at `source`; OpenDriveError
+    where the roads cannot make one."""
+    sampler = _Sampler(legs, source)
+    roads = ",".join(leg.road.id for leg in legs)
     per_leg = _knots(legs)
     knots, samples, junction = [], [], []
     for i, leg_knots in enumerate(per_leg):
         leg_samples = [sampler.sample(k) for k in leg_knots]
         if samples:
-            _check_join(samples[-1], leg_samples[0], legs[i - 1].road, legs[i].road)
+            _check_join(samples[-1], leg_samples[0], f"{source}: road {legs[i - 1].road.id} → road {legs[i].road.id}")
             leg_knots, leg_samples = leg_knots[1:], leg_samples[1:]
         knots += leg_knots
         samples += leg_samples
@@ -143,12 +145,12 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     reference = ReferenceLine(Pose(xs[0], ys[0], heading[0]), fit_segments(sigma, heading))
     stray = float(np.max(np.hypot(*(reference.points(sigma) - np.column_stack([xs, ys])).T)))
     if stray > FIT_TOLERANCE:
-        raise OpenDriveError(f"route {name}: the ego lane's centre cannot be followed within "
+        raise OpenDriveError(f"{source}: route {roads}: the ego lane's centre cannot be followed within "
                              f"{FIT_TOLERANCE * 1000:.0f} mm (off by {stray * 1000:.1f} mm)")
 
     outward = [_side(legs[k.leg]) * legs[k.leg].direction for k in knots]
     if len(set(outward)) > 1:
-        raise OpenDriveError(f"route {name}: mixes right- and left-hand traffic roads")
+        raise OpenDriveError(f"{source}: route {roads}: mixes right- and left-hand traffic roads")
     order = list(range(n)) if outward[0] > 0 else list(range(n - 1, -1, -1))  # track lane -> lane from centre
     widths = np.array([_widths(s.near, n) for s in samples])
     for col in widths.T:
@@ -162,18 +164,18 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     outer, inner = _edges(samples, outside, n)
     right, left = (inner, outer) if outward[0] > 0 else (outer, inner)
     crossings = _intersections(sigma, junction)
-    description = (f"OpenDRIVE {source}, roads {' → '.join(leg.road.id for leg in legs)}: {n} lane(s), "
+    description = (f"OpenDRIVE {Path(source).name}, roads {' → '.join(leg.road.id for leg in legs)}: {n} lane(s), "
                    f"{reference.length:.0f} m")
     return Track(name, 0, description, reference, [float(w) for w in np.median(widths, axis=0)], kinds, right,
                  left, ego_lane=order.index(0), intersections=crossings,
                  width_table=(sigma, widths) if varies else None)
 
 
-def _check_join(a: _Sample, b: _Sample, road_a: Road, road_b: Road) -> None:
+def _check_join(a: _Sample, b: _Sample, where: str) -> None:
     gap = math.hypot(b.x - a.x, b.y - a.y)
     turn = abs(math.remainder(b.heading - a.heading, 2.0 * math.pi))
     if gap > JOIN_GAP or turn > JOIN_TURN:
-        raise OpenDriveError(f"road {road_a.id} → road {road_b.id}: the ego lane jumps by {gap:.2f} m and "
+        raise OpenDriveError(f"{where}: the ego lane jumps by {gap:.2f} m and "
                              f"{turn:.3f} rad where they meet (at most {JOIN_GAP} m, {JOIN_TURN} rad)")
 
 

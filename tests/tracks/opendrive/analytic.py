@@ -30,7 +30,10 @@ def _local(shape: ET.Element, length: float, u: float) -> tuple[float, float, fl
         def dv(w: float) -> float:
             return a["b"] + 2 * a["c"] * w + 3 * a["d"] * w * w
 
-        w = brentq(lambda w: quad(lambda x: math.hypot(1, dv(x)), 0, w, epsabs=1e-12)[0] - u, 0, u + 1e-9) if u > 0 else 0
+        def arc(w: float) -> float:
+            return quad(lambda x: math.hypot(1, dv(x)), 0, w, epsabs=1e-12)[0]
+
+        w = brentq(lambda w: arc(w) - u, 0, u + 1e-9) if u > 0 else 0.0
         return w, a["a"] + a["b"] * w + a["c"] * w * w + a["d"] * w ** 3, math.atan(dv(w))
     p = u / length if shape.get("pRange") == "normalized" else u
     x = a["aU"] + a["bU"] * p + a["cU"] * p * p + a["dU"] * p ** 3

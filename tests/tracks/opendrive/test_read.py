@@ -48,9 +48,10 @@ def test_width_polynomials_sections_and_lane_offset_match_within_1_cm(tmp_path):
     widen = [(0.0, (3.25, 0.0, 3 * 0.5 / 60**2, -2 * 0.5 / 60**3))]  # 3.25 -> 3.75 m over 60 m, cubic
     sections = [section(0.0, [widen, constant(3.0)], [constant(3.5)]),
                 section(60.0, [constant(3.75), [(0.0, (3.0, -0.5 / 70, 0.0, 0.0))]], [constant(3.5)])]
-    offset = '<laneOffset s="0" a="0.0" b="0.0" c="1e-4" d="-7e-7"/><laneOffset s="95" a="0.0" b="0" c="0" d="0"/>'
+    held = 1e-4 * 95**2 - 7e-7 * 95**3  # the cubic lane offset's value at s = 95 m, held from there on
+    offset = f'<laneOffset s="0" a="0" b="0" c="1e-4" d="-7e-7"/><laneOffset s="95" a="{held}" b="0" c="0" d="0"/>'
     text = document(road("3", 130.0, [geometry(0, 0.0, 0.0, 0.2, 130.0, '<arc curvature="0.005"/>')], sections,
-                         lane_offset=offset.replace('a="0.0" b="0" c="0"', f'a="{1e-4 * 95**2 - 7e-7 * 95**3}" b="0" c="0"')))
+                         lane_offset=offset))
     path, root = _write(tmp_path, text)
     track = load_xodr(str(path))
     assert track.lanes[0].profiles is not None
