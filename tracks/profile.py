@@ -21,7 +21,3 @@ class Profile:
         s0, s1 = self._s[i], self._s[i + 1]
         f = min(max((s - s0) / (s1 - s0), 0.0), 1.0)
         return self._v[i] + f * (self._v[i + 1] - self._v[i])
-
-    def range(self) -> tuple[float, float]:
-        """(smallest, largest) value."""
-        return float(self.v.min()), float(self.v.max())

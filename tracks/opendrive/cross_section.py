@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from tracks.opendrive.marks import line_kind
-from tracks.opendrive.model import LaneRecord, LaneSection, Road
+from tracks.opendrive.model import LaneRecord, LaneSection, Road, latest
 
 DRIVABLE = frozenset({"driving", "entry", "exit", "onRamp", "offRamp", "connectingRamp", "bidirectional"})
 CURBSIDE = frozenset({"sidewalk", "curb", "walking"})
@@ -41,18 +41,12 @@ class CrossSection(NamedTuple):
 
 
 def _width(lane: LaneRecord, ds: float) -> float:
-    rec = lane.widths[0]
-    for w in lane.widths:
-        if w.s <= ds + 1e-9:
-            rec = w
+    rec = latest(lane.widths, lambda w: w.s, ds) or lane.widths[0]
     return max(rec.at(ds), 0.0)
 
 
 def _mark(lane: LaneRecord | None, ds: float) -> str:
-    found = None
-    for m in () if lane is None else lane.marks:
-        if m.s_offset <= ds + 1e-9:
-            found = m
+    found = None if lane is None else latest(lane.marks, lambda m: m.s_offset, ds)
     return "none" if found is None else line_kind(found.type, found.color)
 
 

@@ -3,11 +3,24 @@ polynomials and road marks, links) and junction connections. Lengths in metres, 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import TypeVar
+
+T = TypeVar("T")
 
 
 class OpenDriveError(ValueError):
     """An OpenDRIVE file the reader cannot use; the message is one line naming the element and why."""
+
+
+def latest(records: Iterable[T], start: Callable[[T], float], s: float) -> T | None:
+    """The last of `records` (in order of their starts) that starts at or before s (1 nm tolerance)."""
+    found = None
+    for rec in records:
+        if start(rec) <= s + 1e-9:
+            found = rec
+    return found
 
 
 @dataclass(frozen=True)
@@ -53,14 +66,12 @@ class RoadMark:
 @dataclass(frozen=True)
 class LaneRecord:
     """A lane of a section: id (+ left of the reference line, − right, 0 centre), type, width records (sOffset
-    relative to the section start), road marks and its lane links."""
+    relative to the section start) and road marks."""
 
     id: int
     type: str
     widths: tuple[Poly3, ...]
     marks: tuple[RoadMark, ...]
-    predecessor: int | None = None
-    successor: int | None = None
 
 
 @dataclass(frozen=True)
@@ -100,18 +111,11 @@ class Road:
 
     def section_at(self, s: float) -> LaneSection:
         """The lane section that holds arc length s (the last whose start is at or before it)."""
-        found = self.sections[0]
-        for sec in self.sections:
-            if sec.s <= s + 1e-9:
-                found = sec
-        return found
+        return latest(self.sections, lambda sec: sec.s, s) or self.sections[0]
 
     def lane_offset_at(self, s: float) -> float:
         """Lateral shift (m, + left) of the centre lane from the reference line at s."""
-        found = None
-        for rec in self.lane_offsets:
-            if rec.s <= s + 1e-9:
-                found = rec
+        found = latest(self.lane_offsets, lambda rec: rec.s, s)
         return 0.0 if found is None else found.at(s)
 
 
@@ -122,7 +126,6 @@ class Connection:
     incoming: str
     connecting: str
     contact_point: str
-    lane_links: tuple[tuple[int, int], ...]
 
 
 @dataclass(frozen=True)

@@ -118,7 +118,8 @@ def _road(elem: ET.Element, where: _Where) -> Road:
     lanes = elem.find("lanes")
     if lanes is None:
         raise where.fail(name, "no <lanes>")
-    offsets = tuple(where.poly(o, "s", f"{name} <laneOffset>") for o in lanes.findall("laneOffset"))
+    offsets = tuple(sorted((where.poly(o, "s", f"{name} <laneOffset>") for o in lanes.findall("laneOffset")),
+                           key=lambda o: o.s))
     sections = tuple(_section(sec, where, name) for sec in lanes.findall("laneSection"))
     if not sections:
         raise where.fail(f"{name} <lanes>", "no <laneSection>")
@@ -173,16 +174,10 @@ def _lane(elem: ET.Element, where: _Where, section: str) -> LaneRecord:
                           key=lambda p: p.s))
     if lane_id != 0 and not widths:
         raise where.fail(name, "no <width>")
-    marks = tuple(RoadMark(where.number(m, "sOffset", f"{name} <roadMark>", 0.0), m.get("type", "none"),
-                           m.get("color", "standard")) for m in elem.findall("roadMark"))
-    link = elem.find("link")
-    ends = [None, None]
-    if link is not None:
-        for i, tag in enumerate(("predecessor", "successor")):
-            end = link.find(tag)
-            if end is not None:
-                ends[i] = int(where.number(end, "id", f"{name} <{tag}>"))
-    return LaneRecord(lane_id, elem.get("type", "driving"), widths, marks, ends[0], ends[1])
+    marks = tuple(sorted((RoadMark(where.number(m, "sOffset", f"{name} <roadMark>", 0.0), m.get("type", "none"),
+                                   m.get("color", "standard")) for m in elem.findall("roadMark")),
+                         key=lambda m: m.s_offset))
+    return LaneRecord(lane_id, elem.get("type", "driving"), widths, marks)
 
 
 def _link(elem: ET.Element | None, where: _Where, road: str) -> Link | None:
@@ -200,11 +195,9 @@ def _junction(elem: ET.Element, where: _Where) -> Junction:
         raise where.fail("<junction>", "attribute 'id' is missing")
     connections = []
     for conn in elem.findall("connection"):
-        name = f"junction {junction_id} <connection id={conn.get('id')}>"
         incoming, connecting = conn.get("incomingRoad"), conn.get("connectingRoad")
         if incoming is None or connecting is None:
-            raise where.fail(name, "needs incomingRoad and connectingRoad")
-        links = tuple((int(where.number(ll, "from", name)), int(where.number(ll, "to", name)))
-                      for ll in conn.findall("laneLink"))
-        connections.append(Connection(incoming, connecting, conn.get("contactPoint", "start"), links))
+            raise where.fail(f"junction {junction_id} <connection id={conn.get('id')}>",
+                             "needs incomingRoad and connectingRoad")
+        connections.append(Connection(incoming, connecting, conn.get("contactPoint", "start")))
     return Junction(junction_id, tuple(connections))

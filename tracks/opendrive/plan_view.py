@@ -99,8 +99,3 @@ class PlanView:
             y[sel] = g.y + sn * lx + c * ly
             h[sel] = g.hdg + lh
         return x, y, h
-
-    @property
-    def breaks(self) -> list[float]:
-        """Road arc lengths where a record starts (where curvature may jump)."""
-        return [g.s for g in self.geometries]

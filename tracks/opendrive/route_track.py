@@ -85,7 +85,7 @@ def _side(leg: Leg) -> int:
 
 
 class _Sampler:
-    """The ego lane's centre and the cross sections at knots of a route whose ego lane is lane `first`."""
+    """The ego lane's centre and both sides' cross sections at the knots of a route."""
 
     def __init__(self, legs: list[Leg], source: str) -> None:
         self.legs, self.source = legs, source
