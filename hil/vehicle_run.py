@@ -12,6 +12,8 @@ true pose on a vehicle), summary.json and the CAN log.
 from __future__ import annotations
 
 import contextlib
+import math
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -80,6 +82,14 @@ class VehicleConfig:
     profile: str = "ld3-dev"
     first_fix_s: float = 10.0
 
+    def __post_init__(self) -> None:
+        for key in ("speed", "duration", "first_fix_s"):
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise UserError(f"--{key.replace('_', '-')} must be a number > 0, got {value!r}")
+        if self.lane is not None and self.lane < 0:
+            raise UserError(f"--lane must be >= 0, got {self.lane}")
+
 
 class ReportedChassis(ChassisPort):
     """The bridge as the loop sees it on a vehicle: what the chassis reports, no pose (its odometry is no truth)."""
@@ -131,11 +141,12 @@ class VehicleRun:
         key = link_key(self.profile, bus.interface, bus.kwargs().get("channel"))
         calibration = CameraCalibration.load(config.calibration) if config.calibration else None
         self.rig = CameraRig(calibration.rig_params(self.params.camera) if calibration else self.params.camera)
-        out_dir.mkdir(parents=True, exist_ok=True)
         self.bus = bus.open()
         self.interface = bus.interface
         self.readers: list[Any] = []
+        created = not out_dir.exists()
         try:
+            out_dir.mkdir(parents=True, exist_ok=True)
             self.recorder = FrameRecorder(out_dir / "can.asc")
             geometry = OdometryGeometry(wheelbase=self.params.wheelbase, ref_ahead=-self.params.rear_axle_x)
             self.bridge = CanChassisBridge(self.bus, clock=ClockMode.REALTIME, reply_timeout=5.0,
@@ -150,6 +161,8 @@ class VehicleRun:
                 self.readers.append(self.camera)
         except BaseException:
             self.close()
+            if created:  # a refused start leaves no folder behind
+                shutil.rmtree(out_dir, ignore_errors=True)
             raise
 
     def _start_pose(self) -> tuple[Pose, int]:

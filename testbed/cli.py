@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import NoReturn
 
 from testbed.errors import UserError
 
@@ -21,6 +22,13 @@ PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcom
 
 
 DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that refuses bad arguments in one line pointing at --help (its sub-parsers too)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:
@@ -50,6 +58,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
     p.add_argument("--out", type=Path, help="output directory (default runs/<scenario>-<seed>)")
+    p.add_argument("--force", action="store_true", help="replace a finished run already in --out")
 
 
 def scenario_from_args(args: argparse.Namespace):
@@ -66,14 +75,17 @@ def scenario_from_args(args: argparse.Namespace):
 
 def cmd_run(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_tables
+    from testbed.eval.run_folder import check_out_dir
     from testbed.eval.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
+    check_out_dir(out, args.force)
     attack = "+".join(t["kind"] for t in attack_tables(sc.attack)) or "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
-    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
+    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty(),
+                          force=args.force)
     s = result.summary
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
           f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
@@ -299,7 +311,7 @@ def search_victim(args: argparse.Namespace):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="ld3", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
     sub = parser.add_subparsers(dest="cmd", required=True)
 
@@ -447,10 +459,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, PermissionError, IsADirectoryError,
-                                                NotADirectoryError)
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, FileExistsError, PermissionError,
+                                                IsADirectoryError, NotADirectoryError)
 """What the user can fix: printed as one line, exit 2. Anything else is a bug (internal error, exit 70)."""
 EXIT_INTERNAL = 70
+
+
+def _user_message(exc: BaseException) -> str:
+    """One line for the user: a path error names the path and what is wrong with it."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"cannot use {exc.filename}: {exc.strerror} (check --out and the paths given)"
+    return str(exc)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -462,7 +481,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return func(args)
     except USER_ERRORS as exc:
-        print(f"ld3: error: {exc}", file=sys.stderr)
+        print(f"ld3: error: {_user_message(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("ld3: interrupted", file=sys.stderr)

@@ -41,14 +41,17 @@ for _params in VEHICLE_PARAMS.values():
 
 
 def build_track(spec: str) -> Track:
-    """The track `NAME` or `NAME@SEED` of the registry (ValueError naming the known ones), or the route of an
+    """The track `NAME` or `NAME@SEED` of the registry (a UserError naming the known ones), or the route of an
     OpenDRIVE file `xodr:PATH[#ROUTE]` (TrackFileError, one line, where the file cannot be used)."""
     if spec.startswith(XODR_PREFIX):
         try:
             return load_track(spec)
         except OpenDriveError as exc:
             raise TrackFileError(str(exc)) from None
-    name, seed = parse_track_spec(spec)
+    try:
+        name, seed = parse_track_spec(spec)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     return TRACKS.get(name).factory(seed)
 
 

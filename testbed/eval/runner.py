@@ -6,7 +6,6 @@ localization, attack, detector), so the same scenario and seed give byte-identic
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -37,6 +36,7 @@ from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import provenance, write_summary, write_trajectory
 from testbed.eval.recording import Recording, ego_lane_lines
+from testbed.eval.run_folder import run_folder
 from testbed.eval.scenario import Scenario, ScenarioError, check_needs
 from testbed.eval.video import FrameSignals, VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
@@ -68,7 +68,7 @@ class RunResult:
 
 def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
     """The physics world a scenario runs in (the CAN chassis emulator builds the same one as its plant)."""
-    return PhysicsWorld(track, params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+    return PhysicsWorld(track, params, start, physics_hz=sc.rates.physics_hz)
 
 
 class SimRun:
@@ -103,14 +103,17 @@ class SimRun:
         self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
         if not 0 <= self.lane < len(self.track.lanes):
             raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
+        if sc.start_s > self.track.length - END_MARGIN_M:
+            raise ScenarioError(f"start_s = {sc.start_s:g} m lies beyond the end of {sc.track} "
+                                f"({self.track.length:.0f} m long, runs end {END_MARGIN_M:g} m before it)")
         start = self.track.start_pose(self.lane, sc.start_s)
         self.start = start
         if chassis is None:
             world = physics_world_for(sc, self.track, self.params, start)
-            chassis = DirectChassis(world, hold_s=sc.rates.get("command_hold_s", 0.0))
+            chassis = DirectChassis(world, hold_s=sc.rates.command_hold_s)
         self.world = world
         self.chassis = chassis
-        rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
+        rates = LoopRates(control_hz=sc.rates.control_hz, camera_hz=sc.rates.camera_hz)
         self.attack: Attack | None = AttackChain(attack) if isinstance(attack, list) else attack
         if attack is None:
             self.attack = build_attack(sc.attack, rng=rng_attack, defense=self.defense_config)
@@ -180,7 +183,7 @@ class SimRun:
 
     def _localization_config(self) -> LocalizationConfig:
         """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
-        table = dict(self.sc.rates.get("localization", {}))
+        table = dict(self.sc.rates.localization)
         table["msf"] = {"lever": -self.params.rear_axle_x, **table.get("msf", {})}
         return LocalizationConfig.from_dict(table)
 
@@ -280,7 +283,7 @@ class SimRun:
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         defense_params = self.defense_config.model_dump()
         return {
-            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params,
+            **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
                                                  "detector_params": self.detector_settings.model_dump()
                                                  if self.detector_settings is not None else {}},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
@@ -347,11 +350,20 @@ def prepare_out_dir(out_dir: Path) -> None:
 
 
 def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
-                 progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
+                 progress: bool = False, render: bool | None = None, tracking: bool | None = None,
+                 force: bool = False) -> RunResult:
     """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4,
-    run.mcap)."""
-    if out_dir is not None:
-        prepare_out_dir(out_dir)
+    run.mcap) there, all or nothing (`run_folder`; `force` replaces a finished run)."""
+    if out_dir is None:
+        return run_into(sc, None, video=video, record=record, progress=progress, render=render, tracking=tracking)
+    with run_folder(out_dir, force) as tmp:
+        return run_into(sc, tmp, video=video, record=record, progress=progress, render=render, tracking=tracking)
+
+
+def run_into(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
+             progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
+    """Run `sc` and write its outputs into `out_dir`, a folder the caller made and owns (a campaign's
+    temporary run folder), or nowhere."""
     sim = SimRun(sc, render=render, video=video, record=record, tracking=tracking)
     try:
         result = sim.run(progress=progress)
