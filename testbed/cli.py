@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Callable
 from importlib.metadata import entry_points
@@ -148,7 +149,15 @@ def cmd_tracks(args: argparse.Namespace) -> int:
             print(f"{component.name:16s} {component.help}")
         return 0
     track = build_track(args.name)
-    out = args.out or Path(f"{args.name.replace('@', '-')}.png")
+    stem = re.sub(r"[^\w.-]+", "-", Path(args.name.removeprefix("xodr:")).name).strip("-")
+    if args.tracks_cmd == "export":
+        from tracks.opendrive.write import write_xodr
+
+        out = args.out or Path(f"{stem}.xodr")
+        write_xodr(track, out)
+        print(f"wrote {out} ({track.description})")
+        return 0
+    out = args.out or Path(f"{stem}.png")
     save_track_png(track, out)
     print(f"wrote {out}")
     return 0
@@ -337,9 +346,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("tracks", help="track presets")
     tsub = p.add_subparsers(dest="tracks_cmd", required=True)
     tsub.add_parser("list", help="list presets")
-    show = tsub.add_parser("show", help="bird's-eye picture of a preset")
-    show.add_argument("name", help="NAME[@SEED]")
+    show = tsub.add_parser("show", help="bird's-eye picture of a preset or an OpenDRIVE route")
+    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
     show.add_argument("--out", type=Path)
+    export = tsub.add_parser("export", help="write a track as OpenDRIVE 1.7 (docs/opendrive.md)")
+    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    export.add_argument("--format", choices=["xodr"], default="xodr")
+    export.add_argument("--out", type=Path, help="default NAME-SEED.xodr")
     p.set_defaults(func=cmd_tracks)
 
     from testbed.defense.registry import DEFENSES

@@ -44,7 +44,8 @@ class Scenario(BaseModel):
     model_config = STRICT
 
     name: str = Field(pattern=NAME_PATTERN, max_length=120, description="run name (default: the file's stem)")
-    track: str = Field(description="track preset, `NAME` or `NAME@SEED` (a seed > 0 draws a held-out variant)")
+    track: str = Field(description="track preset, `NAME` or `NAME@SEED` (a seed > 0 draws a held-out variant), "
+                                   "or a route of an OpenDRIVE file, `xodr:PATH[#ROAD,ROAD,...]`")
     vehicle: str = Field("sedan", description="vehicle")
     speed: float = Field(12.0, gt=0, le=100, description="target speed (m/s)")
     duration: float = Field(60.0, gt=0, le=86_400, description="simulated duration (s)")

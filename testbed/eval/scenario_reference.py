@@ -15,6 +15,7 @@ from testbed.params import reference_rows
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import Registry
+from tracks.opendrive.load import PREFIX as XODR_PREFIX
 
 
 def _choices(registry: Registry) -> str:
@@ -79,7 +80,7 @@ def json_schema() -> dict[str, Any]:
                              if not key.endswith("_params")}
     for key in ("defense", "detector", "attack"):
         props[key] = {"description": props[key]["description"]}
-    props["track"].update(pattern=f"^({'|'.join(TRACKS.names())})(@[0-9]+)?$")
+    props["track"].update(pattern=f"^(({'|'.join(TRACKS.names())})(@[0-9]+)?|{XODR_PREFIX}.+)$")
     props["vehicle"].update(names["vehicle"])
     props["localization"].update(names["localization"])
     defense_table = DefenseConfig.model_json_schema()
