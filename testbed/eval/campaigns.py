@@ -78,8 +78,8 @@ def _stats(values: list[float]) -> str:
 LANE_KEEPING = (("slr", 10.0, 60.0), ("slr", 27.0, 60.0), ("urban-straight", 12.0, 60.0),
                 ("urban-curvy", 10.0, 120.0), ("highway", 27.0, 90.0))
 LANE_KEEPING_LIMIT_M = {"slr": 0.10, "urban-straight": 0.10, "urban-curvy": 0.25, "highway": 0.15}
-"""Benign max |physical deviation| the foundation issue asks for with the true pose, per track."""
-MSF_ALLOWANCE_M = 0.05  # what steering on the MSF may add to the true-pose limit (localization issue)
+"""The largest benign |physical deviation| lane keeping with the true pose may reach, per track (m)."""
+MSF_ALLOWANCE_M = 0.05  # what steering on the MSF may add to the true-pose limit
 MSF_SEEDS = range(5)
 
 
@@ -120,7 +120,7 @@ def msf_lateral_error(run_dir: Path) -> np.ndarray:
 
 
 MSF_TARGET_RMS_M, MSF_TARGET_MAX_M = 0.10, 0.30
-"""Benign MSF lateral error the localization issue asks for on every preset."""
+"""The benign MSF lateral error (RMS, max; m) allowed on every preset."""
 
 
 def msf_error_cells(run_dirs: list[Path]) -> str:
