@@ -1,6 +1,8 @@
-"""docs/architecture.md names only what exists: every backticked repository path (`testbed/loop.py`,
-`testbed/perception/`) is a file or folder, and every backticked dotted name of a first-party package
-(`testbed.loop.ControlLoop.tick`) is a module, or a module's top-level name, or a method of its class."""
+"""The docs' structure. docs/architecture.md names only what exists: every backticked repository path
+(`testbed/loop.py`, `testbed/perception/`) is a file or folder, and every backticked dotted name of a first-party
+package (`testbed.loop.ControlLoop.tick`) is a module, or a module's top-level name, or a method of its class.
+docs/decisions.md has a contents list of its topics, every topic opens with its current state, and every link
+inside it lands on a heading."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from tests.test_import_cycles import first_party_packages, module_files
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "architecture.md"
+DECISIONS = ROOT / "docs" / "decisions.md"
 TOP_LEVEL = ("tracks", "vehicles", "testbed", "hil", "docs", "tests")
 
 
@@ -90,3 +93,42 @@ def test_the_checks_tell_a_missing_name_from_a_present_one():
     assert not resolves("testbed.control.planner.LanePlanner.no_such_method", modules)
     assert not resolves("testbed.no_such_module", modules)
     assert named_paths("`testbed/x.py` and `ld3.defenses` and `a b`") == ["testbed/x.py"]
+
+
+def heading_anchor(title: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces as hyphens."""
+    return re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+
+
+def _topics(text: str) -> list[tuple[str, str]]:
+    """(title, body) of every `## ` section but the contents list."""
+    parts = re.split(r"^## ", text, flags=re.M)[1:]
+    return [(title, body) for title, _, body in (part.partition("\n") for part in parts) if title != "Contents"]
+
+
+def test_decisions_lists_every_topic_in_its_contents_in_order():
+    text = DECISIONS.read_text()
+    contents = text.split("## Contents", 1)[1].split("\n## ", 1)[0]
+    listed = re.findall(r"^- \[(.+)\]\(#(.+)\)$", contents, flags=re.M)
+    titles = [title for title, _ in _topics(text)]
+    assert len(titles) >= 10
+    assert listed == [(title, heading_anchor(title)) for title in titles]
+
+
+def test_every_decisions_topic_opens_with_its_current_state():
+    topics = _topics(DECISIONS.read_text())
+    late = [title for title, body in topics if not body.lstrip().startswith("**Current state.**")]
+    assert not late, f"topics without a current-state lead paragraph: {late}"
+
+
+def test_every_link_inside_the_decisions_lands_on_a_heading():
+    text = DECISIONS.read_text()
+    anchors = {heading_anchor(h) for h in re.findall(r"^#+ (.+)$", text, flags=re.M)}
+    targets = re.findall(r"\]\(#([^)]+)\)", text.replace("\n", " "))
+    assert len(targets) > len(_topics(text))
+    assert not [t for t in targets if t not in anchors]
+
+
+def test_heading_anchors_follow_githubs_rule():
+    assert heading_anchor("Detection threshold: the CUSUM's b and τ") == "detection-threshold-the-cusums-b-and-τ"
+    assert heading_anchor("The paper command") == "the-paper-command"
