@@ -23,7 +23,7 @@ import json
 import os
 import sys
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import closing, contextmanager
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -171,9 +171,13 @@ def _execute(backend: CampaignBackend, todo: Sequence[CampaignRun], out: Path, e
              timeout: float | None, workers: int | None, address: str | None, bar: tqdm) -> list[str]:
     """The runs on `backend`, each settled as it finishes; returns the failure records."""
     failures: list[str] = []
-    with closing(backend.run(todo, out, execute, timeout, workers, address)) as outcomes:
+    outcomes = backend.run(todo, out, execute, timeout, workers, address)
+    try:
         for run, error in outcomes:
             _count_finished(bar, failures, settle(run, out, temp_dir(out, run.run_id), error))
+    finally:
+        if (close := getattr(outcomes, "close", None)) is not None:  # a generator: stop what is in flight
+            close()
     return failures
 
 
