@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import math
 import signal
 import sys
@@ -37,8 +38,10 @@ from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
 from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
+from testbed.cli import OneLineParser
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
+from testbed.eval.run_folder import check_out_dir
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
@@ -101,7 +104,7 @@ def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def ecu_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ld3 ecu", description="Run the chassis ECU emulator on a CAN bus.")
+    parser = OneLineParser(prog="ld3 ecu", description="Run the chassis ECU emulator on a CAN bus.")
     add_ecu_arguments(parser)
     return parser
 
@@ -116,7 +119,13 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
         from testbed.eval.scenario import load_scenario
 
         return pybullet_plant(**{**plant_args_for(load_scenario(args.scenario)), **kwargs})
-    return (plant_factory or resolve_plant(args.plant))(**kwargs)
+    factory = plant_factory or resolve_plant(args.plant)
+    try:
+        inspect.signature(factory).bind(**kwargs)
+    except TypeError as exc:
+        takes = ", ".join(inspect.signature(factory).parameters)
+        raise UserError(f"--plant {args.plant}: {exc} (its --plant-arg keys: {takes})") from None
+    return factory(**kwargs)
 
 
 def run_ecu(args: argparse.Namespace, plant_factory: PlantFactory | None = None) -> int:
@@ -203,6 +212,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     sc = scenario_from_args(args)
     load_profile(args.profile)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}-hil"
+    check_out_dir(out, args.force)
     config = LinkConfig(args.interface, args.channel, ClockMode(args.clock) if args.clock else None,
                         args.profile, args.truth, args.bitrate, parse_options(args.can_option), args.can_config)
     drill: dict[str, object] = {}
@@ -214,7 +224,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
-                                  record=args.record, sensors=args.sensors, **drill)
+                                  record=args.record, sensors=args.sensors, force=args.force, **drill)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
@@ -281,7 +291,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if argv[:1] == ["ecu"]:
             return ecu_main(argv[1:])
         if argv[:1] == [REPLAY]:
-            parser = argparse.ArgumentParser(prog="python -m hil replay", description="Play a CAN log onto a bus.")
+            parser = OneLineParser(prog="python -m hil replay", description="Play a CAN log onto a bus.")
             parser.add_argument("log", type=Path)
             add_bus_arguments(parser, "the bus to play onto")
             parser.add_argument("--ids", default=None)

@@ -4,8 +4,10 @@ hold (the ECU applies commands on its own 50 Hz schedule, so holding them again 
 from __future__ import annotations
 
 from testbed.direct_chassis import DirectChassis
-from testbed.eval.runner import physics_world_for
+from testbed.errors import UserError
+from testbed.eval.run_build import physics_world_for
 from testbed.eval.scenario import Scenario
+from testbed.loop import PHYSICS_HZ
 from testbed.presets import build_track, vehicle
 
 
@@ -23,24 +25,28 @@ def pybullet_plant(
     vehicle: str = "sedan",
     start_s: str | float = 20.0,
     lane: str | int | None = None,
-    physics_hz: str | float = 240.0,
+    physics_hz: str | float = PHYSICS_HZ,
 ) -> DirectChassis:
     """Factory for `ld3 ecu --plant pybullet --plant-arg track=parking-lot ...` (values may be strings)."""
-    sc = Scenario(
-        name="ecu-plant",
-        track=track,
-        vehicle=vehicle,
-        start_s=float(start_s),
-        lane=None if lane in (None, "") else int(lane),
-        rates={"physics_hz": float(physics_hz)},
-    )
+    sc = Scenario.build(name="ecu-plant", track=track, vehicle=vehicle, start_s=_number(start_s, "start_s", float),
+                        lane=None if lane in (None, "") else _number(lane, "lane", int),
+                        rates={"physics_hz": _number(physics_hz, "physics_hz", float)})
     return scenario_plant(sc)
+
+
+def _number(value: str | float | int, key: str, kind: type[float] | type[int]) -> float | int:
+    """A plant argument as a number of `kind`, or a one-line UserError naming it."""
+    try:
+        return kind(value)
+    except ValueError:
+        expected = "an integer" if kind is int else "a number"
+        raise UserError(f"--plant-arg {key}={value!r}: expected {expected}") from None
 
 
 def plant_args_for(sc: Scenario) -> dict[str, str]:
     """The `pybullet_plant` keyword strings that rebuild `sc`'s plant in an ECU process."""
     args = {"track": sc.track, "vehicle": sc.vehicle, "start_s": repr(sc.start_s)}
-    args["physics_hz"] = repr(float(sc.rates.get("physics_hz", 240.0)))
+    args["physics_hz"] = repr(sc.rates.physics_hz)
     if sc.lane is not None:
         args["lane"] = str(sc.lane)
     return args

@@ -20,24 +20,16 @@ from typing import Any
 import cantools
 from cantools.database.can import Database
 from cantools.database.can import Message as DbcMessage
+from pydantic import ValidationError
 
+from hil.profile_document import ProfileDocument
 from hil.secoc import key_from_hex
 from testbed.errors import UserError
+from testbed.params import error_key, error_problem
 
 PROFILES_DIR = Path(__file__).resolve().parent / "profiles"
 DEFAULT_PROFILE = "ld3-dev"
 CHECKSUM_START_BIT, CHECKSUM_LENGTH = 56, 8
-MAC_BITS, FRESHNESS_BITS = (16, 64), (2, 16)  # the lengths [secoc] accepts
-REPORT_QUANTITIES = (
-    "speed", "accel", "steer", "yaw_rate", "gear", "mode", "estop", "brake_pct", "throttle_pct",
-    "emergency_active", "steer_limited", "comm_fault_level", "bad_checksum_count", "bad_counter_count",
-    "bad_format_count", "bad_freshness_count", "bad_mac_count",
-)
-ESTOP_SOURCES = (
-    "none", "command_timeout", "bad_frames", "foreign_node", "emergency_brake_command", "chassis_button",
-)
-GEARS = ("no_request", "park", "reverse", "neutral", "drive")
-MODES = ("standby", "self_driving", "remote", "manual")
 
 
 class ProfileError(UserError):
@@ -204,274 +196,136 @@ class ChassisProfile:
         return frozenset(self.frame_id(name) for name in self.reports.messages)
 
 
-class _Table:
-    """A TOML table with the dotted path of its fields, for one-line errors."""
-
-    def __init__(self, profile: str, path: str, data: Any) -> None:
-        if not isinstance(data, dict):
-            raise ProfileError(f"profile {profile}: {path}: expected a table")
-        self.profile, self.path, self.data = profile, path, data
-        self._used: set[str] = set()
-
-    def error(self, key: str, problem: str) -> ProfileError:
-        where = f"{self.path}.{key}" if self.path else key
-        return ProfileError(f"profile {self.profile}: {where}: {problem}")
-
-    def raw(self, key: str, default: Any = ...) -> Any:
-        self._used.add(key)
-        if key not in self.data:
-            if default is ...:
-                raise self.error(key, "missing")
-            return default
-        return self.data[key]
-
-    def table(self, key: str, default: Any = ...) -> _Table:
-        value = self.raw(key, {} if default is not ... else ...)
-        return _Table(self.profile, f"{self.path}.{key}" if self.path else key, value)
-
-    def text(self, key: str, default: Any = ...) -> Any:
-        value = self.raw(key, default)
-        if value is not None and not isinstance(value, str):
-            raise self.error(key, f"expected a string, got {value!r}")
-        return value
-
-    def number(self, key: str, default: Any = ..., positive: bool = True) -> float:
-        value = self.raw(key, default)
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            raise self.error(key, f"expected a number, got {value!r}")
-        if positive and value <= 0:
-            raise self.error(key, f"must be > 0, got {value!r}")
-        return float(value)
-
-    def integer(self, key: str, lo: int, hi: int) -> int:
-        value = self.raw(key)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(key, f"expected an integer, got {value!r}")
-        if not lo <= value <= hi:
-            raise self.error(key, f"must be {lo} to {hi}, got {value}")
-        return value
-
-    def integers(self, names: tuple[str, ...] | None, required: tuple[str, ...]) -> dict[str, int]:
-        out = {}
-        for key, value in self.data.items():
-            if names is not None and key not in names:
-                raise self.error(key, f"unknown name; choose from {', '.join(names)}")
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise self.error(key, f"expected an integer, got {value!r}")
-            out[key] = value
-        for key in required:
-            if key not in out:
-                raise self.error(key, "missing")
-        return out
-
-    def check_unknown(self) -> None:
-        unknown = sorted(set(self.data) - self._used)
-        if unknown:
-            raise self.error(unknown[0], "unknown key")
-
-
 class _Builder:
-    """Parses and checks profile.toml against its DBC."""
+    """Checks a validated profile.toml against its DBC and builds the profile."""
 
-    def __init__(self, name: str, root: Path, data: dict[str, Any]) -> None:
-        self.name = name
-        self.top = _Table(name, "", data)
-        dbc_name = self.top.text("dbc", "chassis.dbc")
-        self.dbc_path = root / dbc_name
+    def __init__(self, name: str, root: Path, doc: ProfileDocument) -> None:
+        self.name, self.root, self.doc = name, root, doc
+        self.dbc_path = root / doc.dbc
         if not self.dbc_path.is_file():
-            raise self.top.error("dbc", f"file not found: {self.dbc_path}")
+            raise self.error("dbc", f"file not found: {self.dbc_path}")
         try:
             self.db = cantools.database.load_file(str(self.dbc_path), strict=True)
         except Exception as exc:  # cantools raises several parse error types
-            raise ProfileError(f"profile {name}: dbc: cannot load {self.dbc_path.name}: {exc}") from None
-        self.root = root
+            raise self.error("dbc", f"cannot load {self.dbc_path.name}: {exc}") from None
 
-    def message(self, table: _Table, key: str, name: str) -> DbcMessage:
+    def error(self, where: str, problem: str) -> ProfileError:
+        return ProfileError(f"profile {self.name}: {where}: {problem}")
+
+    def message(self, where: str, name: str) -> DbcMessage:
         try:
             message = self.db.get_message_by_name(name)
         except KeyError:
-            raise table.error(key, f"no message {name!r} in {self.dbc_path.name}") from None
+            raise self.error(where, f"no message {name!r} in {self.dbc_path.name}") from None
         if message.length != 8 or message.is_extended_frame:
-            raise table.error(key, f"{name} must be a standard 8-byte frame")
+            raise self.error(where, f"{name} must be a standard 8-byte frame")
         return message
 
-    def signal(self, table: _Table, key: str, message: DbcMessage, name: str | None) -> str | None:
-        if name is None:
-            return None
-        if name not in [s.name for s in message.signals]:
-            raise table.error(key, f"message {message.name} has no signal {name!r}")
+    def signal(self, where: str, message: DbcMessage, name: str | None) -> str | None:
+        if name is not None and name not in [s.name for s in message.signals]:
+            raise self.error(where, f"message {message.name} has no signal {name!r}")
         return name
 
-    def ref(self, table: _Table, key: str, text: Any) -> SignalRef:
-        if not isinstance(text, str) or text.count(".") != 1:
-            raise table.error(key, f"expected \"Message.Signal\", got {text!r}")
+    def ref(self, where: str, text: str) -> SignalRef:
         message_name, signal_name = text.split(".")
-        message = self.message(table, key, message_name)
-        self.signal(table, key, message, signal_name)
+        self.signal(where, self.message(where, message_name), signal_name)
         return SignalRef(message_name, signal_name)
 
     def build(self) -> ChassisProfile:
-        top = self.top
-        profile_name = top.text("name", self.name)
-        description = top.text("description", "")
-        timing = self.timing(top.table("timing"))
-        longitudinal = self.longitudinal(top.table("longitudinal"))
-        steering = self.steering(top.table("steering"))
-        commands = self.commands(top.table("commands"))
-        gears = top.table("gears").integers(GEARS, ("drive", "neutral"))
-        modes = top.table("modes").integers(MODES, ("standby", "self_driving"))
-        reports = self.reports(top.table("reports"))
-        integrity = self.integrity(top.table("integrity", {}))
-        simulation = self.simulation(top.table("simulation"))
-        secoc = self.secoc(top.table("secoc"), integrity) if "secoc" in top.data else None
-        top.check_unknown()
-        return ChassisProfile(profile_name, description, self.root, self.dbc_path, self.db, timing, longitudinal,
-                              steering, commands, gears, modes, reports, integrity, simulation, secoc)
+        doc = self.doc
+        t, lon, st = doc.timing, doc.longitudinal, doc.steering
+        timing = Timing(t.cycle_ms / 1e3, t.command_timeout_ms / 1e3, t.report_timeout_ms / 1e3)
+        longitudinal = Longitudinal(lon.full_throttle_accel, lon.full_brake_decel, lon.max_accel, lon.max_decel,
+                                    lon.fault_decel)
+        steering = Steering(st.ratio, 1 if st.positive == "left" else -1, math.radians(st.max_angle_deg),
+                            math.radians(st.max_rate_deg_s))
+        integrity = self.integrity()
+        return ChassisProfile(doc.name or self.name, doc.description, self.root, self.dbc_path, self.db, timing,
+                              longitudinal, steering, self.commands(), dict(doc.gears), dict(doc.modes),
+                              self.reports(), integrity, self.simulation(),
+                              self.secoc(integrity) if doc.secoc is not None else None)
 
-    def timing(self, t: _Table) -> Timing:
-        timing = Timing(t.number("cycle_ms") / 1e3, t.number("command_timeout_ms") / 1e3,
-                        t.number("report_timeout_ms") / 1e3)
-        if timing.command_timeout_s < timing.cycle_s:
-            raise t.error("command_timeout_ms", "shorter than one cycle")
-        t.check_unknown()
-        return timing
-
-    def longitudinal(self, t: _Table) -> Longitudinal:
-        values = Longitudinal(*(t.number(k) for k in (
-            "full_throttle_accel", "full_brake_decel", "max_accel", "max_decel", "fault_decel")))
-        if values.max_accel > values.full_throttle_accel:
-            raise t.error("max_accel", "exceeds full_throttle_accel")
-        if values.max_decel > values.full_brake_decel:
-            raise t.error("max_decel", "exceeds full_brake_decel")
-        t.check_unknown()
-        return values
-
-    def steering(self, t: _Table) -> Steering:
-        positive = t.text("positive", "left")
-        if positive not in ("left", "right"):
-            raise t.error("positive", f"expected \"left\" or \"right\", got {positive!r}")
-        steering = Steering(t.number("ratio"), 1 if positive == "left" else -1,
-                            math.radians(t.number("max_angle_deg")), math.radians(t.number("max_rate_deg_s")))
-        t.check_unknown()
-        return steering
-
-    def commands(self, t: _Table) -> CommandLayout:
-        parts = {}
-        roles = {"drive": ("enable", "gear", "throttle"), "brake": ("enable", "pedal"), "steer": ("enable", "angle")}
-        optional = {"drive": (), "brake": ("emergency",), "steer": ("rate",)}
+    def commands(self) -> CommandLayout:
+        c = self.doc.commands
+        signals: dict[str, str | None] = {}
         constants: dict[str, dict[str, float]] = {}
-        for part in ("drive", "brake", "steer"):
-            table = t.table(part)
-            message = self.message(table, "message", table.text("message"))
-            fields = {"message": message.name}
-            for key in roles[part]:
-                fields[key] = self.signal(table, key, message, table.text(key))
-            for key in optional[part]:
-                fields[key] = self.signal(table, key, message, table.text(key, None))
-            fixed = table.table("constants", {})
-            for signal_name in fixed.data:
-                self.signal(fixed, signal_name, message, signal_name)
-                fixed.number(signal_name, positive=False)
-            constants[message.name] = {k: float(v) for k, v in fixed.data.items()}
-            table.check_unknown()
-            parts[part] = fields
-        names = [parts[p]["message"] for p in parts]
-        if len(set(names)) != 3:
-            raise t.error("drive.message", "drive, brake and steer must be three different messages")
-        t.check_unknown()
-        d, b, s = parts["drive"], parts["brake"], parts["steer"]
-        return CommandLayout(d["message"], b["message"], s["message"], d["enable"], d["gear"], d["throttle"],
-                             b["enable"], b["pedal"], b["emergency"], s["enable"], s["angle"], s["rate"], constants)
+        for part, table in (("drive", c.drive), ("brake", c.brake), ("steer", c.steer)):
+            message = self.message(f"commands.{part}.message", table.message)
+            for key, name in table.model_dump(exclude={"message", "constants"}).items():
+                signals[f"{part}.{key}"] = self.signal(f"commands.{part}.{key}", message, name)
+            for name in table.constants:
+                self.signal(f"commands.{part}.constants.{name}", message, name)
+            constants[message.name] = dict(table.constants)
+        return CommandLayout(c.drive.message, c.brake.message, c.steer.message, c.drive.enable, c.drive.gear,
+                             c.drive.throttle, c.brake.enable, c.brake.pedal, c.brake.emergency, c.steer.enable,
+                             c.steer.angle, c.steer.rate, constants)
 
-    def reports(self, t: _Table) -> ReportLayout:
-        quantities = {}
-        for key in REPORT_QUANTITIES:
-            text = t.raw(key, None)
-            if text is not None:
-                quantities[key] = self.ref(t, key, text)
-        for key in ("speed", "steer", "mode"):
-            if key not in quantities:
-                raise t.error(key, "missing")
-        enabled_list = t.raw("enabled", [])
-        if not isinstance(enabled_list, list):
-            raise t.error("enabled", "expected a list of \"Message.Signal\"")
-        enabled = tuple(self.ref(t, "enabled", text) for text in enabled_list)
-        estop_values = t.table("estop_values", {}).integers(ESTOP_SOURCES, ())
-        if "estop" in quantities and "none" not in estop_values:
-            raise t.error("estop_values.none", "missing (the value that means no e-stop)")
-        fault_table = t.table("faults", {})
-        faults = {key: self.ref(fault_table, key, text) for key, text in fault_table.data.items()}
-        t.check_unknown()
-        return ReportLayout(quantities, enabled, estop_values, faults)
+    def reports(self) -> ReportLayout:
+        r = self.doc.reports
+        quantities = {key: self.ref(f"reports.{key}", text) for key, text in r.quantities().items()}
+        enabled = tuple(self.ref("reports.enabled", text) for text in r.enabled)
+        faults = {key: self.ref(f"reports.faults.{key}", text) for key, text in r.faults.items()}
+        return ReportLayout(quantities, enabled, dict(r.estop_values), faults)
 
-    def integrity(self, t: _Table) -> dict[str, Integrity]:
+    def integrity(self) -> dict[str, Integrity]:
         out = {}
-        for message_name in t.data:
-            entry = t.table(message_name)
-            message = self.message(t, message_name, message_name)
-            counter = self.signal(entry, "counter", message, entry.text("counter", None))
-            checksum = self.signal(entry, "checksum", message, entry.text("checksum", None))
+        for message_name, entry in self.doc.integrity.items():
+            where = f"integrity.{message_name}"
+            message = self.message(where, message_name)
+            counter = self.signal(f"{where}.counter", message, entry.counter)
+            checksum = self.signal(f"{where}.checksum", message, entry.checksum)
             if counter is not None and message.get_signal_by_name(counter).length != 4:
-                raise entry.error("counter", "a life counter must be 4 bits")
+                raise self.error(f"{where}.counter", "a life counter must be 4 bits")
             if checksum is not None:
                 signal = message.get_signal_by_name(checksum)
                 if (signal.start, signal.length) != (CHECKSUM_START_BIT, CHECKSUM_LENGTH):
-                    raise entry.error("checksum", "the XOR checksum must be byte 7 (start bit 56, 8 bits)")
-            entry.check_unknown()
+                    raise self.error(f"{where}.checksum", "the XOR checksum must be byte 7 (start bit 56, 8 bits)")
             out[message_name] = Integrity(counter, checksum)
         return out
 
-    def secoc(self, t: _Table, integrity: dict[str, Integrity]) -> Secoc:
-        mac_bits = t.integer("mac_bits", MAC_BITS[0], MAC_BITS[1])
-        freshness_bits = t.integer("freshness_bits", FRESHNESS_BITS[0], FRESHNESS_BITS[1])
-        window = t.integer("freshness_window", 1, (1 << freshness_bits) - 1)
-        key_env = t.text("key_env")
-        if not key_env:
-            raise t.error("key_env", "expected the name of an environment variable")
-        test_key = t.text("test_key", None)
-        if test_key is not None:
+    def secoc(self, integrity: dict[str, Integrity]) -> Secoc:
+        sec = self.doc.secoc
+        assert sec is not None
+        test_key = None
+        if sec.test_key is not None:
             try:
-                test_key = key_from_hex(test_key)
+                test_key = key_from_hex(sec.test_key)
             except ValueError as exc:
-                raise t.error("test_key", str(exc)) from None
-        table = t.table("messages")
-        if not table.data:
-            raise t.error("messages", "no secured message")
+                raise self.error("secoc.test_key", str(exc)) from None
         messages = {}
-        for message_name in table.data:
-            entry = table.table(message_name)
-            message = self.message(table, message_name, message_name)
+        for message_name, entry in sec.messages.items():
+            where = f"secoc.messages.{message_name}"
+            message = self.message(where, message_name)
             if message_name in integrity:
-                raise table.error(message_name, "also in [integrity]: a secured message carries no life counter or "
-                                                "checksum")
-            fields = {}
-            for key, bits in (("freshness", freshness_bits), ("mac", mac_bits)):
-                name = self.signal(entry, key, message, entry.text(key))
+                raise self.error(where, "also in [integrity]: a secured message carries no life counter or checksum")
+            for key, bits in (("freshness", sec.freshness_bits), ("mac", sec.mac_bits)):
+                name = getattr(entry, key)
+                self.signal(f"{where}.{key}", message, name)
                 signal = message.get_signal_by_name(name)
                 if signal.byte_order != "little_endian" or signal.is_signed or signal.length != bits:
-                    raise entry.error(key, f"{name} must be an unsigned little-endian signal of {bits} bits")
-                fields[key] = name
-            entry.check_unknown()
-            messages[message_name] = SecuredSignals(fields["freshness"], fields["mac"])
-        t.check_unknown()
-        return Secoc(mac_bits, freshness_bits, window, key_env, test_key, messages)
+                    raise self.error(f"{where}.{key}",
+                                     f"{name} must be an unsigned little-endian signal of {bits} bits")
+            messages[message_name] = SecuredSignals(entry.freshness, entry.mac)
+        return Secoc(sec.mac_bits, sec.freshness_bits, sec.freshness_window, sec.key_env, test_key, messages)
 
-    def simulation(self, t: _Table) -> SimulationFrames:
-        names = {}
-        for key, required in (("step_request", True), ("step_done", True), ("truth_position", False),
-                              ("truth_motion", False)):
-            name = t.text(key) if required else t.text(key, None)
-            if name is not None:
-                self.message(t, key, name)
-            names[key] = name
-        truth = t.raw("truth", False)
-        if not isinstance(truth, bool):
-            raise t.error("truth", f"expected true or false, got {truth!r}")
-        if truth and not (names["truth_position"] and names["truth_motion"]):
-            raise t.error("truth", "needs truth_position and truth_motion")
-        t.check_unknown()
-        return SimulationFrames(names["step_request"], names["step_done"], names["truth_position"],
-                                names["truth_motion"], truth)
+    def simulation(self) -> SimulationFrames:
+        sim = self.doc.simulation
+        for key in ("step_request", "step_done", "truth_position", "truth_motion"):
+            if getattr(sim, key) is not None:
+                self.message(f"simulation.{key}", getattr(sim, key))
+        return SimulationFrames(sim.step_request, sim.step_done, sim.truth_position, sim.truth_motion, sim.truth)
+
+
+def _document(name: str, data: dict[str, Any]) -> ProfileDocument:
+    """profile.toml validated, or a one-line ProfileError naming the first bad field."""
+    try:
+        return ProfileDocument.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        problem = error_problem(err)
+        if "[key]" in err["loc"] and err["type"] == "literal_error":
+            problem = f"unknown name; choose from {err['ctx']['expected']}"
+        raise ProfileError(f"profile {name}: {error_key(err) or 'profile.toml'}: {problem}") from None
 
 
 def profile_dir(spec: str | Path) -> Path:
@@ -492,7 +346,7 @@ def _load(root: Path) -> ChassisProfile:
         data = tomllib.loads(toml_path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"profile {root.name}: profile.toml: {exc}") from None
-    return _Builder(root.name, root, data).build()
+    return _Builder(root.name, root, _document(root.name, data)).build()
 
 
 def load_profile(spec: str | Path = DEFAULT_PROFILE) -> ChassisProfile:

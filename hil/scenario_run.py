@@ -15,6 +15,7 @@ an operator's SIGINT or SIGTERM (interrupted) are such faults too.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -39,8 +40,10 @@ from hil.secoc_key import link_key
 from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
 from testbed.errors import UserError
-from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
+from testbed.eval.run_folder import claim_out_dir
+from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
+from testbed.eval.summary import HilSummary
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -169,21 +172,26 @@ def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
-                     record: bool = False, sensors: str = "sim") -> RunResult:
+                     record: bool = False, sensors: str = "sim", force: bool = False) -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
     (`log_path`, default OUT/can.asc), and with `record` run.mcap with the CAN frames decoded by the profile's
     DBC. The summary gains interface, channel, clock, profile, frame counts and the odometry's largest and
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
     before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
-    through the real readers (`hil.sensor_io`; the link's `sensor_io` then)."""
+    through the real readers (`hil.sensor_io`; the link's `sensor_io` then). A finished run in `out_dir` is
+    replaced only with `force` (`claim_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
+    link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
     if out_dir is not None:
-        prepare_out_dir(out_dir)
+        try:
+            claim_out_dir(out_dir, force)
+        except BaseException:
+            link.close()
+            raise
         log_path = log_path or out_dir / "can.asc"
-    link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no open log behind
     recorder: FrameRecorder | None = None
     sim: SimRun | None = None
     try:
@@ -212,7 +220,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         elif link.world is not None:
             link.world.close()
     bridge = link.bridge
-    result.summary.update({
+    result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
         "profile": link.profile.name, "pose_source": "odometry",
         "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
@@ -221,7 +229,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         "can_frames_rejected": sum(bridge.rejected.values()),
         "can_frames_logged": recorder.frames if recorder is not None else 0,
         "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
-    })
+    }))
     if out_dir is not None:
         sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
     return result

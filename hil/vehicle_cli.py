@@ -5,12 +5,15 @@ failed."""
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
+import time
 from pathlib import Path
 
 from hil.geodetic import DEFAULT_ORIGIN, parse_origin
 from hil.link_errors import LINK_ERRORS, link_error_line
 from hil.profile import DEFAULT_PROFILE
+from testbed.eval.run_folder import check_out_dir
 
 EXIT_FAULT, EXIT_LINK = 3, 4
 
@@ -40,7 +43,8 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
     p.add_argument("--duration", type=float, default=60.0, help="seconds to drive (default 60)")
     p.add_argument("--lane", type=int, help="lane to drive (default: the one the first fix lies in)")
     p.add_argument("--profile", default=DEFAULT_PROFILE, help="chassis profile: shipped name or folder")
-    p.add_argument("--out", type=Path, default=Path("runs/vehicle"), help="output folder (default runs/vehicle)")
+    p.add_argument("--out", type=Path, help="output folder (default runs/vehicle-DATE-TIME)")
+    p.add_argument("--force", action="store_true", help="replace a finished drive already in --out")
     add_bus_arguments(p, "the chassis's CAN interface (hardware rules unless the virtual bus or a pty)")
     p.set_defaults(func=lambda args: cmd_vehicle(args, bus_from_args))
 
@@ -53,6 +57,11 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
                            detector_weights=args.detector_weights, defense=args.defense,
                            vehicle=args.vehicle, speed=args.speed, duration=args.duration, lane=args.lane,
                            profile=args.profile)
+    if args.out is None:
+        args.out = Path("runs") / f"vehicle-{time.strftime('%Y%m%d-%H%M%S')}"
+    check_out_dir(args.out, args.force)
+    if args.force and args.out.exists():
+        shutil.rmtree(args.out)
     try:
         run = VehicleRun(config, bus_from_args(args), args.out)
     except LINK_ERRORS as exc:

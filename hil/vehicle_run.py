@@ -12,6 +12,8 @@ true pose on a vehicle), summary.json and the CAN log.
 from __future__ import annotations
 
 import contextlib
+import math
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,7 +44,8 @@ from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
-from testbed.eval.outputs import provenance, write_summary, write_trajectory
+from testbed.eval.outputs import provenance, write_trajectory
+from testbed.eval.summary import VehicleSummary
 from testbed.lane_detection import CameraFrame
 from testbed.loop import ControlLoop, DrivingPorts, PerceptionPorts, SensorPorts, TickRecord
 from testbed.perception.registry import DETECTORS, make_detector
@@ -78,6 +81,14 @@ class VehicleConfig:
     lane: int | None = None
     profile: str = "ld3-dev"
     first_fix_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        for key in ("speed", "duration", "first_fix_s"):
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise UserError(f"--{key.replace('_', '-')} must be a number > 0, got {value!r}")
+        if self.lane is not None and self.lane < 0:
+            raise UserError(f"--lane must be >= 0, got {self.lane}")
 
 
 class ReportedChassis(ChassisPort):
@@ -130,11 +141,12 @@ class VehicleRun:
         key = link_key(self.profile, bus.interface, bus.kwargs().get("channel"))
         calibration = CameraCalibration.load(config.calibration) if config.calibration else None
         self.rig = CameraRig(calibration.rig_params(self.params.camera) if calibration else self.params.camera)
-        out_dir.mkdir(parents=True, exist_ok=True)
         self.bus = bus.open()
         self.interface = bus.interface
         self.readers: list[Any] = []
+        created = not out_dir.exists()
         try:
+            out_dir.mkdir(parents=True, exist_ok=True)
             self.recorder = FrameRecorder(out_dir / "can.asc")
             geometry = OdometryGeometry(wheelbase=self.params.wheelbase, ref_ahead=-self.params.rear_axle_x)
             self.bridge = CanChassisBridge(self.bus, clock=ClockMode.REALTIME, reply_timeout=5.0,
@@ -149,6 +161,8 @@ class VehicleRun:
                 self.readers.append(self.camera)
         except BaseException:
             self.close()
+            if created:  # a refused start leaves no folder behind
+                shutil.rmtree(out_dir, ignore_errors=True)
             raise
 
     def _start_pose(self) -> tuple[Pose, int]:
@@ -213,16 +227,17 @@ class VehicleRun:
         wall = time.monotonic() - wall0
         summary = self._summary(rows, defense, lane, still_since, wall)
         write_trajectory(self.out_dir / "trajectory.csv", rows)
-        write_summary(self.out_dir / "summary.json", summary)
-        return summary
+        summary.write(self.out_dir / "summary.json")
+        return summary.as_dict()
 
-    def _summary(self, rows: list[TickRecord], defense, lane: int, stop_t: float | None, wall: float) -> dict:
+    def _summary(self, rows: list[TickRecord], defense, lane: int, stop_t: float | None,
+                 wall: float) -> VehicleSummary:
         config, status = self.config, defense.status()
         faults = self.bridge.latched_faults()
         msf = np.array([np.nan if r.msf_dev is None else r.msf_dev for r in rows])
         run_time = rows[-1].t - rows[0].t + 1.0 / CONTROL_HZ if rows else 0.0
         consequence = "chassis_fault" if faults else "stop_in_lane" if stop_t is not None else "reach_destination"
-        return {
+        return VehicleSummary(**{
             **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()}},
             "scenario": "vehicle", "seed": None, "track": config.map, "vehicle": config.vehicle, "attack": None,
             "threat_model": "none",
@@ -233,14 +248,14 @@ class VehicleRun:
             "max_abs_dev_m": None, "final_dev_m": None,
             "max_abs_msf_dev_m": float(np.nanmax(np.abs(msf))) if np.isfinite(msf).any() else None,
             "consequence": consequence,
-            "faults": [{"kind": f.kind, "time": f.t, "detail": f.detail} for f in faults],
+            "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults],
             "detected": bool(status.detected), "detection_time_s": status.detection_time, "detection_dev_m": None,
             "ar_max_dev_m": None, "ar_stop_dev_m": None, "stop_time_s": stop_t,
             "interface": self.interface, "profile": self.profile.name, "can_log": str(self.out_dir / "can.asc"),
             "can_frames_tx": self.bridge.frames_tx, "can_frames_rx": self.bridge.frames_rx,
             "nmea_fixes": self.gnss.counts.fixes, "nmea_bad": self.gnss.counts.bad,
             "nmea_no_fix": self.gnss.counts.no_fix, "camera_frames": self.camera.frames if self.camera else 0,
-        }
+        })
 
     def close(self) -> None:
         """Brake to standstill and hand back (best effort), then stop the readers, the bridge and the bus."""

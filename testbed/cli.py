@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import NoReturn
 
 from testbed.errors import UserError
 
@@ -20,6 +22,13 @@ PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcom
 
 
 DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that refuses bad arguments in one line pointing at --help (its sub-parsers too)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _add_run_overrides(p: argparse.ArgumentParser) -> None:
@@ -49,6 +58,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
                    help="override a scenario value as TOML would set it: defense.heading=msf, attack.start=12, "
                         "speed=10 (repeatable)")
     p.add_argument("--out", type=Path, help="output directory (default runs/<scenario>-<seed>)")
+    p.add_argument("--force", action="store_true", help="replace a finished run already in --out")
 
 
 def scenario_from_args(args: argparse.Namespace):
@@ -65,14 +75,17 @@ def scenario_from_args(args: argparse.Namespace):
 
 def cmd_run(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_tables
+    from testbed.eval.run_folder import check_out_dir
     from testbed.eval.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
+    check_out_dir(out, args.force)
     attack = "+".join(t["kind"] for t in attack_tables(sc.attack)) or "none"
     print(f"{sc.name} on {sc.track}: detector {sc.detector}, localization {sc.localization}, defense {sc.defense}, "
           f"attack {attack}, seed {sc.seed}")
-    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty())
+    result = run_scenario(sc, out, video=args.video, record=args.record, progress=sys.stderr.isatty(),
+                          force=args.force)
     s = result.summary
     print(f"{sc.name}: consequence {s['consequence']}, max |D| {s['max_abs_dev_m']:.3f} m, "
           f"detected {s['detected']}, {s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
@@ -138,7 +151,15 @@ def cmd_tracks(args: argparse.Namespace) -> int:
             print(f"{component.name:16s} {component.help}")
         return 0
     track = build_track(args.name)
-    out = args.out or Path(f"{args.name.replace('@', '-')}.png")
+    stem = re.sub(r"[^\w.-]+", "-", Path(args.name.removeprefix("xodr:")).name).strip("-")
+    if args.tracks_cmd == "export":
+        from tracks.opendrive.write import write_xodr
+
+        out = args.out or Path(f"{stem}.xodr")
+        write_xodr(track, out)
+        print(f"wrote {out} ({track.description})")
+        return 0
+    out = args.out or Path(f"{stem}.png")
     save_track_png(track, out)
     print(f"wrote {out}")
     return 0
@@ -292,7 +313,7 @@ def search_victim(args: argparse.Namespace):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ld3", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="ld3", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="let any error show its full traceback")
     sub = parser.add_subparsers(dest="cmd", required=True)
 
@@ -327,9 +348,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("tracks", help="track presets")
     tsub = p.add_subparsers(dest="tracks_cmd", required=True)
     tsub.add_parser("list", help="list presets")
-    show = tsub.add_parser("show", help="bird's-eye picture of a preset")
-    show.add_argument("name", help="NAME[@SEED]")
+    show = tsub.add_parser("show", help="bird's-eye picture of a preset or an OpenDRIVE route")
+    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
     show.add_argument("--out", type=Path)
+    export = tsub.add_parser("export", help="write a track as OpenDRIVE 1.7 (docs/opendrive.md)")
+    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    export.add_argument("--format", choices=["xodr"], default="xodr")
+    export.add_argument("--out", type=Path, help="default NAME-SEED.xodr")
     p.set_defaults(func=cmd_tracks)
 
     from testbed.defense.registry import DEFENSES
@@ -437,10 +462,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, PermissionError, IsADirectoryError,
-                                                NotADirectoryError)
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, FileNotFoundError, FileExistsError, PermissionError,
+                                                IsADirectoryError, NotADirectoryError)
 """What the user can fix: printed as one line, exit 2. Anything else is a bug (internal error, exit 70)."""
 EXIT_INTERNAL = 70
+
+
+def _user_message(exc: BaseException) -> str:
+    """One line for the user: a path error names the path and what is wrong with it."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"cannot use {exc.filename}: {exc.strerror} (check --out and the paths given)"
+    return str(exc)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -452,7 +484,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return func(args)
     except USER_ERRORS as exc:
-        print(f"ld3: error: {exc}", file=sys.stderr)
+        print(f"ld3: error: {_user_message(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("ld3: interrupted", file=sys.stderr)

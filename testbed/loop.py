@@ -30,8 +30,14 @@ from tracks.pose import Pose
 log = logging.getLogger(__name__)
 
 
+PHYSICS_HZ = 240.0
+"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise."""
+
+
 @dataclass(frozen=True)
 class LoopRates:
+    """How often the loop ticks (control) and how often the camera delivers a frame."""
+
     control_hz: float = 100.0
     camera_hz: float = 20.0
 

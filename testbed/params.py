@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic_core import ErrorDetails
 
 from testbed.errors import UserError
 
@@ -30,7 +31,32 @@ P = TypeVar("P", bound=BaseModel)
 
 
 _PLAIN = {"float_type": "must be a number", "int_type": "must be an integer", "finite_number": "must be finite",
-          "string_type": "must be a string", "bool_type": "must be true or false"}
+          "string_type": "must be a string", "bool_type": "must be true or false", "dict_type": "must be a table",
+          "model_type": "must be a table", "list_type": "must be a list"}
+_BOUNDS = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
+
+
+def error_key(err: ErrorDetails) -> str:
+    """The dotted key of one pydantic error (a bad table key is named by itself)."""
+    return ".".join(str(p) for p in err["loc"] if p != "[key]")
+
+
+def error_problem(err: ErrorDetails) -> str:
+    """What is wrong, in the words every one-line refusal uses: 'missing', 'unknown key', 'must be > 0, got -1'."""
+    kind, got = err["type"], f", got {err.get('input')!r}"
+    if kind == "missing":
+        return "missing"
+    if kind == "extra_forbidden":
+        return "unknown key"
+    if kind in _BOUNDS:
+        return f"must be {_BOUNDS[kind]} {next(iter(err['ctx'].values()))}{got}"
+    if kind == "literal_error":
+        return f"must be one of {err['ctx']['expected']}{got}"
+    if kind == "value_error":
+        return err["msg"].removeprefix("Value error, ")
+    if kind in _PLAIN:
+        return _PLAIN[kind] + got
+    return err["msg"].lower().removeprefix("input should be ").join(("should be ", "")) + got
 
 
 def validate_params(model: type[P], table: Mapping[str, Any], where: str) -> P:
@@ -47,9 +73,8 @@ def validate_params(model: type[P], table: Mapping[str, Any], where: str) -> P:
         if err["type"] == "missing":
             raise ParamsError(f"[{where}] missing required parameter {key!r}") from None
         if not key:
-            raise ParamsError(f"[{where}] {err['msg'].removeprefix('Value error, ')}") from None
-        what = _PLAIN.get(err["type"], err["msg"].lower().removeprefix("input should be ").join(("should be ", "")))
-        raise ParamsError(f"[{where}] {key!r} {what}, got {err['input']!r}") from None
+            raise ParamsError(f"[{where}] {error_problem(err)}") from None
+        raise ParamsError(f"[{where}] {key!r} {error_problem(err)}") from None
 
 
 def params_from_signature(name: str, function: Callable[..., Any], skip: tuple[str, ...] = (),
@@ -72,7 +97,8 @@ def reference_rows(model: type[BaseModel]) -> list[tuple[str, str, str, str]]:
     rows = []
     for key, field in model.model_fields.items():
         typ = _type_name(field.annotation)
-        default = "required" if field.is_required() else repr(field.default)
+        default = ("required" if field.is_required() else repr(field.default_factory()) if field.default_factory
+                   else repr(field.default))
         rows.append((key, typ, default, field.description or ""))
     return rows
 

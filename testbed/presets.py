@@ -2,13 +2,17 @@
 plus those that installed packages declare under the entry-point groups `ld3.tracks` and `ld3.vehicles`.
 
 A track component's factory is `factory(seed) -> tracks.road.Track`; a vehicle component's factory is
-`factory() -> vehicles.params.VehicleParams`. Scenarios name a track as `NAME` or `NAME@SEED`.
+`factory() -> vehicles.params.VehicleParams`. Scenarios name a track as `NAME` or `NAME@SEED`, or an OpenDRIVE
+file as `xodr:PATH[#ROAD,ROAD,...]` (the component `xodr`).
 """
 
 from __future__ import annotations
 
+from testbed.errors import UserError
 from testbed.registry import Component, Registry
-from tracks.presets import PRESETS, list_presets, parse_track_spec
+from tracks.opendrive.load import PREFIX as XODR_PREFIX
+from tracks.opendrive.model import OpenDriveError
+from tracks.presets import PRESETS, list_presets, load_track, parse_track_spec
 from tracks.road import Track
 from vehicles.params import VEHICLES as VEHICLE_PARAMS
 from vehicles.params import VehicleParams
@@ -16,6 +20,18 @@ from vehicles.params import VehicleParams
 TRACKS: Registry[Component] = Registry("track preset", Component, "ld3.tracks")
 for _name, _description in list_presets():
     TRACKS.add(Component(_name, PRESETS[_name], _description))
+
+
+class TrackFileError(UserError):
+    """A track file the reader cannot use; the one line names the file, the element and why."""
+
+
+def _xodr_without_file(seed: int) -> Track:
+    raise TrackFileError(f"track 'xodr' needs its file: {XODR_PREFIX}PATH[#ROAD,ROAD,...]")
+
+
+TRACKS.add(Component("xodr", _xodr_without_file,
+                     f"an OpenDRIVE 1.4-1.8 file, {XODR_PREFIX}PATH[#ROAD,ROAD,...] (docs/opendrive.md)"))
 
 VEHICLES: Registry[Component] = Registry("vehicle", Component, "ld3.vehicles")
 for _params in VEHICLE_PARAMS.values():
@@ -25,8 +41,17 @@ for _params in VEHICLE_PARAMS.values():
 
 
 def build_track(spec: str) -> Track:
-    """The track `NAME` or `NAME@SEED` of the registry (ValueError naming the known ones)."""
-    name, seed = parse_track_spec(spec)
+    """The track `NAME` or `NAME@SEED` of the registry (a UserError naming the known ones), or the route of an
+    OpenDRIVE file `xodr:PATH[#ROUTE]` (TrackFileError, one line, where the file cannot be used)."""
+    if spec.startswith(XODR_PREFIX):
+        try:
+            return load_track(spec)
+        except OpenDriveError as exc:
+            raise TrackFileError(str(exc)) from None
+    try:
+        name, seed = parse_track_spec(spec)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     return TRACKS.get(name).factory(seed)
 
 

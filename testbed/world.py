@@ -19,6 +19,7 @@ import pybullet as pb
 
 from testbed.errors import UserError
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
+from testbed.loop import PHYSICS_HZ
 from tracks.obstacles import road_obstacles
 from tracks.pose import Pose
 from tracks.texture import tile_mesh, tile_texture
@@ -48,7 +49,7 @@ class PhysicsWorld:
     loading a whole road's curbs at once would make each step an order of magnitude slower.
     """
 
-    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = 240.0,
+    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
                  obstacle_window_m: float = 60.0) -> None:
         self.client = pb.connect(pb.DIRECT)
         self.track = track

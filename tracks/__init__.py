@@ -1,1 +1,1 @@
-"""Road geometry, lanes, markings, procedural textures, the semantic map and named presets."""
+"""Road geometry, lanes, markings, procedural textures, the semantic map, named presets and OpenDRIVE import/export."""

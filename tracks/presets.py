@@ -15,6 +15,8 @@ import numpy as np
 
 from tracks.geometry import ReferenceLine, Segment, Straight, bend
 from tracks.layout import Edge, RoadsideBody
+from tracks.opendrive.load import PREFIX as XODR_PREFIX
+from tracks.opendrive.load import load_xodr
 from tracks.paint import AsphaltPainter, MarkingPainter
 from tracks.pose import Pose
 from tracks.road import Track
@@ -289,7 +291,10 @@ def list_presets() -> list[tuple[str, str]]:
 
 
 def parse_track_spec(spec: str) -> tuple[str, int]:
-    """(name, seed) of `NAME` or `NAME@SEED` (seed a non-negative integer, default 0); ValueError otherwise."""
+    """(name, seed) of `NAME` or `NAME@SEED` (seed a non-negative integer, default 0), ("xodr", 0) of an OpenDRIVE
+    file `xodr:PATH[#ROUTE]`; ValueError otherwise."""
+    if spec.startswith(XODR_PREFIX):
+        return "xodr", 0
     name, at, seed_text = spec.partition("@")
     if not at:
         return name, 0
@@ -299,7 +304,9 @@ def parse_track_spec(spec: str) -> tuple[str, int]:
 
 
 def load_track(spec: str) -> Track:
-    """Build the preset track `NAME` or `NAME@SEED`."""
+    """Build the preset track `NAME` or `NAME@SEED`, or read `xodr:PATH[#ROUTE]` (`tracks.opendrive.load`)."""
+    if spec.startswith(XODR_PREFIX):
+        return load_xodr(spec.removeprefix(XODR_PREFIX))
     name, seed = parse_track_spec(spec)
     if name not in PRESETS:
         raise ValueError(f"unknown track {name!r}; known: {', '.join(PRESETS)}")

@@ -4,11 +4,13 @@ a LiDAR feature-quality profile and the painters of its tiles. A track is data: 
 built from it.
 
 The reference line runs along the centre of the ego lane (so s is the ego lane's own arc length); lanes
-are indexed 0 = rightmost; lateral offsets t are + left.
+are indexed 0 = rightmost; lateral offsets t are + left. Lane widths are constant, or tabulated along s
+(`width_table`), the lane lines then standing at the offsets of the nominal (median) widths.
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 from collections.abc import Sequence
@@ -20,6 +22,7 @@ from tracks.lane import Lane
 from tracks.layout import Boundary, Edge, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter
 from tracks.pose import Pose
+from tracks.profile import Profile
 from tracks.texture import Painter
 
 SEDAN_WIDTH = 1.90  # m; the vehicle width the presets' lane straddle deviations are quoted for
@@ -44,6 +47,7 @@ class Track:
         painters: Sequence[Painter] | None = None,
         tile_length: float = 20.0,
         px_per_m: float = 25.0,
+        width_table: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         if len(line_kinds) != len(lane_widths) + 1:
             raise ValueError("need one marking kind per lane line (lanes + 1)")
@@ -60,7 +64,9 @@ class Track:
         offsets = np.concatenate([[0.0], np.cumsum(lane_widths)])
         offsets -= offsets[ego_lane] + 0.5 * lane_widths[ego_lane]
         self.lanes = [
-            Lane(reference, i, float(offsets[i] + 0.5 * w), float(w)) for i, w in enumerate(lane_widths)
+            Lane(reference, i, float(offsets[i] + 0.5 * w), float(w), profiles)
+            for i, (w, profiles) in enumerate(zip(lane_widths, self._profiles(width_table, len(lane_widths),
+                                                                               ego_lane), strict=True))
         ]
         self.boundaries = [
             Boundary(float(t), self._runs(kind)) for t, kind in zip(offsets, line_kinds, strict=True)
@@ -76,6 +82,20 @@ class Track:
 
     def __repr__(self) -> str:
         return f"Track({self.name}@{self.seed}, {self.length:.0f} m, {len(self.lanes)} lanes)"
+
+    @staticmethod
+    def _profiles(table: tuple[np.ndarray, np.ndarray] | None, n: int,
+                  ego: int) -> list[tuple[Profile, Profile] | None]:
+        """Per lane (centre offset, width) profiles from widths W[s, lane] at arc lengths s, the ego lane's
+        centre on the reference line."""
+        if table is None:
+            return [None] * n
+        s, widths = table
+        if widths.shape != (len(s), n):
+            raise ValueError(f"width table of shape {widths.shape}: need ({len(s)}, {n})")
+        edges = np.concatenate([np.zeros((len(s), 1)), np.cumsum(widths, axis=1)], axis=1)
+        centres = edges[:, :-1] + 0.5 * widths - (edges[:, ego] + 0.5 * widths[:, ego])[:, None]
+        return [(Profile(s, centres[:, i]), Profile(s, widths[:, i])) for i in range(n)]
 
     def _runs(self, kind: str) -> tuple[MarkingRun, ...]:
         runs, s = [], 0.0
@@ -162,6 +182,9 @@ class Track:
         last = min(self.n_tiles - 1, math.ceil((s + radius) / self.tile_length) - 1)
         return list(range(first, last + 1))
 
-    def add_painter(self, painter: Painter) -> None:
-        """Append a painter; it runs after the existing ones on every tile painted from now on."""
-        self.painters.append(painter)
+    def with_painters(self, painters: Sequence[Painter]) -> Track:
+        """A copy of this track whose tiles `painters` paint after its own (a condition's wear, an attack's
+        patch); the track itself is left as it is."""
+        painted = copy.copy(self)
+        painted.painters = [*self.painters, *painters]
+        return painted

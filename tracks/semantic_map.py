@@ -2,7 +2,8 @@
 
 A pose is projected once onto the track's reference line (local search from the previous answer, exact
 Newton refinement), then expressed against the requested lane, or against the lane containing it (the
-nearest lane centre when between or beyond lanes) when `lane` is None.
+nearest lane centre when between or beyond lanes) when `lane` is None. Lanes with width profiles are
+measured against their centre and edges at the projection's s.
 """
 
 from __future__ import annotations
@@ -26,7 +27,12 @@ class TrackMap:
         self._lanes = track.lanes
         self._centres = [ln.offset for ln in track.lanes]
         self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
-        self._reach = (self._bounds[0][0] - OFF_MAP_MARGIN, self._bounds[-1][1] + OFF_MAP_MARGIN)
+        self._profiled = any(ln.profiles is not None for ln in track.lanes)
+        lo, hi = self._bounds[0][0], self._bounds[-1][1]
+        for ln in track.lanes if self._profiled else ():
+            centre, width = ln.profiles[0].v, ln.profiles[1].v
+            lo, hi = min(lo, float(np.min(centre - 0.5 * width))), max(hi, float(np.max(centre + 0.5 * width)))
+        self._reach = (lo - OFF_MAP_MARGIN, hi + OFF_MAP_MARGIN)
         self._length = track.length
         self._memo: RecentAnswers[tuple[Pose, int | None], LaneCoord] = RecentAnswers(_MEMO_SIZE)
 
@@ -45,17 +51,23 @@ class TrackMap:
             raise OffMapError(
                 f"pose ({x:.2f}, {y:.2f}) is off the map of {self.track.name} (s={s:.1f}, t={t:.2f})"
             )
-        if lane is None:
-            lane = self._lane_at(t)
-        elif not 0 <= lane < len(self._lanes):
+        if lane is not None and not 0 <= lane < len(self._lanes):
             raise ValueError(f"lane {lane} not on {self.track.name} (lanes 0..{len(self._lanes) - 1})")
-        return LaneCoord(lane, s, t - self._centres[lane])
+        if self._profiled:
+            centres = [ln.offset_at(s) for ln in self._lanes]
+            bounds = [(c - 0.5 * ln.width_at(s), c + 0.5 * ln.width_at(s)) for c, ln in zip(centres, self._lanes,
+                                                                                           strict=True)]
+        else:
+            centres, bounds = self._centres, self._bounds
+        if lane is None:
+            lane = self._lane_at(t, bounds)
+        return LaneCoord(lane, s, t - centres[lane])
 
-    def _lane_at(self, t: float) -> int:
-        for i, (lo, hi) in enumerate(self._bounds):
+    def _lane_at(self, t: float, bounds: list[tuple[float, float]]) -> int:
+        for i, (lo, hi) in enumerate(bounds):
             if lo <= t < hi:
                 return i
-        return 0 if t < self._bounds[0][0] else len(self._lanes) - 1
+        return 0 if t < bounds[0][0] else len(self._lanes) - 1
 
     def lane_dev(self, pose: Pose, lane: int | None = None) -> float:
         return self.project(pose, lane).l

@@ -128,7 +128,7 @@ def _bare_physics(sc, steps: int) -> dict[str, float]:
     scenario speed under a constant command: wall and CPU seconds."""
     import pybullet as pb
 
-    from testbed.eval.runner import physics_world_for
+    from testbed.eval.run_build import physics_world_for
     from tracks.presets import load_track
     from vehicles.params import get_vehicle
 
@@ -182,7 +182,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     cpu = time.process_time() - cpu0
     summary = result.summary
     sim_time, wall = summary["sim_time_s"], summary["wall_time_s"]
-    steps = round(sim_time * sc.rates.get("physics_hz", 240.0))
+    steps = round(sim_time * sc.rates.physics_hz)
     bare = _bare_physics(sc, steps)
 
     timed, timer = build(), SectionTimer()

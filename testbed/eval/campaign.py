@@ -56,10 +56,10 @@ class CampaignBusyError(RuntimeError):
 
 
 def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
-    """The default executor: `run_scenario` with the standard outputs."""
-    from testbed.eval.runner import run_scenario
+    """The default executor: the run's standard outputs into the campaign's temporary run folder."""
+    from testbed.eval.runner import run_into
 
-    return run_scenario(run.scenario, run_dir).summary
+    return run_into(run.scenario, run_dir).summary
 
 
 def load_summary(run_dir: Path) -> dict[str, Any] | str:
@@ -99,6 +99,15 @@ def _folder_lock(out: Path) -> Iterator[None]:
         except BlockingIOError:
             raise CampaignBusyError(f"campaign folder {out} is in use by another campaign process") from None
         yield
+
+
+def check_campaign_dir(out: Path) -> None:
+    """A one-line UserError unless `out` is new, empty, or a campaign's folder (it holds the campaign lock):
+    a campaign cleans up run folders it finds incomplete, which must never be someone else's files."""
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise UserError(f"--out {out} is a file, not a folder; choose a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / LOCK_NAME).exists():
+        raise UserError(f"--out {out} holds files that are not a campaign's; choose a new or empty folder")
 
 
 def _sweep(runs: Sequence[CampaignRun], out: Path) -> list[str]:
@@ -152,6 +161,7 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = N
     if workers is not None and workers < 1:
         raise UserError(f"workers must be ≥ 1, got {workers}")
     chosen = campaign_backend(backend, address)
+    check_campaign_dir(out)
     out.mkdir(parents=True, exist_ok=True)
     with _folder_lock(out):
         redone = _sweep(runs, out)

@@ -34,7 +34,7 @@ def run_demo(out: Path, progress: bool = False, detector: str | None = None) -> 
     for defense in DEMO_DEFENSES:
         sc = base.with_overrides(defense=defense, name=f"{DEMO_SCENARIO}-{defense}")
         run_dir = out / defense
-        result = run_scenario(sc, run_dir, progress=progress)
+        result = run_scenario(sc, run_dir, progress=progress, force=True)
         rows.append(ReportRow(defense, run_dir, result.summary))
         print(f"  {defense:13s} {result.summary['consequence']}")
     seen_by = "on the rendered camera" if detector in ("neural", "classical") else "(map lines through the true pose)"

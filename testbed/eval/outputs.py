@@ -1,12 +1,11 @@
-"""Writers of a run's outputs (DESIGN.md output contract): trajectory.csv and summary.json; and the reader of
-trajectory.csv's numeric columns that reports and campaign tables use."""
+"""trajectory.csv (DESIGN.md output contract): its writer and the reader of its numeric columns that reports and
+campaign tables use; the provenance every summary.json starts with (`testbed.eval.summary` writes it)."""
 
 from __future__ import annotations
 
 import csv
 import functools
 import importlib.metadata
-import json
 import math
 import subprocess
 from collections.abc import Iterable, Sequence
@@ -15,20 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from testbed.eval.summary import SCHEMA_VERSION
 from testbed.loop import TickRecord
 
 TRAJECTORY_COLUMNS = ("t", "x", "y", "yaw", "speed", "phys_dev", "msf_dev", "ld_dev", "ld_fresh", "cusum", "mode",
                       "steer", "accel", "attack_stage", "attack_offset", "fused_dev", "r_msf", "r_ld", "k_msf",
                       "k_ld", "heading_used")
-SCHEMA_VERSION = 3
-"""Version of summary.json's layout; raised when a key changes meaning or goes away."""
-SUMMARY_KEYS = ("schema_version", "package_version", "git_commit", "resolved_scenario",
-                "scenario", "seed", "track", "vehicle", "attack", "threat_model", "defense", "condition", "sim_time_s",
-                "wall_time_s", "real_time_factor", "lane_width_m", "lane_straddle_dev_m", "max_abs_dev_m",
-                "final_dev_m", "consequence", "faults", "detected", "detection_time_s", "detection_dev_m",
-                "ar_max_dev_m", "ar_stop_dev_m")
-
-
 @functools.cache
 def provenance() -> dict[str, Any]:
     """What produced a run: the summary schema version, the package version and the git commit of the
@@ -77,23 +68,6 @@ def read_trajectory(run_dir: Path, columns: Sequence[str]) -> dict[str, np.ndarr
     return {c: np.array([float(r[c]) if r[c] else math.nan for r in rows]) for c in columns}
 
 
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    return value
-
-
 def chassis_faults(summary: dict[str, Any]) -> list[dict[str, Any]]:
     """The summary's `faults` that the chassis latched (they end the run), leaving out those the defense handled."""
     return [f for f in summary["faults"] if f["source"] == "chassis"]
-
-
-def write_summary(path: Path, summary: dict[str, Any]) -> None:
-    missing = [k for k in SUMMARY_KEYS if k not in summary]
-    if missing:
-        raise ValueError(f"summary lacks contract keys {missing}")
-    path.write_text(json.dumps(_json_safe(summary), indent=2, sort_keys=False) + "\n")

@@ -1,12 +1,8 @@
-"""Runs one scenario in simulation end to end and writes the output contract (DESIGN.md).
-
-The run's random streams are spawned from the scenario seed in a fixed order (camera noise,
-localization, attack, detector), so the same scenario and seed give byte-identical trajectories.
-"""
+"""Runs one scenario in simulation end to end (`SimRun` steps what `run_build` builds) and writes the output
+contract (DESIGN.md)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -17,160 +13,60 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from testbed.attacks.base import Attack, WhiteBox
-from testbed.attacks.compose import AttackChain, threat_model_of
-from testbed.attacks.spec import build_attack
+from testbed.attacks.base import Attack
+from testbed.attacks.compose import threat_model_of
 from testbed.attacks.threat import threat_label
-from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort
-from testbed.conditions import get_condition
-from testbed.control.lateral import LqrLateralController
-from testbed.control.longitudinal import SpeedController
-from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
-from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
-from testbed.direct_chassis import DirectChassis
 from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
-from testbed.eval.outputs import provenance, write_summary, write_trajectory
-from testbed.eval.recording import Recording, ego_lane_lines
-from testbed.eval.scenario import Scenario, ScenarioError, check_needs
-from testbed.eval.video import FrameSignals, VideoWriter
+from testbed.eval.outputs import provenance, write_trajectory
+from testbed.eval.recording import ego_lane_lines
+from testbed.eval.run_build import END_MARGIN_M, RunOptions, build_run
+from testbed.eval.run_folder import run_folder
+from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.summary import RunSummary
+from testbed.eval.video import FrameSignals
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.localization.registry import LOCALIZATIONS
-from testbed.localization.stack import LocalizationConfig
-from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts, TickRecord
-from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.tracker import LaneTracker
-from testbed.presets import build_track, vehicle
-from testbed.registry import Capability
-from testbed.world import PhysicsWorld, TileStreamer
+from testbed.loop import SensorPorts, TickRecord
+from testbed.world import PhysicsWorld
 from tracks.pose import Pose
-from tracks.semantic_map import TrackMap
-from vehicles.camera_rig import CameraRig
 
 STOP_SPEED = 0.05
-END_MARGIN_M = 30.0
 
 
 @dataclass
 class RunResult:
-    """A finished run: its summary, one record per control tick, the believed (MSF) path, the stop time."""
+    """A finished run: its summary (`record`, and as the plain dict campaigns read), one record per control tick,
+    the believed (MSF) path, the stop time."""
 
-    summary: dict[str, Any]
+    record: RunSummary
     rows: list[TickRecord] = field(default_factory=list)
     believed_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     stop_t: float | None = None
+    summary: dict[str, Any] = field(init=False)
 
-
-def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
-    """The physics world a scenario runs in (the CAN chassis emulator builds the same one as its plant)."""
-    return PhysicsWorld(track, params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+    def __post_init__(self) -> None:
+        self.summary = self.record.as_dict()
 
 
 class SimRun:
-    """Everything one simulated scenario needs, built from the scenario; `run()` drives it to the end."""
+    """Steps one simulated run, built from the scenario by `build_run`, to its end and returns its typed result;
+    the run's parts (`RunParts`: the loop, the world, the track, ...) read as its attributes."""
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
                  attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
                  sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
-        """`chassis` replaces the direct PyBullet port (the CAN bridge does this); `world`, when given with it,
-        is the physics world behind that chassis, used for contacts. Without `chassis` the run builds both.
-        `video` and `record` also write camera.mp4 and run.mcap. `ground` is how the camera draws the road
-        surface (`TileStreamer`). `defense`, `detector` and `attack` replace the ones the scenario names (your
-        own objects, or a passive detection recorder; a list of attacks is composed in order); the summary
-        records their own names. `tracking` puts a
-        `LaneTracker` after the detector (default: the scenario's `detector.tracking`, or for an injected
-        detector, whether it reads the camera). `sensor_ports` wraps the sensor ports the run builds
-        (sensor-level HIL passes them through real readers)."""
-        self.sc = sc
-        self.track = build_track(sc.track)
-        self.params = vehicle(sc.vehicle)
-        self.condition = get_condition(sc.condition)
-        self.defense_config = DefenseConfig.from_dict(sc.defense_params)
-        provided = check_needs(sc)
-        if sc.speed > self.params.max_speed:
-            raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach "
-                                f"({self.params.max_speed} m/s)")
-        seeds = np.random.SeedSequence(sc.seed).spawn(4)
-        rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
-        self.smap = TrackMap(self.track)
-        self.lane = sc.lane if sc.lane is not None else self.track.ego_lane
-        if not 0 <= self.lane < len(self.track.lanes):
-            raise ScenarioError(f"lane {self.lane} does not exist on {sc.track} ({len(self.track.lanes)} lanes)")
-        start = self.track.start_pose(self.lane, sc.start_s)
-        self.start = start
-        if chassis is None:
-            world = physics_world_for(sc, self.track, self.params, start)
-            chassis = DirectChassis(world, hold_s=sc.rates.get("command_hold_s", 0.0))
-        self.world = world
-        self.chassis = chassis
-        rates = LoopRates(control_hz=sc.rates.get("control_hz", 100.0), camera_hz=sc.rates.get("camera_hz", 20.0))
-        self.attack: Attack | None = AttackChain(attack) if isinstance(attack, list) else attack
-        if attack is None:
-            self.attack = build_attack(sc.attack, rng=rng_attack, defense=self.defense_config)
-        for painter in self.condition.track_painters(sc.seed):
-            self.track.add_painter(painter)
-        if self.attack is not None:
-            for painter in self.attack.painters():
-                self.track.add_painter(painter)
-        reads_camera = Capability.CAMERA_IMAGE in provided if detector is None else detector.reads_camera
-        needs_camera = reads_camera if render is None else render
-        self.rig = CameraRig(self.params.camera)
-        self.streamer: TileStreamer | None = None
-        self.camera: FrontCamera | None = None
-        if needs_camera or video or record:
-            self.streamer = TileStreamer(self.track, self.condition.lighting, ground=ground)
-            self.camera = FrontCamera(self.streamer, self.rig, self.condition, rng_camera)
-        self.video = VideoWriter(self.rig, fps=rates.camera_hz) if video else None
-        self.recording = Recording(self.rig) if record else None
+        """The options are `RunOptions`'."""
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
-        self.localization = LOCALIZATIONS.get(sc.localization).factory(self._localization_config, rng_loc,
-                                                                        self._lidar_quality, start)
-        self.detector = detector if detector is not None else make_detector(
-            sc.detector, track=self.track, rig=self.rig, rng=rng_detector, params=sc.detector_params)
-        self.detector_name = sc.detector if detector is None else getattr(detector, "name", type(detector).__name__)
-        self.detector_settings = (DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
-                                  if detector is None else None)
-        """The scenario's detector's `[detector]` parameters, defaults filled in (None for an injected detector)."""
-        if tracking is None:
-            tracking = (getattr(self.detector_settings, "tracking", False) if detector is None
-                        else detector.reads_camera)
-        if tracking and self.detector is None:
-            raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
-        self.tracker = LaneTracker() if tracking else None
-        if (self.defense_config.p_source == "reported" and self.detector is not None
-                and not self.detector.reports_variance):
-            raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
-                                f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
-        self.defense = defense if defense is not None else DEFENSES.get(sc.defense).factory(
-            self.defense_config, BicycleCoefficients(wheelbase=self.params.wheelbase))
-        dt = 1.0 / rates.control_hz
-        sensors = SensorPorts(self.localization, self._capture if self.camera else None)
-        self.loop = ControlLoop(
-            self.chassis,
-            sensor_ports(sensors) if sensor_ports is not None else sensors,
-            PerceptionPorts(self.detector, self.defense_config.existence_threshold,
-                            self._keep_frame if (video or record) else None, self.tracker),
-            self.defense,
-            DrivingPorts(self.smap, self.lane, LanePlanner(self.smap, self.lane, sc.speed),
-                         LqrLateralController.from_vehicle(self.params, dt),
-                         SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel),
-                         planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None),
-            attack=self.attack, rates=rates,
-        )
-        if self.attack is not None:
-            self.attack.know(WhiteBox(self.smap, self.lane, self.defense_config, rates.camera_hz, rates.control_hz,
-                                      self._lidar_quality))
-        lane_width = self.smap.lane_width(start, self.lane)
-        self.lane_width = lane_width
-        self.monitor = ConsequenceMonitor(lane_width, self.params.width, self.params.length)
-        self.n_ticks = round(sc.duration * rates.control_hz)
+        options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
+                             sensor_ports)
+        self.parts = build_run(sc, options, self._keep_frame)
+        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length)
+        self.n_ticks = round(sc.duration * self.loop.rates.control_hz)
         self.rows: list[TickRecord] = []
         self.believed: list[tuple[float, float]] = []
         self.stop_t: float | None = None
@@ -178,11 +74,10 @@ class SimRun:
         self.wall_time = 0.0
         self.done = False
 
-    def _localization_config(self) -> LocalizationConfig:
-        """The scenario's localization table, with the MSF lever arm (rear axle to reference point) of the car."""
-        table = dict(self.sc.rates.get("localization", {}))
-        table["msf"] = {"lever": -self.params.rear_axle_x, **table.get("msf", {})}
-        return LocalizationConfig.from_dict(table)
+    def __getattr__(self, name: str) -> Any:
+        if name == "parts":  # not built yet
+            raise AttributeError(name)
+        return getattr(self.parts, name)
 
     def _keep_frame(self, frame: CameraFrame, ld: LaneDetection) -> None:
         """A camera frame and its detection, held until the tick's record exists (video and recording)."""
@@ -201,15 +96,6 @@ class SimRun:
         if self.recording is not None:
             control = self.loop.last_control_pose if rec.mode == "ar" else None
             self.recording.add_tick(rec, self.loop.last_estimate.pose, control, tau)
-
-    def _lidar_quality(self, x: float, y: float) -> float:
-        """LiDAR feature richness at a world point (the track's profile along the road)."""
-        s, _ = self.track.reference.project(x, y)
-        return self.track.lidar_feature_quality(s)
-
-    def _capture(self, t: float, pose: Pose):
-        self.streamer.update(pose)
-        return self.camera.capture(t, pose)
 
     def _edge_beyond(self, pose: Pose) -> str | None:
         """Kind of road edge a whole side of the footprint is beyond (two corners off the paved surface)."""
@@ -265,7 +151,7 @@ class SimRun:
         """The summary and records of the ticks run so far (the whole run once `done`)."""
         return RunResult(self._summary(), list(self.rows), np.array(self.believed).reshape(-1, 2), self.stop_t)
 
-    def _summary(self) -> dict[str, Any]:
+    def _summary(self) -> RunSummary:
         sc, rows, wall, stop_t = self.sc, self.rows, self.wall_time, self.stop_t
         status = self.defense.status()
         det_t = status.detection_time
@@ -279,8 +165,8 @@ class SimRun:
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
         defense_params = self.defense_config.model_dump()
-        return {
-            **provenance(), "resolved_scenario": {**dataclasses.asdict(sc), "defense_params": defense_params,
+        return RunSummary(**{
+            **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
                                                  "detector_params": self.detector_settings.model_dump()
                                                  if self.detector_settings is not None else {}},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
@@ -302,13 +188,13 @@ class SimRun:
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
             "attack_state": self.attack.state() if self.attack is not None else None,
-        }
+        })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
         """summary.json, trajectory.csv, birdseye.png (and camera.mp4 when recorded) of a finished run."""
         sc = self.sc
         write_trajectory(out_dir / "trajectory.csv", result.rows)
-        write_summary(out_dir / "summary.json", result.summary)
+        result.record.write(out_dir / "summary.json")
         save_birdseye(out_dir / "birdseye.png", self.track, result.rows, lane_width=self.lane_width,
                       straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
                       detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
@@ -347,11 +233,20 @@ def prepare_out_dir(out_dir: Path) -> None:
 
 
 def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
-                 progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
+                 progress: bool = False, render: bool | None = None, tracking: bool | None = None,
+                 force: bool = False) -> RunResult:
     """Run `sc`; when `out_dir` is given write summary.json, trajectory.csv, birdseye.png (and camera.mp4,
-    run.mcap)."""
-    if out_dir is not None:
-        prepare_out_dir(out_dir)
+    run.mcap) there, all or nothing (`run_folder`; `force` replaces a finished run)."""
+    if out_dir is None:
+        return run_into(sc, None, video=video, record=record, progress=progress, render=render, tracking=tracking)
+    with run_folder(out_dir, force) as tmp:
+        return run_into(sc, tmp, video=video, record=record, progress=progress, render=render, tracking=tracking)
+
+
+def run_into(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
+             progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
+    """Run `sc` and write its outputs into `out_dir`, a folder the caller made and owns (a campaign's
+    temporary run folder), or nowhere."""
     sim = SimRun(sc, render=render, video=video, record=record, tracking=tracking)
     try:
         result = sim.run(progress=progress)

@@ -4,19 +4,21 @@ localization, attack and defense of one run. A few ship with the package, one pe
 
 from __future__ import annotations
 
-import dataclasses
 import tomllib
-from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from testbed.attacks.registry import ATTACKS
 from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
+from testbed.eval.rates import STRICT, Rates
 from testbed.localization.registry import LOCALIZATIONS
+from testbed.params import error_key, error_problem
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
@@ -27,33 +29,114 @@ class ScenarioError(UserError):
     """A scenario that cannot be loaded or run; the message is one line for the user."""
 
 
-@dataclass(frozen=True)
-class Scenario:
-    name: str
-    track: str
-    vehicle: str = "sedan"
-    speed: float = 12.0
-    duration: float = 60.0
-    condition: str = "day"
-    seed: int = 0
-    lane: int | None = None
-    start_s: float = 20.0
-    detector: str = "oracle"
-    detector_params: dict[str, Any] = field(default_factory=dict)
-    localization: str = "truth"
-    defense: str = "none"
-    defense_params: dict[str, Any] = field(default_factory=dict)
-    attack: AttackValue = None
-    """One [attack] table, a list of them (composed in order), or None."""
-    rates: dict[str, float] = field(default_factory=dict)
-    stop_at: float | None = None
-    """A planned in-lane stop at this time (s) and `stop_decel`, independent of any defense."""
-    stop_decel: float = 4.0
+ALWAYS_READ = frozenset({"existence_threshold"})
+"""`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
+
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.@+=,-]*$"
+"""A run name is one safe path component: it names the run's folder under `runs/`."""
+
+
+class Scenario(BaseModel):
+    """One run: track, vehicle, speed, duration, condition, seed, and the detector, localization, defense and
+    attack with their parameters. Every value is checked on construction (types, finite, ranges, names in
+    their registries, each component's parameters, and cross-field rules); a bad one is a `ScenarioError`."""
+
+    model_config = STRICT
+
+    name: str = Field(pattern=NAME_PATTERN, max_length=120, description="run name (default: the file's stem)")
+    track: str = Field(description="track preset, `NAME` or `NAME@SEED` (a seed > 0 draws a held-out variant), "
+                                   "or a route of an OpenDRIVE file, `xodr:PATH[#ROAD,ROAD,...]`")
+    vehicle: str = Field("sedan", description="vehicle")
+    speed: float = Field(12.0, gt=0, le=100, description="target speed (m/s)")
+    duration: float = Field(60.0, gt=0, le=86_400, description="simulated duration (s)")
+    condition: str = Field("day", description="lighting and weather of the camera (`ld3 scenarios` lists them)")
+    seed: int = Field(0, ge=0, lt=2**63, description="seed of every random draw of the run")
+    lane: int | None = Field(None, ge=0, description="lane driven, 0 = rightmost (default: the track's ego lane)")
+    start_s: float = Field(20.0, ge=0, description="start position along the road (m)")
+    detector: str = Field("oracle", description="lane detector: a name, or a [detector] table with `kind` and "
+                                                "its parameters")
+    detector_params: dict[str, Any] = Field(default_factory=dict)
+    localization: str = Field("truth", description="localization source")
+    defense: str = Field("none", description="defense: a name, or a [defense] table with `kind` (default ld3) "
+                                             "and parameters")
+    defense_params: dict[str, Any] = Field(default_factory=dict)
+    attack: AttackValue = Field(None, description="an [attack] table with `kind` and its parameters, a list of "
+                                                  "them (composed in order), or none")
+    rates: Rates = Field(default_factory=Rates, description="[rates]: physics_hz, control_hz, camera_hz, "
+                                                            "command_hold_s and a [rates.localization] table")
+    stop_at: float | None = Field(None, ge=0, description="time of a planned in-lane stop (s), independent of "
+                                                          "any defense")
+    stop_decel: float = Field(4.0, gt=0, le=15, description="deceleration of the planned stop (m/s²)")
+
+    @model_validator(mode="after")
+    def _components(self) -> Scenario:
+        try:
+            parse_track_spec(self.track)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+        from testbed.conditions import get_condition  # the camera's conditions need OpenCV (not on a vehicle)
+
+        get_condition(self.condition)
+        track = parse_track_spec(self.track)[0]
+        for registry, name in ((TRACKS, track), (VEHICLES, self.vehicle), (LOCALIZATIONS, self.localization),
+                               (DETECTORS, self.detector), (DEFENSES, self.defense)):
+            _check(name in registry, f"unknown {registry.family} {name!r}; known: {', '.join(registry.names())}")
+        defense = DEFENSES.get(self.defense)
+        unread = sorted(set(self.defense_params) - defense.reads - ALWAYS_READ)
+        _check(not unread, f"[defense] {', '.join(unread)}: not read by defense {self.defense!r}, so it would "
+                           f"change nothing; remove it" + (f" (it reads {', '.join(sorted(defense.reads))})"
+                                                           if defense.reads else " (it reads no [defense] keys)"))
+        DefenseConfig.from_dict(self.defense_params)
+        DETECTORS.get(self.detector).settings(self.detector_params, f"detector {self.detector}")
+        for table in attack_tables(self.attack):
+            component, settings = attack_settings(table)
+            start = getattr(settings, "start", None)
+            if start is not None and start >= self.duration:
+                raise ScenarioError(f"attack {component.name!r} starts at {start:g} s but the run lasts "
+                                    f"{self.duration:g} s, so it would never act: lower attack start or raise duration")
+        if self.stop_at is not None and self.stop_at >= self.duration:
+            raise ScenarioError(f"stop_at = {self.stop_at:g} s lies after the run's end ({self.duration:g} s): lower "
+                                f"it or raise duration")
+        return self
+
+    @classmethod
+    def build(cls, **fields: Any) -> Scenario:
+        """A scenario from its fields, or a one-line ScenarioError naming the first bad one."""
+        try:
+            return cls.model_validate(fields)
+        except ValidationError as exc:
+            raise ScenarioError(_one_line(exc)) from None
+
+    def replace(self, **changes: Any) -> Scenario:
+        """A validated copy with `changes` applied."""
+        return Scenario.build(**{**self.fields(), **changes})
 
     def with_overrides(self, **overrides: Any) -> Scenario:
-        """A copy with the given non-None fields replaced, validated."""
-        changes = {k: v for k, v in overrides.items() if v is not None}
-        return validate(dataclasses.replace(self, **changes))
+        """A validated copy with the given non-None fields replaced."""
+        return self.replace(**{k: v for k, v in overrides.items() if v is not None})
+
+    def fields(self) -> dict[str, Any]:
+        """The fields as given (`rates` as its model), for a copy."""
+        return {name: getattr(self, name) for name in type(self).model_fields}
+
+
+def _one_line(exc: ValidationError) -> str:
+    """The first error of a scenario validation as one line naming its key."""
+    err = exc.errors()[0]
+    key = error_key(err)
+    if err["type"] == "extra_forbidden":
+        section = key.rpartition(".")[0]
+        known = Rates.model_fields if section == "rates" else _TOP_KEYS
+        return f"unknown scenario key {key!r}; known{' in [rates]' if section == 'rates' else ''}: " \
+               f"{', '.join(sorted(known))}"
+    if err["loc"][:1] == ("attack",) and err["type"] != "value_error":
+        return f"attack must be a table with a 'kind' or a non-empty list of such tables, got {err['input']!r}"
+    if not key or err["type"] == "value_error":
+        return error_problem(err)
+    if err["type"] == "string_pattern_mismatch" and key == "name":
+        return (f"name {err['input']!r} must be one path component: letters, digits and _ . @ + = , -, "
+                f"not starting with a dot")
+    return f"{key} {error_problem(err)}"
 
 
 def _check(cond: bool, msg: str) -> None:
@@ -61,36 +144,9 @@ def _check(cond: bool, msg: str) -> None:
         raise ScenarioError(msg)
 
 
-ALWAYS_READ = frozenset({"existence_threshold"})
-"""`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
-
-
 def validate(sc: Scenario) -> Scenario:
-    """`sc` when its values, component names and every component's parameters are valid; else ScenarioError."""
-    _check(sc.speed > 0, f"speed must be > 0 m/s, got {sc.speed}")
-    _check(sc.duration > 0, f"duration must be > 0 s, got {sc.duration}")
-    _check(sc.seed >= 0, f"seed must be >= 0, got {sc.seed}")
-    try:
-        track, _ = parse_track_spec(sc.track)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
-    for registry, name in ((TRACKS, track), (VEHICLES, sc.vehicle), (LOCALIZATIONS, sc.localization),
-                           (DETECTORS, sc.detector), (DEFENSES, sc.defense)):
-        _check(isinstance(name, str) and name in registry,
-               f"unknown {registry.family} {name!r}; known: {', '.join(registry.names())}")
-    defense = DEFENSES.get(sc.defense)
-    unread = sorted(set(sc.defense_params) - defense.reads - ALWAYS_READ)
-    _check(not unread, f"[defense] {', '.join(unread)}: not read by defense {sc.defense!r}, so it would change "
-                       f"nothing; remove it" + (f" (it reads {', '.join(sorted(defense.reads))})" if defense.reads
-                                                else " (it reads no [defense] keys)"))
-    try:
-        DefenseConfig.from_dict(sc.defense_params)
-        DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
-        for table in attack_tables(sc.attack):
-            attack_settings(table)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
-    return sc
+    """`sc`, checked again (a Scenario is validated when built; kept for callers that build then check)."""
+    return Scenario.build(**sc.fields())
 
 
 def check_needs(sc: Scenario) -> frozenset[Capability]:
@@ -109,7 +165,7 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
     return provided
 
 
-_TOP_KEYS = {f.name for f in dataclasses.fields(Scenario)} - {"defense_params", "detector_params"}
+_TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
 
 
 def _kind_and_params(value: Any, default_kind: str) -> tuple[Any, dict[str, Any]]:
@@ -127,17 +183,14 @@ def scenario_from_dict(data: dict[str, Any], name: str) -> Scenario:
     defense, params = _kind_and_params(data.pop("defense", "none"), "ld3")
     detector, detector_params = _kind_and_params(data.pop("detector", "oracle"), "oracle")
     unknown = set(data) - _TOP_KEYS
-    _check(not unknown, f"scenario {name}: unknown keys {sorted(unknown)}")
+    _check(not unknown, f"scenario {name}: unknown keys {sorted(unknown)}; known: {', '.join(sorted(_TOP_KEYS))}")
     _check("track" in data, f"scenario {name}: 'track' is required")
     data.setdefault("name", name)
     try:
-        sc = Scenario(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
-                      **data)
-    except TypeError as exc:
+        return Scenario.build(defense=defense, defense_params=params, detector=detector,
+                              detector_params=detector_params, **data)
+    except ScenarioError as exc:
         raise ScenarioError(f"scenario {name}: {exc}") from None
-    for key, typ in (("speed", (int, float)), ("duration", (int, float)), ("seed", int), ("track", str)):
-        _check(isinstance(getattr(sc, key), typ), f"scenario {name}: {key} has the wrong type")
-    return validate(sc)
 
 
 def _toml_value(raw: str) -> Any:
@@ -150,12 +203,14 @@ def _toml_value(raw: str) -> Any:
 
 def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
-    name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table), or a
-    top-level key such as `speed=10`."""
+    name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table),
+    `rates.control_hz=50` or `rates.localization.gnss_hz=5` (the [rates] table), or a top-level key such as
+    `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
     detector, detector_params = sc.detector, dict(sc.detector_params)
     attacks = [dict(t) for t in attack_tables(sc.attack)]
+    rates = sc.rates.model_dump()
     for item in settings:
         key, eq, raw = item.partition("=")
         key = key.strip()
@@ -163,7 +218,7 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
         value = _toml_value(raw.strip())
         section, dot, name = key.partition(".")
         if not dot:
-            plain = sorted(_TOP_KEYS - {"defense", "attack", "detector"})
+            plain = sorted(_TOP_KEYS - {"defense", "attack", "detector", "rates"})
             _check(key in plain, f"--set {item!r}: unknown scenario key {key!r}; known: {plain}")
             top[key] = value
         elif section == "defense":
@@ -186,15 +241,22 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
                 attacks[int(index)][member_key] = value
             else:
                 attacks[0][name] = value
+        elif section == "rates":
+            _set_nested(rates, name.split("."), value, item)
         else:
             raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
-                                f"attack.KEY or KEY")
-    try:
-        changed = dataclasses.replace(sc, defense=defense, defense_params=params, detector=detector,
-                                      detector_params=detector_params, attack=attack_value(attacks), **top)
-    except TypeError as exc:
-        raise ScenarioError(f"--set: {exc}") from None
-    return validate(changed)
+                                f"attack.KEY, rates.KEY or KEY")
+    return sc.replace(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
+                      attack=attack_value(attacks), rates=rates, **top)
+
+
+def _set_nested(table: dict[str, Any], path: list[str], value: Any, item: str) -> None:
+    """`table[a][b]... = value` along `path`, making the inner tables it needs."""
+    for key in path[:-1]:
+        inner = table.setdefault(key, {})
+        _check(isinstance(inner, dict), f"--set {item!r}: {key!r} is a value, not a table")
+        table = inner
+    table[path[-1]] = value
 
 
 def add_attacks(sc: Scenario, specs: list[str]) -> Scenario:
@@ -202,7 +264,7 @@ def add_attacks(sc: Scenario, specs: list[str]) -> Scenario:
     if not specs:
         return sc
     tables = [*attack_tables(sc.attack), *(attack_spec_to_dict(spec) for spec in specs)]
-    return validate(dataclasses.replace(sc, attack=attack_value(tables)))
+    return sc.replace(attack=attack_value(tables))
 
 
 def shipped_scenarios() -> list[str]:
@@ -215,7 +277,10 @@ def load_scenario(name_or_path: str) -> Scenario:
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         _check(path.is_file(), f"scenario file not found: {path}")
-        text, name = path.read_text(), path.stem
+        try:
+            text, name = path.read_text(encoding="utf-8"), path.stem
+        except (UnicodeDecodeError, OSError) as exc:
+            raise ScenarioError(f"scenario file {path} is not a text TOML file: {exc}") from None
     else:
         res = resources.files("testbed.eval") / "scenarios" / f"{name_or_path}.toml"
         _check(res.is_file(),

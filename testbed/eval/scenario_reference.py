@@ -3,39 +3,19 @@
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
+from testbed.eval.rates import Rates
 from testbed.eval.scenario import ALWAYS_READ, Scenario
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import reference_rows
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import Registry
-
-TOP_LEVEL: dict[str, str] = {
-    "name": "run name (default: the file's stem)",
-    "track": "track preset, `NAME` or `NAME@SEED` (a seed > 0 draws a held-out variant)",
-    "vehicle": "vehicle",
-    "speed": "target speed (m/s)",
-    "duration": "simulated duration (s)",
-    "condition": "lighting and weather of the camera (`ld3 scenarios` lists them)",
-    "seed": "seed of every random draw of the run",
-    "lane": "lane driven, 0 = rightmost (default: the track's ego lane)",
-    "start_s": "start position along the road (m)",
-    "detector": "lane detector: a name, or a [detector] table with `kind` and its parameters",
-    "localization": "localization source",
-    "defense": "defense: a name, or a [defense] table with `kind` (default ld3) and parameters",
-    "attack": "an [attack] table with `kind` and its parameters, a list of them (composed in order), or none",
-    "rates": "[rates] control_hz (100), camera_hz (20), physics_hz (240), command_hold_s (0), and a "
-             "[rates.localization] table of sensor rates and noise",
-    "stop_at": "time of a planned in-lane stop (s), independent of any defense",
-    "stop_decel": "deceleration of the planned stop (m/s²)",
-}
-"""What each top-level key means, with its unit: the one place the scenario's plain keys are described."""
+from tracks.opendrive.load import PREFIX as XODR_PREFIX
 
 
 def _choices(registry: Registry) -> str:
@@ -60,18 +40,16 @@ def reference_markdown() -> str:
     [attack] per kind."""
     out = ["## Scenario keys", "", "Top level of the scenario TOML:", ""]
     rows = []
-    for f in dataclasses.fields(Scenario):
-        if f.name.endswith("_params"):
+    for key, typ, default, meaning in reference_rows(Scenario):
+        if key.endswith("_params"):
             continue
-        default = f.default if f.default is not dataclasses.MISSING else (
-            "required" if f.default_factory is dataclasses.MISSING else f.default_factory())
-        if f.name == "name":
-            default = "the file's stem"
-        meaning = TOP_LEVEL[f.name]
-        if f.name in _CHOICES:
-            meaning += f"; one of {_choices(_CHOICES[f.name])}"
-        rows.append((f.name, str(f.type), repr(default) if f.name != "track" else "required", meaning))
+        if key in _CHOICES:
+            meaning += f"; one of {_choices(_CHOICES[key])}"
+        default = {"name": "the file's stem", "track": "required", "rates": "see [rates]"}.get(key, default)
+        typ = "table | list of tables | None" if key == "attack" else typ
+        rows.append((key, typ, default, meaning))
     out += _table(rows)
+    out += ["", "`[rates]`:", "", *_table(reference_rows(Rates))]
     readers = [", ".join(f"`{d.name}`" for d in DEFENSES if key in d.reads or key in ALWAYS_READ) or "–"
                for key in DefenseConfig.model_fields]
     out += ["", "`[defense]` (a key no chosen defense reads is refused):", ""]
@@ -96,17 +74,15 @@ def json_schema() -> dict[str, Any]:
     """A JSON Schema (draft 2020-12) of the scenario TOML, from the registries and the parameter models."""
     defs: dict[str, Any] = {}
     names = {key: {"enum": list(registry.names())} for key, registry in _CHOICES.items() if key != "attack"}
-    props: dict[str, Any] = {f.name: {"description": TOP_LEVEL[f.name]} for f in dataclasses.fields(Scenario)
-                             if not f.name.endswith("_params")}
-    for key in ("speed", "duration", "start_s", "stop_at", "stop_decel"):
-        props[key]["type"] = "number"
-    props["seed"]["type"] = "integer"
-    props["lane"]["type"] = "integer"
-    props["name"]["type"] = props["condition"]["type"] = "string"
-    props["track"].update(type="string", pattern=f"^({'|'.join(TRACKS.names())})(@[0-9]+)?$")
+    model = Scenario.model_json_schema()
+    defs.update(model.pop("$defs", {}))
+    props: dict[str, Any] = {key: value for key, value in model["properties"].items()
+                             if not key.endswith("_params")}
+    for key in ("defense", "detector", "attack"):
+        props[key] = {"description": props[key]["description"]}
+    props["track"].update(pattern=f"^(({'|'.join(TRACKS.names())})(@[0-9]+)?|{XODR_PREFIX}.+)$")
     props["vehicle"].update(names["vehicle"])
     props["localization"].update(names["localization"])
-    props["rates"]["type"] = "object"
     defense_table = DefenseConfig.model_json_schema()
     defense_table["properties"] = {"kind": names["defense"], **defense_table["properties"]}
     props["defense"]["anyOf"] = [names["defense"], defense_table]

@@ -23,8 +23,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
         doc["lane"] = sc.lane
     if sc.stop_at is not None:
         doc["stop_at"], doc["stop_decel"] = float(sc.stop_at), float(sc.stop_decel)
-    if sc.rates:
-        doc["rates"] = dict(sc.rates)
+    if sc.rates.explicit():
+        doc["rates"] = sc.rates.explicit()
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
     reads = DEFENSES.get(sc.defense).reads
     doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}

@@ -11,7 +11,6 @@ search resumes from its journal (`study.log`): trials asked but not told are run
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 import math
 import warnings
@@ -29,7 +28,7 @@ from testbed.attacks.space import START, ChoiceDim, FloatDim, IntDim
 from testbed.attacks.threat import ThreatCapability, threat_label, within_ld3_threat_model
 from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
-from testbed.eval.scenario import Scenario, check_needs, validate
+from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.registry import FIXES, Component, missing_needs
 
@@ -105,7 +104,7 @@ class TrialOutcome:
 def families_for(threat: frozenset[ThreatCapability], victim: Scenario) -> list[Component]:
     """The searchable attack families the threat model allows and the victim lets act; UserError, naming
     what is missing, when there are none."""
-    provided = check_needs(dataclasses.replace(victim, attack=None))
+    provided = check_needs(victim.replace(attack=None))
     allowed, refused, unsearchable = [], [], []
     for component in ATTACKS:
         if not component.capabilities <= {c.value for c in threat}:
@@ -220,7 +219,7 @@ class AttackSearch:
                                    load_if_exists=True)
 
     def _scenario(self, number: int, attack: dict[str, Any]) -> Scenario:
-        return validate(dataclasses.replace(self.spec.victim, name=trial_id(number), attack=attack))
+        return self.spec.victim.replace(name=trial_id(number), attack=attack)
 
     def run(self) -> list[TrialOutcome]:
         """Run trials until `budget` have been told; write trials.csv after every batch."""
@@ -308,7 +307,7 @@ class AttackSearch:
         if best is None:
             return None
         path = self.out / "best.toml"
-        sc = dataclasses.replace(self._scenario(best.number, best.attack), name="search-best")
+        sc = self._scenario(best.number, best.attack).replace(name="search-best")
         write_scenario(path, sc, f"Worst attack found by ld3 search (trial {best.number}): "
                                  f"{attack_spec(best.attack)}\nReplay: ld3 run {path}")
         return path

@@ -11,6 +11,7 @@ A preset too short for the duration is driven slower, so that it lasts the durat
 from __future__ import annotations
 
 import contextlib
+import math
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -18,12 +19,16 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from testbed.conditions import get_condition
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.eval.runner import END_MARGIN_M, SimRun
+from testbed.errors import UserError
+from testbed.eval.run_build import END_MARGIN_M
+from testbed.eval.runner import SimRun
 from testbed.eval.scenario import load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.registry import make_detector
 from testbed.perception.seeds import Cell, cells
+from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.presets import load_track
@@ -103,7 +108,14 @@ def _one_thread() -> None:
 
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
                     workers: int = 1, progress: bool = False) -> list[dict]:
-    """Drive every cell (one torch thread each; `workers` processes at once), results in cell order."""
+    """Drive every cell (one torch thread each; `workers` processes at once), results in cell order; a bad
+    preset, condition or duration is a UserError before any drive."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise UserError(f"--duration must be a time > 0 s, got {duration}")
+    for preset in presets:
+        TRACKS.get(preset)
+    for condition in conditions:
+        get_condition(condition)
     todo = cells(presets, conditions)
     bar = tqdm(total=len(todo), desc="closed loop", unit="drive", disable=not progress)
     if workers <= 1:

@@ -1,12 +1,11 @@
 """Each adaptive family on a short closed-loop run: it acts (its stage leaves idle), moves what its threat model
 lets it move, and the run records the threat model."""
 
-import dataclasses
 
 import pytest
 
 from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario, validate
+from testbed.eval.scenario import load_scenario
 
 CASES = {
     "zone": ({"kind": "zone", "zone": "intersection", "lateral": -1.5, "ramp": 0.2, "hold": 2.0}, "msf-output"),
@@ -22,8 +21,8 @@ CASES = {
 def test_each_family_acts_in_a_short_closed_loop_run(family):
     attack, threat = CASES[family]
     # 40 m before local's first intersection (s = 350 m), so the zone attack meets it within the run
-    sc = validate(dataclasses.replace(load_scenario("local"), defense="ld3", localization="msf", duration=9.0,
-                                      start_s=310.0, attack=attack))
+    sc = load_scenario("local").replace(defense="ld3", localization="msf", duration=9.0, start_s=310.0,
+                                        attack=attack)
     result = run_scenario(sc, None)
     s = result.summary
     assert s["threat_model"] == threat and s["attack"]["kind"] == family

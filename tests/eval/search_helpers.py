@@ -7,7 +7,6 @@ runs a toy search into the folder given, each trial taking `TOY_SLEEP_S` seconds
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import sys
@@ -38,7 +37,7 @@ def toy_executor(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
 
 
 def toy_spec(budget: int, seed: int = 0, batch: int = 4) -> SearchSpec:
-    victim = dataclasses.replace(load_scenario("local"), defense="ld3", localization="msf")
+    victim = load_scenario("local").replace(defense="ld3", localization="msf")
     return SearchSpec(victim, parse_threat("msf-output"), budget, seed=seed, batch=batch)
 
 

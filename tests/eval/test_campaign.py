@@ -8,9 +8,9 @@ from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
 from testbed.eval.campaign import CampaignRun, run_campaign
 from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, GRID_TRACK_SEEDS, fr_grid_runs, fusionripper_ld3_runs
-from testbed.eval.outputs import SCHEMA_VERSION
 from testbed.eval.roc import record_detection_run, roc_runs
 from testbed.eval.scenario import load_scenario
+from testbed.eval.summary import SCHEMA_VERSION
 
 
 def write_fake_summary(run: CampaignRun, run_dir: Path) -> dict:

@@ -8,9 +8,10 @@ import sys
 
 import pytest
 
-from testbed.eval.outputs import SUMMARY_KEYS, TRAJECTORY_COLUMNS
+from testbed.eval.outputs import TRAJECTORY_COLUMNS
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import ScenarioError, load_scenario
+from testbed.eval.summary import RunSummary
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -20,7 +21,7 @@ def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
     sc = load_scenario(preset).with_overrides(duration=6.0)
     result = run_scenario(sc, tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert set(SUMMARY_KEYS) <= summary.keys()
+    assert summary.keys() == RunSummary.model_fields.keys() and summary["schema_version"] == 4
     assert summary["consequence"] == "reach_destination"
     assert summary["max_abs_dev_m"] < 0.10
     assert summary["attack"] is None and summary["detected"] is False

@@ -29,7 +29,7 @@ def test_overrides_replace_fields_and_validate():
         ("track = ", "malformed TOML"),
         ('speed = 3.0\n', "'track' is required"),
         ('track = "slr"\nwheels = 3\n', "unknown keys"),
-        ('track = "slr"\nspeed = "fast"\n', "wrong type"),
+        ('track = "slr"\nspeed = "fast"\n', "scenario bad: speed must be a number, got 'fast'"),
     ],
 )
 def test_bad_files_raise_one_line_errors(tmp_path, text, message):
@@ -100,7 +100,7 @@ def test_detector_table_and_set_carry_the_detectors_parameters(tmp_path):
 
 
 @pytest.mark.parametrize(("item", "message"), [
-    ("detector.noise_std=-1", r"\[detector oracle\] 'noise_std' should be greater than or equal to 0"),
+    ("detector.noise_std=-1", r"\[detector oracle\] 'noise_std' must be >= 0"),
     ("detector.gain=2", r"\[detector oracle\] unknown parameter 'gain'; known: noise_std, dropout"),
     ("attack.d=far", r"\[attack fusionripper\] 'd' must be a number"),
     ("track=moon", r"unknown track preset 'moon'; known: slr, urban-straight"),

@@ -32,6 +32,11 @@ def test_every_shipped_scenario_validates_against_the_schema(validator):
     {"track": "local", "detector": {"kind": "oracle", "noise": 0.1}},
     {"track": "local", "attack": {"kind": "fusionripper", "d": "far"}},
     {"track": "local", "attack": {"kind": "drp-patch"}},
+    {"track": "local", "rates": {"control_hz": 0}},
+    {"track": "local", "rates": {"control_hertz": 50}},
+    {"track": "local", "speed": 0},
+    {"track": "local", "seed": 1.5},
+    {"track": "local", "name": "../escape"},
 ])
 def test_the_schema_refuses_what_the_loader_refuses(validator, bad):
     assert not validator.is_valid(bad)

@@ -1,7 +1,6 @@
 """End to end: a parking-lot scenario over the CAN link (in-process ECU on a virtual bus, ECU process over
 SLCAN on a pty) against the direct run with the same 50 Hz command hold."""
 
-import dataclasses
 import json
 import math
 
@@ -18,7 +17,7 @@ TOLERANCE_M = 0.05
 
 def short_parking_lot(seconds: float = 3.0):
     sc = load_scenario("parking-lot").with_overrides(duration=seconds, seed=3)
-    return dataclasses.replace(sc, rates={"command_hold_s": 0.02})
+    return sc.replace(rates={"command_hold_s": 0.02})
 
 
 def direct_rows(sc):
@@ -88,7 +87,7 @@ def test_link_config_rejects_unknown_interfaces_and_socketcan_without_a_channel(
 
 def pix_parking_lot(seconds: float):
     sc = load_scenario("parking-lot").with_overrides(duration=seconds, seed=3, speed=4.0)
-    return dataclasses.replace(sc, rates={"command_hold_s": 0.02})
+    return sc.replace(rates={"command_hold_s": 0.02})
 
 
 def test_pix_hooke_runs_over_virtual_and_slcan_stay_within_5_cm_of_the_direct_run(tmp_path):

@@ -81,15 +81,15 @@ def _vehicle(ecu, feeder, out, *extra: str) -> int:
 def test_vehicle_follows_its_gnss_and_writes_its_outputs(ecu, tmp_path, capsys):
     feeder = NmeaFeeder()
     try:
-        code = _vehicle(ecu, feeder, tmp_path, "--defense", "none", "--detector", "none", "--duration", "3")
+        code = _vehicle(ecu, feeder, tmp_path / "run", "--defense", "none", "--detector", "none", "--duration", "3")
         last = feeder.last_xy
     finally:
         feeder.close()
     assert code == 0, capsys.readouterr().err
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["consequence"] == "reach_destination" and summary["faults"] == []
-    assert summary["nmea_fixes"] >= 25 and summary["can_frames_rx"] > 0 and (tmp_path / "can.asc").exists()
-    rows = (tmp_path / "trajectory.csv").read_text().splitlines()
+    assert summary["nmea_fixes"] >= 25 and summary["can_frames_rx"] > 0 and (tmp_path / "run" / "can.asc").exists()
+    rows = (tmp_path / "run" / "trajectory.csv").read_text().splitlines()
     assert len(rows) == 301
     x, y = (float(v) for v in rows[-1].split(",")[1:3])
     assert np.hypot(x - last[0], y - last[1]) < 1.0  # the MSF follows the fixes
@@ -99,12 +99,12 @@ def test_vehicle_follows_its_gnss_and_writes_its_outputs(ecu, tmp_path, capsys):
 def test_a_gnss_stream_that_stops_ends_the_vehicle_run_as_a_fault(ecu, tmp_path, capsys):
     feeder = NmeaFeeder(seconds=1.5)
     try:
-        code = _vehicle(ecu, feeder, tmp_path, "--defense", "none", "--detector", "none", "--duration", "10")
+        code = _vehicle(ecu, feeder, tmp_path / "run", "--defense", "none", "--detector", "none", "--duration", "10")
     finally:
         feeder.close()
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 3 and err[-1].startswith("ld3: chassis fault: gnss_stalled at")
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["consequence"] == "chassis_fault" and summary["sim_time_s"] < 5.0
 
 

@@ -53,8 +53,8 @@ def test_dashes_are_three_metres_on_nine_off():
 def test_patch_changes_pixels_only_inside_it():
     track = load_track("urban-straight")
     before = tile_texture(track, 4)
-    track.add_painter(
-        PatchPainter(s_center=90.0, t_center=0.5, length=4.0, width=2.0, angle=0.0, darkness=0.8)
+    track = track.with_painters(
+        [PatchPainter(s_center=90.0, t_center=0.5, length=4.0, width=2.0, angle=0.0, darkness=0.8)]
     )
     after = tile_texture(track, 4)
     frame = tile_frame(track, 4)
@@ -72,14 +72,14 @@ def test_wear_fades_markings_and_shadows_darken(curvy):
     track = load_track("slr")
     clean = tile_texture(track, 3).astype(float)
     cov = marking_coverage(tile_frame(track, 3)) > 0.9
-    track.add_painter(WearPainter(0.8))
+    track = track.with_painters([WearPainter(0.8)])
     worn = tile_texture(track, 3).astype(float)
     assert worn[cov].mean() < clean[cov].mean() - 40
     np.testing.assert_array_equal(
         worn[~(marking_coverage(tile_frame(track, 3)) > 0)],
         clean[~(marking_coverage(tile_frame(track, 3)) > 0)],
     )
-    track.add_painter(ShadowPainter(darkness=0.6, per_100m=10.0))
+    track = track.with_painters([ShadowPainter(darkness=0.6, per_100m=10.0)])
     shaded = np.mean([tile_texture(track, i).mean() for i in range(3, 8)])
     assert shaded < np.mean([tile_texture(load_track("slr"), i).mean() for i in range(3, 8)]) - 3
 

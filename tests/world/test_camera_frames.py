@@ -28,8 +28,7 @@ RECORDED = {
 def frames_digest(preset: str, condition: str) -> str:
     track = load_track(preset)
     cond = get_condition(condition)
-    for painter in cond.track_painters(track.seed):
-        track.add_painter(painter)
+    track = track.with_painters(cond.track_painters(track.seed))
     streamer = TileStreamer(track, cond.lighting)
     camera = FrontCamera(streamer, CameraRig(get_vehicle("sedan").camera), cond, np.random.default_rng(11))
     lane = track.lanes[track.ego_lane]

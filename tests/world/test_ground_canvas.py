@@ -20,8 +20,7 @@ from vehicles.params import get_vehicle
 def _frames(preset: str, condition: str, ground: str, stations: list[float]) -> list[np.ndarray]:
     track = load_track(preset)
     cond = get_condition(condition)
-    for painter in cond.track_painters(track.seed):
-        track.add_painter(painter)
+    track = track.with_painters(cond.track_painters(track.seed))
     streamer = TileStreamer(track, cond.lighting, ground=ground)
     rig = CameraRig(get_vehicle("sedan").camera)
     camera = FrontCamera(streamer, rig, cond, np.random.default_rng(3))

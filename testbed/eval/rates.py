@@ -1,0 +1,46 @@
+"""The scenario's `[rates]`: the loop's rates and the localization sensors' table, one typed model."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from testbed.localization.stack import LocalizationConfig
+from testbed.loop import PHYSICS_HZ, LoopRates
+
+STRICT = ConfigDict(frozen=True, extra="forbid", strict=True, allow_inf_nan=False)
+"""How every scenario model reads TOML: no unknown keys, no strings or booleans for numbers, finite numbers."""
+
+
+class Rates(BaseModel):
+    """Physics, control and camera rates (Hz), the command hold of a sampled chassis, and the localization
+    sensors' `[rates.localization]` table; the camera runs no faster than control, control no faster than
+    physics."""
+
+    model_config = STRICT
+
+    physics_hz: float = Field(PHYSICS_HZ, gt=0, le=10_000, description="physics steps per second (Hz)")
+    control_hz: float = Field(LoopRates.control_hz, gt=0, description="control loop rate (Hz), at most physics_hz")
+    camera_hz: float = Field(LoopRates.camera_hz, gt=0,
+                             description="camera and lane detector rate (Hz), at most control_hz")
+    command_hold_s: float = Field(0.0, ge=0, le=1.0, description="sample-and-hold period of chassis commands (s), "
+                                                                  "0 = applied at once")
+    localization: dict[str, Any] = Field(default_factory=dict,
+                                         description="sensor rates (gnss_hz, lidar_hz, imu_hz) and the gnss, "
+                                                     "lidar, imu and msf error models and tuning")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Rates:
+        if self.control_hz > self.physics_hz:
+            raise ValueError(f"rates.control_hz ({self.control_hz:g}) must not exceed rates.physics_hz "
+                             f"({self.physics_hz:g})")
+        if self.camera_hz > self.control_hz:
+            raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must not exceed rates.control_hz "
+                             f"({self.control_hz:g})")
+        LocalizationConfig.from_dict(self.localization)
+        return self
+
+    def explicit(self) -> dict[str, Any]:
+        """The table as TOML would hold it, defaults left out."""
+        return self.model_dump(exclude_defaults=True)

@@ -1,0 +1,124 @@
+"""summary.json as typed models (DESIGN.md output contract): `RunSummary` for a simulated run, `HilSummary`
+for one over CAN, `VehicleSummary` for a drive on a real vehicle. A summary is built once, checked on
+construction (no unknown or missing key), and written by `write`; non-finite numbers are written as null."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict
+
+SCHEMA_VERSION = 4
+"""Version of summary.json's layout; raised when a key changes meaning or goes away."""
+
+
+class FaultRecord(BaseModel):
+    """A fault the run latched: by the chassis (it ends the run) or handled by the defense."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kind: str
+    source: Literal["chassis", "defense"]
+    time: float
+    detail: str
+    last_time: float | None = None
+    count: int | None = None
+
+
+class RunSummary(BaseModel):
+    """One run's summary: provenance, the resolved scenario, the components, timing, deviations, the
+    consequence, faults, detection and the attack response."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_version: int = SCHEMA_VERSION
+    package_version: str | None
+    git_commit: str | None
+    resolved_scenario: dict[str, Any]
+    scenario: str
+    seed: int | None
+    track: str
+    vehicle: str
+    attack: dict[str, Any] | list[dict[str, Any]] | None
+    threat_model: str
+    defense: str
+    defense_params: dict[str, Any] | None = None
+    condition: str
+    detector: str
+    tracking: bool | None = None
+    localization: str
+    target_speed_mps: float | None = None
+    sim_time_s: float
+    wall_time_s: float
+    real_time_factor: float | None
+    lane_width_m: float
+    lane_straddle_dev_m: float | None
+    max_abs_dev_m: float | None
+    final_dev_m: float | None
+    consequence: str
+    faults: list[FaultRecord]
+    detected: bool
+    detection_time_s: float | None
+    detection_dev_m: float | None
+    ar_max_dev_m: float | None
+    ar_stop_dev_m: float | None
+    stop_time_s: float | None
+    attack_state: Any = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """The summary as the plain dict that campaigns and reports read."""
+        return self.model_dump()
+
+    def write(self, path: Path) -> None:
+        path.write_text(json.dumps(_json_safe(self.model_dump(mode="python")), indent=2) + "\n")
+
+
+class CanLinkFields(BaseModel):
+    """What a run over a CAN link adds: the interface, the profile, the frame counts and the CAN log."""
+
+    interface: str
+    profile: str
+    can_log: str | None
+    can_frames_tx: int
+    can_frames_rx: int
+
+
+class HilSummary(RunSummary, CanLinkFields):
+    """A simulated run with the CAN bridge as its chassis (`ld3 hil`)."""
+
+    channel: str | None
+    clock: str
+    pose_source: str
+    odometry_error_max_m: float | None
+    odometry_error_final_m: float | None
+    can_frames_rejected: int
+    can_frames_logged: int
+    sensors: str
+    nmea_fixes: int | None = None
+    nmea_bad: int | None = None
+    nmea_no_fix: int | None = None
+    camera_frames: int | None = None
+
+
+class VehicleSummary(RunSummary, CanLinkFields):
+    """A drive on a real vehicle (`ld3 vehicle`): no truth, so deviations from the lane are the MSF's."""
+
+    lane: int
+    max_abs_msf_dev_m: float | None
+    nmea_fixes: int
+    nmea_bad: int
+    nmea_no_fix: int
+    camera_frames: int
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value

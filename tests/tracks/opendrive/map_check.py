@@ -1,0 +1,42 @@
+"""Largest differences between a track's map answers and the file's analytic lane geometry."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from tests.tracks.opendrive.analytic import closest, lane_centre, reference
+from tracks.pose import Pose
+from tracks.road import Track
+from tracks.semantic_map import TrackMap
+
+
+def map_errors(track: Track, root: ET.Element, legs: list[tuple[str, int]], step: float = 7.0) -> dict[str, float]:
+    """Max |error| of lane_dev, lane_point (position, heading) and lane_width over every lane of every leg
+    (road id, direction), at poses off each lane centre by −0.6, 0 and +0.5 m."""
+    roads = {r.get("id"): r for r in root.findall("road")}
+    smap, n = TrackMap(track), len(track.lanes)
+    worst = dict.fromkeys(("dev", "point", "heading", "width"), 0.0)
+    for road_id, direction in legs:
+        road = roads[road_id]
+        length = float(road.get("length"))
+        for s in np.arange(1.0, length - 1.0, step):
+            _, _, h = reference(road, s)
+            travel = h if direction == 1 else h + math.pi
+            left = np.array([-math.sin(travel), math.cos(travel)])
+            for i in range(n):
+                lane_id = -direction * (n - i)
+                for delta in (-0.6, 0.0, 0.5):
+                    xy = lane_centre(road, lane_id, s) + delta * left
+                    _, centre, dev, width = closest(road, lane_id, xy, s)
+                    pose = Pose(float(xy[0]), float(xy[1]), travel)
+                    point, heading = smap.lane_point(pose, i)
+                    ahead = lane_centre(road, lane_id, min(s + 0.01, length)) - lane_centre(road, lane_id, s)
+                    want = math.atan2(ahead[1], ahead[0]) + (0.0 if direction == 1 else math.pi)
+                    worst["dev"] = max(worst["dev"], abs(smap.lane_dev(pose, i) - direction * dev))
+                    worst["point"] = max(worst["point"], float(np.hypot(*(point - centre))))
+                    worst["heading"] = max(worst["heading"], abs(math.remainder(heading - want, 2 * math.pi)))
+                    worst["width"] = max(worst["width"], abs(smap.lane_width(pose, i) - width))
+    return worst
