@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, field_serializer
 
 SCHEMA_VERSION = 4
 """Version of summary.json's layout; raised when a key changes meaning or goes away."""
@@ -67,6 +67,11 @@ class RunSummary(BaseModel):
     ar_stop_dev_m: float | None
     stop_time_s: float | None
     attack_state: Any = None
+
+    @field_serializer("faults")
+    def _faults(self, faults: list[FaultRecord]) -> list[dict[str, Any]]:
+        """A chassis fault has no repeat count: its record leaves those keys out."""
+        return [f.model_dump(exclude_none=True) for f in faults]
 
     def as_dict(self) -> dict[str, Any]:
         """The summary as the plain dict that campaigns and reports read."""
