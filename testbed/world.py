@@ -73,6 +73,8 @@ class PhysicsWorld:
         pb.changeDynamics(self.ground_id, -1, lateralFriction=1.0, physicsClientId=self.client)
         self.obstacle_kind: dict[int, str] = {}
         self._tile_bodies: dict[int, list[int]] = {}
+        self.traffic_bodies: list[int] = []
+        self._traffic_z = 0.0
         self.vehicle = PyBulletVehicle(self.client, params, start)
         self.update_obstacles(start)
 
@@ -101,6 +103,30 @@ class PhysicsWorld:
         self.obstacle_kind[body] = kind
         return body
 
+    def add_traffic(self, count: int, length: float, width: float, height: float) -> None:
+        """`count` traffic car bodies: static (kinematic) boxes of the given size, of kind `vehicle`, placed by
+        `place_traffic`; the vehicle collides with them like with any roadside body."""
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5 * length, 0.5 * width, 0.5 * height],
+                                        physicsClientId=self.client)
+        self._traffic_z = 0.5 * height
+        for _ in range(count):
+            body = pb.createMultiBody(0, shape, basePosition=[0.0, 0.0, -10.0 * height], physicsClientId=self.client)
+            self.obstacle_kind[body] = "vehicle"
+            self.traffic_bodies.append(body)
+
+    def place_traffic(self, poses: list[Pose]) -> None:
+        """Move traffic car i's body to poses[i] (its centre on the ground, its heading)."""
+        for body, p in zip(self.traffic_bodies, poses, strict=True):
+            pb.resetBasePositionAndOrientation(body, [p.x, p.y, self._traffic_z],
+                                               pb.getQuaternionFromEuler((0.0, 0.0, p.yaw)),
+                                               physicsClientId=self.client)
+
+    def traffic_touching(self) -> list[int]:
+        """Indices of the traffic cars the vehicle touches now."""
+        index = {body: i for i, body in enumerate(self.traffic_bodies)}
+        return sorted({index[c[2]] for c in pb.getContactPoints(bodyA=self.vehicle.body_id,
+                                                                physicsClientId=self.client) if c[2] in index})
+
     def step(self) -> None:
         """One physics step (the vehicle's motors were set by its last `actuate`), with its road load."""
         if self.steps % OBSTACLE_UPDATE_STEPS == 0:
@@ -111,7 +137,7 @@ class PhysicsWorld:
         self.t = self.steps * self.dt
 
     def contact_kinds(self) -> set[str]:
-        """Kinds of roadside bodies the vehicle touches now (curb, barrier, guardrail, divider, tree)."""
+        """Kinds of bodies the vehicle touches now (curb, barrier, guardrail, divider, tree, vehicle)."""
         kinds = set()
         for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client):
             kind = self.obstacle_kind.get(c[2])

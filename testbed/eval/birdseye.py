@@ -1,5 +1,6 @@
-"""birdseye.png of a run: the road seen from above with the true and believed paths and the attack start,
-detection and stop points; the deviations against time; and the detector's statistic against its threshold.
+"""birdseye.png of a run: the road seen from above with the true and believed paths, the traffic cars' paths
+and the attack start, detection and stop points; the deviations against time; and the detector's statistic
+against its threshold.
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ def _frame_equal(ax, x: np.ndarray, y: np.ndarray, pad: float) -> None:
 
 def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
                   believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str,
-                  attack_t: float | None = None, threshold: float | None = None) -> None:
-    """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above."""
+                  attack_t: float | None = None, threshold: float | None = None,
+                  traffic: dict[int, np.ndarray] | None = None) -> None:
+    """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above, `traffic` each
+    traffic car's (x, y) path by id (drawn grey, its last position a square)."""
     t = _col(rows, "t")
     x, y = _col(rows, "x"), _col(rows, "y")
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
@@ -52,6 +55,10 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     _frame_equal(ax_map, x, y, pad=25.0)
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
+    for n, (car, xy) in enumerate(sorted((traffic or {}).items())):
+        ax_map.plot(xy[:, 0], xy[:, 1], color="0.45", lw=0.8, label="traffic" if n == 0 else None)
+        ax_map.plot(xy[-1, 0], xy[-1, 1], marker="s", color="0.45", ms=5, ls="")
+        ax_map.annotate(str(car), (xy[-1, 0], xy[-1, 1]), fontsize=6, color="0.3", clip_on=True)
     for when, marker, label in ((attack_t, "v", "attack start"), (detection_t, "*", "detection"),
                                 (stop_t, "s", "stop")):
         if when is not None:

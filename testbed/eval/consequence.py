@@ -1,7 +1,7 @@
 """Physical consequence of a run (DESIGN.md): contacts with roadside bodies, leaving the road surface,
 and where the car ends relative to its lane.
 
-Precedence: the first contact (curb, barrier/guardrail/tree, lane divider) or leaving the paved surface
+Precedence: the first contact (curb, barrier/guardrail/tree, lane divider, traffic car) or leaving the paved surface
 beyond a drop-off ends the run at once. Otherwise a run stopped by the attack response is
 `stop_in_lane` when its final |D| is within the lane straddle deviation, `stop_with_lane_straddle` while
 the body still overlaps the lane, `out_of_lane` beyond; a run not stopped is `out_of_lane` once |D| ever
@@ -18,9 +18,10 @@ CONTACT_CONSEQUENCE = {
     "guardrail": "hit_barrier",
     "tree": "hit_barrier",
     "divider": "hit_lane_divider",
+    "vehicle": "hit_vehicle",
 }
 CONSEQUENCES = ("reach_destination", "stop_in_lane", "stop_with_lane_straddle", "hit_curb", "hit_barrier",
-                "hit_lane_divider", "fall_off_road", "out_of_lane")
+                "hit_lane_divider", "hit_vehicle", "fall_off_road", "out_of_lane")
 ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
 """FusionRipper's attack goal deviation per road type (paper Table 2)."""
 LEFT_ROAD = ("hit_curb", "hit_barrier", "fall_off_road")
