@@ -212,7 +212,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     if attack is not None:
         attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
-    traffic = _traffic(sc, track, params, lane, world, np.random.default_rng(root_seed.spawn(1)[0]))
+    traffic = _traffic(sc, track, params, lane, world, streamer, np.random.default_rng(root_seed.spawn(1)[0]))
     return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,
                     Recording(rig) if o.record else None, localization, detector, detector_name, settings, tracker,
@@ -220,8 +220,9 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
 
 
 def _traffic(sc: Scenario, track: Track, params: VehicleParams, lane: int, world: PhysicsWorld | None,
-             rng: np.random.Generator) -> Fleet | None:
-    """The scenario's traffic cars placed on the track, their bodies added to the world (None: no traffic)."""
+             streamer: TileStreamer | None, rng: np.random.Generator) -> Fleet | None:
+    """The scenario's traffic cars placed on the track, their bodies added to the world and, for the camera,
+    to the streamer's render client (None: no traffic)."""
     if sc.traffic.vehicles == 0:
         return None
     if world is None:
@@ -232,6 +233,10 @@ def _traffic(sc: Scenario, track: Track, params: VehicleParams, lane: int, world
                             (params.length, params.width), track.length - END_MARGIN_M)
     except PlacementError as exc:
         raise ScenarioError(str(exc)) from None
+    poses = dict(enumerate(fleet.poses()))
     world.add_traffic(len(fleet.cars), size.length, size.width, size.height)
-    world.place_traffic([fleet.pose(car) for car in fleet.cars])
+    world.place_traffic(poses)
+    if streamer is not None:
+        streamer.add_traffic(len(fleet.cars), size.length, size.width, size.height)
+        streamer.place_traffic(poses)
     return fleet

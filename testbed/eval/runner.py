@@ -79,6 +79,10 @@ class SimRun:
         self.traffic_log = TrafficLog()
         self.hit: HitVehicle | None = None
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
+        self._traffic_reach = 0.0
+        if self.traffic is not None:
+            self._traffic_reach = (max(self.world.window, self.streamer.ahead if self.streamer is not None else 0.0)
+                                   + self.traffic.length)
 
     def __getattr__(self, name: str) -> Any:
         if name == "parts":  # not built yet
@@ -140,17 +144,22 @@ class SimRun:
         return rec
 
     def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
-        """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th), then move them and
-        their bodies to the next control instant behind the ego as it is now (off the map, it leads no car)."""
+        """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th), then move them to the
+        next control instant behind the ego as it is now (off the map, it leads no car), and the bodies of
+        those within reach of the ego's collision bodies or camera with them (physics, and the camera's)."""
         if (len(self.rows) - 1) % self._record_every == 0:
-            self.traffic_log.add(rec.t, self.traffic)
+            self.traffic_log.add(rec.t, self.traffic, self.traffic.poses())
         try:
             c = self.smap.project(pose, self.lane)
             ego = EgoOnRoad(c.s, c.l + self.track.lanes[self.lane].offset_at(c.s), rec.speed)
         except OffMapError:
             ego = None
         self.traffic.advance(1.0 / self.loop.rates.control_hz, ego)
-        self.world.place_traffic([self.traffic.pose(car) for car in self.traffic.cars])
+        near = self.traffic.cars if ego is None else self.traffic.near(ego.s, self._traffic_reach)
+        poses = {car.id: p for car, p in zip(near, self.traffic.poses(near), strict=True)}
+        self.world.place_traffic(poses)
+        if self.streamer is not None:
+            self.streamer.place_traffic(poses)
 
     def _stopped(self, rec: TickRecord) -> bool:
         """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""

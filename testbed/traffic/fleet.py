@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -21,7 +22,8 @@ class PlacementError(ValueError):
 
 @dataclass
 class TrafficCar:
-    """One car: id, lane, reference arc length s of its centre (m), speed and desired speed (m/s)."""
+    """One car: id (its index in the fleet), lane, reference arc length s of its centre (m), speed and desired
+    speed (m/s)."""
 
     id: int
     lane: int
@@ -91,18 +93,24 @@ class Fleet:
         return lanes
 
     def advance(self, dt: float, ego: EgoOnRoad | None) -> None:
-        """Move every car over dt: IDM acceleration behind its leader (a car, the ego, or the road's end),
-        evaluated for all cars before any moves; an ego off the map (None) leads no car."""
+        """Move every car over dt: IDM acceleration behind its leader (the next car in its lane, the ego, or the
+        road's end), evaluated for all cars before any moves; an ego off the map (None) leads no car."""
         ego_lanes = self._ego_lanes(ego) if ego is not None else set()
+        leaders: dict[int, TrafficCar] = {}
+        by_lane: dict[int, list[TrafficCar]] = {}
+        for car in sorted(self.cars, key=lambda c: c.s):
+            by_lane.setdefault(car.lane, []).append(car)
+        for cars in by_lane.values():
+            leaders.update((behind.id, ahead) for behind, ahead in pairwise(cars))
         steps = []
         for car in self.cars:
             if car.desired <= 0.0:
                 steps.append((0.0, 0.0))
                 continue
             gap, lead_speed = self.end_s + 0.5 * self.length - car.s, 0.0
-            for other in self.cars:
-                if other.lane == car.lane and other.s > car.s and other.s - car.s - self.length < gap:
-                    gap, lead_speed = other.s - car.s - self.length, other.speed
+            ahead = leaders.get(car.id)
+            if ahead is not None and ahead.s - car.s - self.length < gap:
+                gap, lead_speed = ahead.s - car.s - self.length, ahead.speed
             if ego is not None and car.lane in ego_lanes and ego.s > car.s:
                 ego_gap = ego.s - car.s - 0.5 * (self.length + self.ego_length)
                 if ego_gap < gap:
@@ -112,11 +120,18 @@ class Fleet:
         for car, (ds, v) in zip(self.cars, steps, strict=True):
             car.s, car.speed = car.s + ds, v
 
-    def pose(self, car: TrafficCar) -> Pose:
-        """The car's centre on its lane's centre line, heading along the road."""
-        ln = self.track.lanes[car.lane]
-        x, y = ln.position(car.s, 0.0)
-        return Pose(x, y, ln.heading_at(car.s))
+    def near(self, s: float, radius: float) -> list[TrafficCar]:
+        """The cars whose centres lie within `radius` m of reference arc length s."""
+        return [car for car in self.cars if abs(car.s - s) <= radius]
+
+    def poses(self, cars: list[TrafficCar] | None = None) -> list[Pose]:
+        """Each car's (default: every car's) centre on its lane's centre line, heading along the road."""
+        out = []
+        for car in self.cars if cars is None else cars:
+            x, y, h = self.track.reference.frame(car.s)
+            t = self.track.lanes[car.lane].offset_at(car.s)
+            out.append(Pose(x - t * math.sin(h), y + t * math.cos(h), h))
+        return out
 
     def velocity(self, car: TrafficCar) -> tuple[float, float]:
         """The car's world velocity (m/s)."""

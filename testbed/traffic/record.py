@@ -11,6 +11,7 @@ import numpy as np
 
 from testbed.eval.summary import HitVehicle
 from testbed.traffic.fleet import Fleet
+from tracks.pose import Pose
 
 RECORD_HZ = 10.0
 """Rate of the traffic trajectory rows (at most the control rate)."""
@@ -23,9 +24,9 @@ class TrafficLog:
     def __init__(self) -> None:
         self.rows: list[tuple[float, int, int, float, float, float, float]] = []
 
-    def add(self, t: float, fleet: Fleet) -> None:
-        for car in fleet.cars:
-            p = fleet.pose(car)
+    def add(self, t: float, fleet: Fleet, poses: list[Pose]) -> None:
+        """One row per car at time t, at `poses` (the fleet's `poses()`)."""
+        for car, p in zip(fleet.cars, poses, strict=True):
             self.rows.append((t, car.id, car.lane, p.x, p.y, p.yaw, car.speed))
 
     def paths(self) -> dict[int, np.ndarray]:

@@ -4,6 +4,7 @@
 import csv
 import json
 
+import numpy as np
 import pytest
 
 from testbed.eval.runner import SimRun, run_scenario
@@ -58,3 +59,21 @@ def test_same_seed_gives_the_same_bytes_with_traffic(tmp_path):
 def test_a_traffic_lane_the_track_lacks_is_refused_when_built():
     with pytest.raises(ScenarioError, match=r"^traffic\.lanes names lane 4, which highway lacks \(lanes 0\.\.2\)$"):
         SimRun(_highway(traffic={"vehicles": 2, "lanes": [4]}))
+
+
+def test_the_camera_sees_a_car_ahead_and_it_hides_the_road_behind_it():
+    sc = _highway(duration=2.0)
+    frames = []
+    for traffic in ({}, {"vehicles": 1, "lanes": [1], "speed": 0.0, "speed_spread": 0.0, "ahead": 10.0}):
+        sim = SimRun(sc.replace(traffic=traffic), render=True)
+        try:
+            sim.streamer.update(sim.start)
+            frames.append(sim.camera.render(sim.start).astype(int))
+        finally:
+            sim.close()
+    changed = np.abs(frames[0] - frames[1]).sum(axis=2) > 30
+    rows, cols = np.nonzero(changed)
+    width = frames[0].shape[1]
+    assert changed.mean() > 0.01 and abs(cols.mean() - width / 2) < 0.1 * width  # a box straight ahead
+    red, green, blue = frames[1][rows, cols].mean(axis=0)
+    assert red > 2 * green and red > 2 * blue  # car 0's colour

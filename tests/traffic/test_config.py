@@ -87,7 +87,7 @@ def test_cars_keep_their_lane_centre_and_brake_for_a_stopped_ego_ahead() -> None
     assert car.speed == pytest.approx(0.0, abs=1e-3)
     gap = ego.s - car.s - SIZE[0]
     assert 1.5 < gap < 2.5  # stops at about the jam distance s0 = 2 m
-    p = fleet.pose(car)
+    p = fleet.poses()[0]
     assert lane0.local_coordinates(p.x, p.y)[1] == pytest.approx(0.0, abs=1e-6)
 
 
