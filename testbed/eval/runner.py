@@ -144,11 +144,15 @@ class SimRun:
         return rec
 
     def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
-        """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th), then move them to the
+        """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
+        then move them to the
         next control instant behind the ego as it is now (off the map, it leads no car), and the bodies of
         those within reach of the ego's collision bodies or camera with them (physics, and the camera's)."""
         if (len(self.rows) - 1) % self._record_every == 0:
-            self.traffic_log.add(rec.t, self.traffic, self.traffic.poses())
+            every = self.traffic.poses()
+            self.traffic_log.add(rec.t, self.traffic, every)
+            if self.recording is not None:
+                self.recording.add_traffic(rec.t, every)
         try:
             c = self.smap.project(pose, self.lane)
             ego = EgoOnRoad(c.s, c.l + self.track.lanes[self.lane].offset_at(c.s), rec.speed)

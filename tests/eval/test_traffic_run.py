@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
 
 from testbed.eval.runner import SimRun, run_scenario
 from testbed.eval.scenario import ScenarioError, load_scenario
@@ -77,3 +78,15 @@ def test_the_camera_sees_a_car_ahead_and_it_hides_the_road_behind_it():
     assert changed.mean() > 0.01 and abs(cols.mean() - width / 2) < 0.1 * width  # a box straight ahead
     red, green, blue = frames[1][rows, cols].mean(axis=0)
     assert red > 2 * green and red > 2 * blue  # car 0's colour
+
+
+def test_the_recording_carries_the_traffic_poses_at_the_csv_rate(tmp_path):
+    sc = _highway(duration=1.0, traffic={"vehicles": 3})
+    run_scenario(sc, tmp_path, record=True)
+    with (tmp_path / "run.mcap").open("rb") as f:
+        messages = [json.loads(m.data) for _, channel, m in make_reader(f).iter_messages()
+                    if channel.topic == "/traffic/poses"]
+    with (tmp_path / "traffic.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(messages) == 10 and all(len(m["poses"]) == 3 for m in messages)
+    assert messages[-1]["poses"][2]["position"]["x"] == pytest.approx(float(rows[-1]["x"]), abs=1e-3)
