@@ -90,3 +90,20 @@ def test_the_recording_carries_the_traffic_poses_at_the_csv_rate(tmp_path):
         rows = list(csv.DictReader(fh))
     assert len(messages) == 10 and all(len(m["poses"]) == 3 for m in messages)
     assert messages[-1]["poses"][2]["position"]["x"] == pytest.approx(float(rows[-1]["x"]), abs=1e-3)
+
+
+PARKED_LEFT = {"vehicles": 25, "lanes": [1], "speed": 0.0, "speed_spread": 0.0, "beside": 15.0, "gap": 6.0}
+"""A row of parked cars in the lane left of urban-straight's ego lane."""
+
+
+@pytest.mark.parametrize(("defense", "consequence"), [("none", "hit_vehicle"), ("ld3", "stop_in_lane")])
+def test_fusionripper_pushes_the_car_into_parked_cars_unless_ld3_stops_it_in_lane(defense, consequence):
+    sc = load_scenario("urban-straight").replace(
+        duration=30.0, localization="msf", defense=defense, traffic=PARKED_LEFT,
+        attack={"kind": "fusionripper", "direction": "right", "start": 5.0})  # spoofed right: the car goes left
+    summary = run_scenario(sc, None).summary
+    assert summary["consequence"] == consequence
+    if defense == "none":
+        assert summary["hit_vehicle"]["lane"] == 1 and summary["hit_vehicle"]["relative_speed_mps"] > 5.0
+    else:
+        assert summary["hit_vehicle"] is None and summary["detected"]
