@@ -13,7 +13,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.patches import Polygon
 
+from testbed.eval.consequence import footprint_corners
 from testbed.loop import TickRecord
 from tracks.plot import draw_track
 
@@ -42,9 +44,11 @@ def _frame_equal(ax, x: np.ndarray, y: np.ndarray, pad: float) -> None:
 def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
                   believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str,
                   attack_t: float | None = None, threshold: float | None = None,
-                  traffic: dict[int, np.ndarray] | None = None) -> None:
+                  traffic: dict[int, np.ndarray] | None = None, traffic_size: tuple[float, float] = (0.0, 0.0)
+                  ) -> None:
     """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above, `traffic` each
-    traffic car's (x, y) path by id (drawn grey, its last position a square)."""
+    traffic car's (x, y, yaw) path by id (drawn grey, its last footprint, `traffic_size` = length × width, with
+    its id)."""
     t = _col(rows, "t")
     x, y = _col(rows, "x"), _col(rows, "y")
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
@@ -57,8 +61,11 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
     for n, (car, xy) in enumerate(sorted((traffic or {}).items())):
         ax_map.plot(xy[:, 0], xy[:, 1], color="0.45", lw=0.8, label="traffic" if n == 0 else None)
-        ax_map.plot(xy[-1, 0], xy[-1, 1], marker="s", color="0.45", ms=5, ls="")
-        ax_map.annotate(str(car), (xy[-1, 0], xy[-1, 1]), fontsize=6, color="0.3", clip_on=True)
+        x_end, y_end, yaw_end = xy[-1]
+        ax_map.add_patch(Polygon(footprint_corners(x_end, y_end, yaw_end, *traffic_size), closed=True,
+                                 facecolor="0.55", edgecolor="0.25", lw=0.6, zorder=3))
+        ax_map.annotate(str(car), (x_end, y_end), fontsize=6, color="0.15", ha="center", va="center",
+                        clip_on=True, zorder=4)
     for when, marker, label in ((attack_t, "v", "attack start"), (detection_t, "*", "detection"),
                                 (stop_t, "s", "stop")):
         if when is not None:

@@ -244,7 +244,8 @@ class SimRun:
                             + title_suffix,
                       attack_t=self.attack.start_time if self.attack is not None else None,
                       threshold=self.defense.alarm_threshold,
-                      traffic=self.traffic_log.paths() if self.traffic is not None else None)
+                      traffic=self.traffic_log.paths() if self.traffic is not None else None,
+                      traffic_size=(self.traffic.length, self.traffic.width) if self.traffic is not None else (0, 0))
         if self.attack is not None and has_fusion(result.rows):
             save_fusion_plot(out_dir / "ar_fusion.png", result.rows, straddle_dev=self.monitor.straddle_dev,
                              title=f"{sc.name} · {sc.track} · {self.attack.name} · attack response")

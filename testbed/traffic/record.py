@@ -30,10 +30,10 @@ class TrafficLog:
             self.rows.append((t, car.id, car.lane, p.x, p.y, p.yaw, car.speed))
 
     def paths(self) -> dict[int, np.ndarray]:
-        """Each car's (x, y) path, by id."""
-        out: dict[int, list[tuple[float, float]]] = {}
-        for _, i, _, x, y, _, _ in self.rows:
-            out.setdefault(i, []).append((x, y))
+        """Each car's (x, y, yaw) path (N × 3), by id."""
+        out: dict[int, list[tuple[float, float, float]]] = {}
+        for _, i, _, x, y, yaw, _ in self.rows:
+            out.setdefault(i, []).append((x, y, yaw))
         return {i: np.array(xy) for i, xy in out.items()}
 
     def write(self, path: Path) -> None:
