@@ -145,9 +145,8 @@ class SimRun:
 
     def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
         """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
-        then move them to the
-        next control instant behind the ego as it is now (off the map, it leads no car), and the bodies of
-        those within reach of the ego's collision bodies or camera with them (physics, and the camera's)."""
+        move them to the next control instant behind the ego as it is now (off the map, it leads no car), and
+        place the bodies (physics, camera) of those within reach of the ego's collision bodies or camera."""
         if (len(self.rows) - 1) % self._record_every == 0:
             every = self.traffic.poses()
             self.traffic_log.add(rec.t, self.traffic, every)
@@ -231,7 +230,8 @@ class SimRun:
         })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
-        """summary.json, trajectory.csv, birdseye.png (and camera.mp4 when recorded) of a finished run."""
+        """summary.json, trajectory.csv, traffic.csv (with traffic), birdseye.png (and camera.mp4, run.mcap when
+        recorded) of a finished run."""
         sc = self.sc
         write_trajectory(out_dir / "trajectory.csv", result.rows)
         if self.traffic is not None:
