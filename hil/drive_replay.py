@@ -94,14 +94,13 @@ def write_replay(out_dir: Path, result: ReplayResult, title: str) -> list[str]:
         writer.writeheader()
         writer.writerows({k: ("" if v is None else v) for k, v in row.items()} for row in result.rows)
     try:
-        import matplotlib
+        from matplotlib.figure import Figure
     except ImportError:
         return ["replay.csv"]
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
 
     t = [r["t"] for r in result.rows]
-    fig, (dev, stat) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig = Figure(figsize=(9, 6))
+    dev, stat = fig.subplots(2, 1, sharex=True)
     for key, label in (("msf_dev", "D_MSF"), ("ld_dev", "D_LD"), ("fused_dev", "fused d")):
         dev.plot(t, [float("nan") if r[key] is None else r[key] for r in result.rows], label=label)
     dev.set_ylabel("lateral deviation (m, + left)")
@@ -118,5 +117,4 @@ def write_replay(out_dir: Path, result: ReplayResult, title: str) -> list[str]:
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out_dir / "replay.png", dpi=110)
-    plt.close(fig)
     return ["replay.csv", "replay.png"]

@@ -143,9 +143,6 @@ class ReportFollower:
     def update(self, frame: DecodedFrame) -> None:
         self._latest[frame.name] = dict(frame.signals)
 
-    def has(self, name: str) -> bool:
-        return name in self._latest
-
     def value(self, quantity: str) -> float | None:
         """The latest reported value (DBC units) of a report quantity, None before its first report."""
         ref = self.profile.reports.quantities.get(quantity)

@@ -136,10 +136,6 @@ class HilLink:
         """The in-process ECU emulator (virtual interface), else None."""
         return self._ecu
 
-    @property
-    def ecu_process(self) -> EcuProcess | None:
-        return self._process
-
     def engage(self, timeout: float = 5.0) -> None:
         self.bridge.engage(timeout=timeout)
 

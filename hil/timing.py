@@ -16,7 +16,6 @@ from __future__ import annotations
 from enum import Enum
 
 CYCLE_US = 20_000
-CYCLE_S = CYCLE_US / 1e6
 
 
 class ClockMode(Enum):

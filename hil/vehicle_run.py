@@ -59,7 +59,6 @@ from vehicles.camera_rig import CameraRig
 
 STANDSTILL_MPS = 0.05
 CONTROL_HZ = 100.0
-CAMERA_HZ = 20.0
 
 
 @dataclass(frozen=True)

@@ -97,13 +97,15 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_components(args: argparse.Namespace) -> int:
     from testbed.attacks.registry import ATTACKS
     from testbed.defense.registry import DEFENSES
+    from testbed.eval.campaign import CAMPAIGN_BACKENDS
     from testbed.eval.campaigns import CAMPAIGNS
     from testbed.eval.scenario_reference import reference_markdown
     from testbed.localization.registry import LOCALIZATIONS
     from testbed.perception.registry import DETECTORS
     from testbed.presets import TRACKS, VEHICLES
 
-    for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, TRACKS, VEHICLES, CAMPAIGNS):
+    for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, TRACKS, VEHICLES, CAMPAIGNS,
+                     CAMPAIGN_BACKENDS):
         group = f" (plugins: entry-point group {registry.group})" if registry.group else ""
         print(f"## {registry.family}s{group}\n\n{registry.markdown()}\n")
     print(reference_markdown())
@@ -231,7 +233,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def _campaign_list(args: argparse.Namespace) -> int:
     """`ld3 campaign list`: every campaign with its runs, simulated time and estimated wall time."""
-    from testbed.eval.campaign import DEFAULT_WORKERS
+    from testbed.eval.campaign_backend import DEFAULT_WORKERS
     from testbed.eval.campaign_cost import campaign_cost, human_duration
     from testbed.eval.campaigns import CAMPAIGNS
 
@@ -356,10 +358,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_tracks)
 
     from testbed.defense.registry import DEFENSES
-    from testbed.eval.campaign import BACKENDS
+    from testbed.eval.campaign import CAMPAIGN_BACKENDS
     from testbed.localization.registry import LOCALIZATIONS
     from testbed.perception.registry import DETECTORS
 
+    backends = CAMPAIGN_BACKENDS.names()
     p = sub.add_parser("search", help="worst-case attack search: the attack a threat model allows that does most "
                                       "harm to a defense (Optuna over the adaptive attack families)")
     p.add_argument("scenario", help="the victim: a shipped scenario name or a .toml path (without an attack)")
@@ -380,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--batch", type=int, default=8, help="trials asked of the sampler at once (default 8; part of "
                                                         "the search's identity, independent of --workers)")
     p.add_argument("--workers", type=int, help="parallel runs (as `ld3 campaign --workers`)")
-    p.add_argument("--backend", choices=BACKENDS, default="local", help="local (default) or ray")
+    p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
     p.add_argument("--address", help="ray: the cluster to connect to")
     p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
     p.set_defaults(func=cmd_search)
@@ -393,7 +396,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="local: worker processes (default 2; 1: every run in this process); "
                                                 "ray: CPUs of the local Ray instance (default 2), or with --address "
                                                 "the most runs in flight (default: every CPU of the cluster)")
-    p.add_argument("--backend", choices=BACKENDS, help="where the runs execute: local (default) or ray (needs "
+    p.add_argument("--backend", choices=backends, help="where the runs execute: local (default) or ray (needs "
                                                        "pip install '.[ray]')")
     p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto, or ray://HEAD:10001); without it "
                                      "a local Ray instance is started")
@@ -419,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--detector", default="neural", help="camera lane detector of the experiments that use one")
     p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each run (default 120 s + 10 × its "
                                                                      "simulated duration)")
-    p.add_argument("--backend", choices=BACKENDS, default="local", help="where the runs execute: local (default) or "
+    p.add_argument("--backend", choices=backends, default="local", help="where the runs execute: local (default) or "
                                                                         "ray (needs pip install '.[ray]')")
     p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto); without it a local Ray instance")
     p.set_defaults(func=cmd_paper)

@@ -40,10 +40,6 @@ class DirectChassis(ChassisPort):
     def send(self, cmd: ChassisCommand) -> None:
         self._pending = cmd
 
-    @property
-    def applied(self) -> ChassisCommand:
-        return self._applied
-
     def _apply_due_command(self) -> None:
         if self._pending is None:
             return

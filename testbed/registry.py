@@ -2,9 +2,9 @@
 
 A registry holds the built-in components of its family and, on first lookup, those that installed
 packages declare under the family's entry-point group (`ld3.defenses`, `ld3.detectors`, `ld3.attacks`,
-`ld3.campaigns`); an entry point names an entry of the family's kind (a `Component`, or a campaign
-spec). CLI choices and help, scenario validation and the docs table are read from the registry, so a
-component added in one place is usable everywhere.
+`ld3.campaigns`, `ld3.campaign_backends`); an entry point names an entry of the family's kind (a `Component`,
+a campaign spec, a campaign backend). CLI choices and help, scenario validation and the docs table are read
+from the registry, so a component added in one place is usable everywhere.
 
 A component declares what it `needs` from the run instead of being switched on by name; the run checks
 those needs against what its configuration provides (`Capability`) and refuses, naming the fix, a

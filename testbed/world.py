@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import math
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -46,14 +45,6 @@ MESH_SPACING_M = SEGMENT_SPACING_M
 GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    physics_hz: float = 240.0
-    render: bool = True
-    tile_radius_m: float = 90.0
-    texture_budget: int = 40
 
 
 class PhysicsWorld:

@@ -50,7 +50,3 @@ class Lane:
         """Curvature of the lane centreline itself (1/m, + left): k / (1 - k * offset) for an offset curve."""
         k = self.reference.curvature_at(s)
         return k / (1.0 - k * self.offset_at(s))
-
-    def on_lane(self, x: float, y: float, margin: float = 0.0) -> bool:
-        s, lat = self.local_coordinates(x, y)
-        return 0.0 <= s <= self.length and abs(lat) <= 0.5 * self.width_at(s) + margin

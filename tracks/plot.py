@@ -6,13 +6,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
 
 from tracks.obstacles import road_obstacles
 from tracks.road import Track
@@ -122,12 +119,12 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
 
 def save_track_png(track: Track, path: str | Path, s_range: tuple[float, float] | None = None) -> Path:
     """Bird's-eye PNG of the track (or a window of it)."""
-    fig, ax = plt.subplots(figsize=(12, 9), dpi=150)
+    fig = Figure(figsize=(12, 9), dpi=150)
+    ax = fig.subplots()
     ax.set_facecolor("#e9efe4")
     draw_track(ax, track, s_range)
     ax.set_title(f"{track.name}@{track.seed}: {track.description}", fontsize=9)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path)
-    plt.close(fig)
     return path

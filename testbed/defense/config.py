@@ -35,8 +35,6 @@ detected lines' slope at x = 0 (clamped to ±heading_clamp), or the mean of the 
 by the fusion's uncertainties (testbed.defense.fused_heading)."""
 PSource = Literal["constant", "reported"]
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
-HEADINGS: tuple[str, ...] = Heading.__args__
-P_SOURCES: tuple[str, ...] = PSource.__args__
 
 
 class DefenseConfig(Params):

@@ -12,11 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.eval.campaign import CampaignRun
@@ -90,7 +87,8 @@ IN_LANE = ("stop_in_lane", "reach_destination")
 
 def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, dict[str, Any]]]) -> None:
     """One panel per attack: each variant's AR max |D| over its runs (dots, mean bar), out-of-lane runs in red."""
-    fig, axes = plt.subplots(1, len(ATTACKS), figsize=(3.2 * len(ATTACKS), 0.35 * len(VARIANTS) + 1.5), sharey=True)
+    fig = Figure(figsize=(3.2 * len(ATTACKS), 0.35 * len(VARIANTS) + 1.5))
+    axes = fig.subplots(1, len(ATTACKS), sharey=True)
     for ax, attack in zip(axes, ATTACKS, strict=True):
         for i, variant in enumerate(VARIANTS):
             sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
@@ -109,7 +107,6 @@ def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, dict[str, Any]
     fig.suptitle("LD3 response ablation: red = the run left its lane (max |D| where no response ran)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:

@@ -8,11 +8,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from testbed.eval.consequence import footprint_corners
@@ -53,7 +50,8 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     x, y = _col(rows, "x"), _col(rows, "y")
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
     cusum = _col(rows, "cusum")
-    fig, (ax_map, ax_dev, ax_cusum) = plt.subplots(3, 1, figsize=(10, 11), gridspec_kw={"height_ratios": [3, 2, 1]})
+    fig = Figure(figsize=(10, 11))
+    ax_map, ax_dev, ax_cusum = fig.subplots(3, 1, gridspec_kw={"height_ratios": [3, 2, 1]})
     fig.subplots_adjust(**_MARGINS)
     draw_track(ax_map, track)
     _frame_equal(ax_map, x, y, pad=25.0)
@@ -110,4 +108,3 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
         ax_cusum.legend(loc="upper left", fontsize=8)
     ax_cusum.grid(alpha=0.3)
     fig.savefig(path, dpi=110)
-    plt.close(fig)

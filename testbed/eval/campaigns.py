@@ -11,11 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
 
 from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
@@ -80,8 +78,8 @@ def _stats(values: list[float]) -> str:
 LANE_KEEPING = (("slr", 10.0, 60.0), ("slr", 27.0, 60.0), ("urban-straight", 12.0, 60.0),
                 ("urban-curvy", 10.0, 120.0), ("highway", 27.0, 90.0))
 LANE_KEEPING_LIMIT_M = {"slr": 0.10, "urban-straight": 0.10, "urban-curvy": 0.25, "highway": 0.15}
-"""Benign max |physical deviation| the foundation issue asks for with the true pose, per track."""
-MSF_ALLOWANCE_M = 0.05  # what steering on the MSF may add to the true-pose limit (localization issue)
+"""The largest benign |physical deviation| lane keeping with the true pose may reach, per track (m)."""
+MSF_ALLOWANCE_M = 0.05  # what steering on the MSF may add to the true-pose limit
 MSF_SEEDS = range(5)
 
 
@@ -122,7 +120,7 @@ def msf_lateral_error(run_dir: Path) -> np.ndarray:
 
 
 MSF_TARGET_RMS_M, MSF_TARGET_MAX_M = 0.10, 0.30
-"""Benign MSF lateral error the localization issue asks for on every preset."""
+"""The benign MSF lateral error (RMS, max; m) allowed on every preset."""
 
 
 def msf_error_cells(run_dirs: list[Path]) -> str:
@@ -280,8 +278,8 @@ def fr_grid_runs(detector: str) -> list[CampaignRun]:
 def _save_grid_heatmap(path: Path, cells: dict[tuple[str, float, float], list[bool]]) -> None:
     """One panel per track: the attack success rate of each d × f cell, annotated with the rate and the
     number of drives (grey where the cell has none)."""
-    fig, axes = plt.subplots(1, len(FR_TRACKS), figsize=(4.2 * len(FR_TRACKS) + 1.0, 3.8), squeeze=False,
-                             layout="constrained")
+    fig = Figure(figsize=(4.2 * len(FR_TRACKS) + 1.0, 3.8), layout="constrained")
+    axes = fig.subplots(1, len(FR_TRACKS), squeeze=False)
     for ax, track in zip(axes[0], FR_TRACKS, strict=True):
         rate = np.full((len(GRID_D), len(GRID_F)), np.nan)
         for i, d in enumerate(GRID_D):
@@ -292,7 +290,7 @@ def _save_grid_heatmap(path: Path, cells: dict[tuple[str, float, float], list[bo
                 label = f"{rate[i, j]:.0f}%\n({len(res)})" if res else "–"
                 colour = "white" if res and rate[i, j] < 60.0 else "black"
                 ax.text(j, i, label, ha="center", va="center", fontsize=8, color=colour)
-        image = ax.imshow(rate, cmap=matplotlib.colormaps["viridis"].with_extremes(bad="0.85"), vmin=0.0,
+        image = ax.imshow(rate, cmap=colormaps["viridis"].with_extremes(bad="0.85"), vmin=0.0,
                           vmax=100.0, origin="lower")
         ax.set_xticks(range(len(GRID_F)), [f"{f:g}" for f in GRID_F])
         ax.set_yticks(range(len(GRID_D)), [f"{d:g}" for d in GRID_D])
@@ -302,7 +300,6 @@ def _save_grid_heatmap(path: Path, cells: dict[tuple[str, float, float], list[bo
     fig.colorbar(image, ax=axes[0].tolist(), label="attack success (%)", shrink=0.8)
     fig.suptitle("FusionRipper without defense: success rate per d × f cell (drives in brackets)", fontsize=9)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:

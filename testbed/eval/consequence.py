@@ -20,8 +20,6 @@ CONTACT_CONSEQUENCE = {
     "divider": "hit_lane_divider",
     "vehicle": "hit_vehicle",
 }
-CONSEQUENCES = ("reach_destination", "stop_in_lane", "stop_with_lane_straddle", "hit_curb", "hit_barrier",
-                "hit_lane_divider", "hit_vehicle", "fall_off_road", "out_of_lane")
 ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
 """FusionRipper's attack goal deviation per road type (paper Table 2)."""
 LEFT_ROAD = ("hit_curb", "hit_barrier", "fall_off_road")

@@ -16,11 +16,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.conditions import CONDITIONS
 from testbed.defense.config import DefenseConfig
@@ -239,7 +236,8 @@ def _condition_table(benign: list[tuple[CampaignRun, ResidualSeries]], b: float)
 
 def _plot(rows: list[dict[str, float]], tau: float, path: Path) -> None:
     b = [r["b"] for r in rows]
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig = Figure(figsize=(10, 4))
+    ax1, ax2 = fig.subplots(1, 2)
     ax1.semilogy(b, [max(r["largest_benign_cusum"], 1e-4) for r in rows], marker=".")
     ax1.axhline(tau, color="r", ls="--", label=f"τ = {tau:g} m")
     ax1.axvline(_SHIPPED.b, color="0.5", ls=":", label=f"shipped b = {_SHIPPED.b:g} m")
@@ -256,4 +254,3 @@ def _plot(rows: list[dict[str, float]], tau: float, path: Path) -> None:
     ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

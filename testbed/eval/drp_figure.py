@@ -12,11 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
@@ -60,7 +57,8 @@ def drp_before_after(out: Path, attack: dict[str, Any], track: str = "urban-stra
         raise UserError(f"the patch figure needs a drp-patch attack with its place `at`, got {attack!r}")
     s = float(attack["at"]) - ahead
     clean, patched = _view(track, detector, None, s), _view(track, detector, attack, s)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig = Figure(figsize=(11, 4.2))
+    axes = fig.subplots(1, 2)
     for ax, view, label in ((axes[0], clean, "clean road"), (axes[1], patched, "with the dirty-road patch")):
         ax.imshow(view.image)
         ax.set_axis_off()
@@ -71,5 +69,4 @@ def drp_before_after(out: Path, attack: dict[str, Any], track: str = "urban-stra
     fig.tight_layout()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return clean, patched

@@ -7,11 +7,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.loop import TickRecord
 
@@ -31,8 +28,8 @@ def save_fusion_plot(path: Path, rows: Sequence[TickRecord], *, straddle_dev: fl
         return np.array([np.nan if getattr(r, name) is None else getattr(r, name) for r in ar], dtype=float)
 
     t = col("t")
-    fig, (ax_d, ax_k, ax_h) = plt.subplots(3, 1, figsize=(8, 8), sharex=True,
-                                           gridspec_kw={"height_ratios": [3, 2, 1.2]})
+    fig = Figure(figsize=(8, 8))
+    ax_d, ax_k, ax_h = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2, 1.2]})
     ax_d.axhspan(-straddle_dev, straddle_dev, color="0.93", label="no lane straddle")
     ax_d.plot(t, col("msf_dev"), color="tab:red", ls="--", label="D_MSF")
     ax_d.plot(t, col("ld_dev"), color="tab:green", label="D_LD")
@@ -54,4 +51,3 @@ def save_fusion_plot(path: Path, rows: Sequence[TickRecord], *, straddle_dev: fl
     ax_h.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

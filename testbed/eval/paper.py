@@ -13,10 +13,10 @@ import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from testbed.eval.campaign import CampaignRun, load_summary
 from testbed.eval.campaigns import CAMPAIGNS, run_named, selected_runs
+from testbed.eval.paper_report import CampaignResult, write_paper_report
 from testbed.eval.scenario import ScenarioError, check_needs
 
 
@@ -61,17 +61,6 @@ class PaperOptions:
     progress: bool = False
     backend: str = "local"
     address: str | None = None
-
-
-@dataclass(frozen=True)
-class CampaignResult:
-    """One campaign of the paper: its folder, the command that regenerates it, its planned and done runs."""
-
-    name: str
-    folder: Path
-    command: str
-    planned: list[CampaignRun]
-    done: list[tuple[CampaignRun, dict[str, Any]]]
 
 
 def check_registered() -> None:
@@ -149,12 +138,10 @@ def run_experiment(exp: Experiment, options: PaperOptions) -> CampaignResult:
 
 def run_paper(options: PaperOptions, announce: Callable[[str], None] = print) -> Path:
     """Run every experiment (resuming) and write `OUT/report.md` with its figures; returns the report path."""
-    from testbed.eval.paper_report import write_paper_report
-
     plan = planned_runs(options)
     announce(announce_plan(plan, options))
     results = {}
     for exp in EXPERIMENTS:
         announce(f"ld3 paper: {exp.campaign} ({len(plan[exp.campaign])} runs) -> {options.out / exp.campaign}")
         results[exp.campaign] = run_experiment(exp, options)
-    return write_paper_report(options, results)
+    return write_paper_report(options.out, results, quick=options.quick, detector=options.detector)

@@ -5,11 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 Stat = tuple[float, float] | None
 """(mean, std), or None where there is no value."""
@@ -23,7 +20,8 @@ def paper_vs_ours(path: Path, title: str, labels: Sequence[str], paper: Sequence
         raise ValueError("labels, paper and ours must have one entry each")
     x = np.arange(len(labels))
     width = 0.38
-    fig, ax = plt.subplots(figsize=(max(5.0, 0.75 * len(labels) + 2.0), 3.8), layout="constrained")
+    fig = Figure(figsize=(max(5.0, 0.75 * len(labels) + 2.0), 3.8), layout="constrained")
+    ax = fig.subplots()
     for offset, values, colour, name in ((-width / 2, paper, "0.6", "paper"), (width / 2, ours, "tab:blue", "ours")):
         for xi, value in zip(x + offset, values, strict=True):
             if value is None:
@@ -39,4 +37,3 @@ def paper_vs_ours(path: Path, title: str, labels: Sequence[str], paper: Sequence
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8)
     fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -9,6 +9,7 @@ import os
 import tomllib
 from collections import Counter
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,6 @@ from testbed.eval.adaptive import adaptive_table
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.outputs import read_trajectory
-from testbed.eval.paper import CampaignResult, PaperOptions
 from testbed.eval.paper_figures import Stat, paper_vs_ours
 from testbed.eval.roc import roc_table
 from testbed.eval.stealthy_bound import LD_NOISE_STD, STEALTHY_TRACKS, fluctuation_stats, run_bound
@@ -36,8 +36,21 @@ from testbed.eval.summary_stats import (
     undetected_dev,
 )
 
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """One campaign of the paper: its folder, the command that regenerates it, its planned and done runs."""
+
+    name: str
+    folder: Path
+    command: str
+    planned: list[CampaignRun]
+    done: list[tuple[CampaignRun, dict[str, Any]]]
+
+
 Done = list[tuple[CampaignRun, dict[str, Any]]]
 Section = Callable[[dict[str, CampaignResult], dict[str, Any], Path], str]
+
 SIM_SETTINGS = {"ld3": "ld3", "naive": "ld3-naive-ar", "none": "none", "benign": "benign"}
 """paper_values key -> our sim-table setting."""
 
@@ -378,17 +391,17 @@ def _sources(done: Done) -> str:
                      for c, n in counts.most_common()) or "–"
 
 
-def write_paper_report(options: PaperOptions, results: dict[str, CampaignResult]) -> Path:
-    """`OUT/report.md` and its figures from the campaigns' finished runs."""
+def write_paper_report(out: Path, results: dict[str, CampaignResult], *, quick: bool, detector: str) -> Path:
+    """`out/report.md` and its figures from the campaigns' finished runs (of the `quick` set or the full one,
+    with the camera lane detector `detector`)."""
     values = load_paper_values()
-    out = options.out
-    scale = "quick set: fewer start times, seeds and layouts" if options.quick else "full set"
+    scale = "quick set: fewer start times, seeds and layouts" if quick else "full set"
     planned = sum(len(r.planned) for r in results.values())
     done = sum(len(r.done) for r in results.values())
     head = [f"# LD3: the paper's results beside ours ({scale})", "",
-            f"{done} of {planned} runs done; camera lane detector `{options.detector}` where the experiment uses "
+            f"{done} of {planned} runs done; camera lane detector `{detector}` where the experiment uses "
             f"one. Paper values: `testbed/eval/paper_values.toml` (each under its label in ld3_paper.tex). "
-            f"Regenerate everything: `ld3 paper{' --quick' if options.quick else ''} --out {out}`.", "",
+            f"Regenerate everything: `ld3 paper{' --quick' if quick else ''} --out {out}`.", "",
             "| campaign | runs done | source (git commit: runs) | command |", "|---|---|---|---|"]
     head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | {_sources(r.done)} | `{r.command}` |"
              for r in results.values()]

@@ -1,17 +1,20 @@
 """The `ray` campaign backend: each run is a Ray task that executes into a scratch folder on its node and
 returns the folder's files; the campaign process writes them into the run's temporary folder and settles
-it exactly as the local backend does (rename into place, failures.txt, redone runs, the folder lock).
+it exactly as for the local backend (rename into place, failures.txt, redone runs, the folder lock).
 
 At most `workers` tasks are in flight (default: every CPU of the cluster), one CPU each. A task keeps its
 run's time limit itself, counted from when it starts executing (as the in-process local backend does);
 a task still unfinished `START_ALLOWANCE_S` after its limit, counted from submission, is cancelled with its
 worker process killed (a hang in one long C call). Workers never touch the campaign folder, so killing the
-campaign leaves no writer there. Needs the optional extra: `pip install '.[ray]'`.
+campaign leaves no writer there. A cluster address is probed with a plain TCP connection first (Ray itself
+retries an address nobody answers for minutes), so a dead one is refused within `CONNECT_TIMEOUT_S`. Needs
+the optional extra: `pip install '.[ray]'`.
 """
 
 from __future__ import annotations
 
 import logging
+import socket
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
@@ -20,28 +23,61 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any
-
-from tqdm import tqdm
+from urllib.parse import urlsplit
 
 from testbed.errors import UserError
-from testbed.eval.campaign import (
-    DEFAULT_WORKERS,
-    BackendUnavailable,
-    CampaignRun,
-    RunExecutor,
-    attempt_within,
-    count_finished,
-    failure_record,
-    run_limit,
-    settle,
-    temp_dir,
-)
+from testbed.eval.campaign_backend import DEFAULT_WORKERS, BackendUnavailable, CampaignBackend, RunOutcome
+from testbed.eval.campaign_run import CampaignRun, RunExecutor, attempt_within, failure_record, run_limit, temp_dir
 
 INSTALL_HINT = "pip install '.[ray]'"
 START_ALLOWANCE_S = 60.0
 """What a task may take beyond its run's limit, counted from submission, before it is cancelled: a worker
 process to start and import the testbed (2.8 s on the idle 2-core development machine, over 8 s at a load
 average of 30)."""
+CONNECT_TIMEOUT_S = 3.0
+"""How long the probe of a cluster address waits for a TCP connection."""
+LOCAL_ADDRESSES = ("auto", "local")
+"""Addresses Ray resolves on this machine (and refuses at once when nothing runs there): not probed."""
+GCS_PORT, CLIENT_PORT = 6379, 10001
+"""Ray's default ports of a head node (`HOST`) and of its Ray Client server (`ray://HOST`)."""
+
+
+class RayBackend(CampaignBackend):
+    """Ray tasks on the cluster at `address`, at most `workers` at a time (default: all of its CPUs), or on a
+    local Ray instance with `workers` (default 2) CPUs when `address` is None."""
+
+    name = "ray"
+    help = f"Ray tasks on a local Ray instance or the cluster at --address (needs {INSTALL_HINT})"
+    connects = True
+
+    def check(self, address: str | None) -> None:
+        require_ray()
+        if address is not None:
+            probe(address)
+
+    def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+            workers: int | None, address: str | None) -> Iterator[RunOutcome]:
+        return _run_on_ray(require_ray(), batch, out, execute, timeout, workers, address)
+
+
+def probe(address: str) -> None:
+    """BackendUnavailable unless something accepts a TCP connection at the Ray `address` (`HOST[:PORT]` or
+    `ray://HOST[:PORT]`) within CONNECT_TIMEOUT_S; the addresses Ray resolves locally are left to Ray."""
+    if address in LOCAL_ADDRESSES:
+        return
+    client = address.startswith("ray://")
+    try:
+        where = urlsplit("//" + address.removeprefix("ray://"))
+        host, port = where.hostname, where.port or (CLIENT_PORT if client else GCS_PORT)
+    except ValueError as exc:
+        raise BackendUnavailable(f"cannot read the Ray cluster address {address!r}: {exc}") from None
+    if not host:
+        raise BackendUnavailable(f"cannot read the Ray cluster address {address!r}: no host")
+    try:
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise BackendUnavailable(f"cannot connect to the Ray cluster at {address!r}: nothing answers at "
+                                 f"{host}:{port} ({exc.strerror or type(exc).__name__})") from None
 
 
 def require_ray() -> ModuleType:
@@ -91,7 +127,7 @@ def connected(ray: ModuleType, address: str | None, workers: int | None) -> Iter
     else:
         try:
             ray.init(address=address, logging_level=logging.WARNING)
-        except ConnectionError as exc:
+        except (ConnectionError, ValueError) as exc:
             raise BackendUnavailable(f"cannot connect to the Ray cluster at {address!r}: {exc}") from None
     try:
         yield workers or _cluster_cpus(ray)
@@ -123,25 +159,23 @@ def _outcome(ray: ModuleType, ref: Any, run: CampaignRun) -> tuple[str | None, d
         return failure_record(run.run_id, type(exc).__name__, str(exc).splitlines()[0] if str(exc) else ""), {}
 
 
-def _place(run: CampaignRun, out: Path, error: str | None, files: dict[str, bytes]) -> str | None:
-    """A finished task's files into the run's temporary folder, then settled; returns the failure record."""
+def _place(run: CampaignRun, out: Path, error: str | None, files: dict[str, bytes]) -> RunOutcome:
+    """A finished task's files into the run's temporary folder; its outcome."""
     tmp = temp_dir(out, run.run_id)
     tmp.mkdir(parents=True)
     try:
         write_files(tmp, files)
     except OSError as exc:
         error = error or failure_record(run.run_id, type(exc).__name__, f"cannot write the run's files: {exc}")
-    return settle(run, out, tmp, error)
+    return RunOutcome(run, error)
 
 
-def run_on_ray(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
-               workers: int | None, address: str | None, bar: tqdm) -> list[str]:
-    """The runs as Ray tasks (see the module docstring); returns the failure records."""
-    ray = require_ray()
-    failures: list[str] = []
+def _run_on_ray(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+                timeout: float | None, workers: int | None, address: str | None) -> Iterator[RunOutcome]:
+    """The runs as Ray tasks (see the module docstring)."""
     with connected(ray, address, workers) as slots:
         task = ray.remote(num_cpus=1, max_retries=0)(execute_in_scratch)
-        pending = list(reversed(todo))
+        pending = list(reversed(batch))
         in_flight: dict[Any, _Task] = {}
         try:
             while pending or in_flight:
@@ -155,16 +189,15 @@ def run_on_ray(todo: Sequence[CampaignRun], out: Path, execute: RunExecutor, tim
                 for ref in ready:
                     job = in_flight.pop(ref)
                     error, files = _outcome(ray, ref, job.run)
-                    count_finished(bar, failures, _place(job.run, out, error, files))
+                    yield _place(job.run, out, error, files)
                 now = time.monotonic()
                 for ref, job in list(in_flight.items()):
                     if now >= job.deadline:
                         ray.cancel(ref, force=True)
                         del in_flight[ref]
-                        count_finished(bar, failures, failure_record(
+                        yield RunOutcome(job.run, failure_record(
                             job.run.run_id, "RunTimeout", f"over its {job.limit_s:g} s limit (+ "
                                                           f"{START_ALLOWANCE_S:g} s to start, cancelled)"))
         finally:
             for ref in in_flight:
                 ray.cancel(ref, force=True)
-    return failures

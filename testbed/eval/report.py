@@ -10,11 +10,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.errors import UserError
 from testbed.eval.outputs import read_trajectory
@@ -44,7 +41,8 @@ def _phys_dev(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plot_deviations(path: Path, rows: Sequence[ReportRow], title: str) -> None:
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig = Figure(figsize=(9, 4.5))
+    ax = fig.subplots()
     first = rows[0].summary
     half, straddle = first["lane_width_m"] / 2, first["lane_straddle_dev_m"]
     ax.axhspan(-straddle, straddle, color="0.92", label="no lane straddle")
@@ -63,7 +61,6 @@ def plot_deviations(path: Path, rows: Sequence[ReportRow], title: str) -> None:
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: str = "") -> Path:

@@ -13,11 +13,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from testbed.defense.bicycle import LOG_COLUMNS, BicycleCoefficients, fit_bicycle_coefficients
 from testbed.defense.config import DefenseConfig
@@ -143,7 +140,8 @@ def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
              f"Attacked runs whose attack failed (left out of the TPR): {failed}.", "",
              "| track | detector | benign runs | attacked runs | AUC | best (b, τ): FPR, TPR "
              "| default (b, τ): FPR, TPR |", "|---|---|---|---|---|---|---|"]
-    fig, axes = plt.subplots(1, len(series), figsize=(5.0 * len(series), 4.8), squeeze=False)
+    fig = Figure(figsize=(5.0 * len(series), 4.8))
+    axes = fig.subplots(1, len(series), squeeze=False)
     for ax, (track, per) in zip(axes[0], sorted(series.items()), strict=True):
         ax.plot([0, 1], [0, 1], color="0.6", ls=":", lw=1, label="random guess")
         for name, ser in per.items():
@@ -174,7 +172,6 @@ def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
         ax.legend(fontsize=8, loc="lower right")
     fig.tight_layout()
     fig.savefig(out / "roc.png", dpi=110)
-    plt.close(fig)
     lines += ["", "Each faint dot is one swept (b, τ); the step line is the best TPR reached at each FPR.",
               "", "![ROC](roc.png)"]
     return "\n".join(lines)

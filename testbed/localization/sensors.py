@@ -77,7 +77,7 @@ class _Schedule:
 class GnssModel:
     """GNSS error model parameters (m, s). The bias (5 cm per axis) is that of a corrected (RTK-float or PPP)
     receiver, the grade high-level AD stacks fuse; at 8 cm the benign MSF followed the bias through LiDAR-poor
-    highway stretches to 0.19 m lateral error, beyond what lane keeping on the MSF allows (issue 4)."""
+    highway stretches to 0.19 m lateral error, beyond what lane keeping on the MSF allows."""
 
     bias_std: float = 0.05
     bias_tau: float = 60.0

@@ -210,13 +210,11 @@ def markdown_table(reports: list[dict]) -> str:
 def error_cdf(reports: list[dict], frames: FrameSet, path: Path, target_m: float = 0.20) -> Path:
     """PNG: cumulative distribution of |D_LD error| per condition, one panel per detector, the p99 target
     dashed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     cond = np.asarray([m["condition"] for m in frames.meta])
-    fig, axes = plt.subplots(1, len(reports), figsize=(5.5 * len(reports), 3.8), squeeze=False)
+    fig = Figure(figsize=(5.5 * len(reports), 3.8))
+    axes = fig.subplots(1, len(reports), squeeze=False)
     for ax, rep in zip(axes[0], reports, strict=True):
         errors = np.asarray([np.nan if e is None else e for e in rep["frame_errors_m"]], dtype=float)
         for c in sorted(set(cond.tolist())):
@@ -235,7 +233,6 @@ def error_cdf(reports: list[dict], frames: FrameSet, path: Path, target_m: float
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 

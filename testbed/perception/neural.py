@@ -125,9 +125,6 @@ class AnchorGeometry:
     def y_to_u(self, y: np.ndarray) -> np.ndarray:
         return y / self.scale + self.cx
 
-    def u_to_y(self, u: np.ndarray) -> np.ndarray:
-        return (u - self.cx) * self.scale
-
 
 GEOMETRY = AnchorGeometry()
 _T = torch.tensor(X_ANCHORS, dtype=torch.float64) / FIT_SCALE

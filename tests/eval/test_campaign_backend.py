@@ -1,15 +1,20 @@
-"""Campaign backends: choosing one from the CLI, the Ray backend's equivalence with the local one (same seed,
-same bytes) and its failure handling; `ld3 campaign list`."""
+"""Campaign backends: choosing one from the CLI, the registry and a third-party backend added by entry point,
+the Ray backend's equivalence with the local one (same seed, same bytes), its failure handling and its quick
+refusal of a dead cluster address; `ld3 campaign list`."""
 
 import json
+import socket
 import subprocess
 import sys
+import textwrap
+import time
 from pathlib import Path
 
 import pytest
 
 from testbed import cli
-from testbed.eval.campaign import CampaignRun, run_campaign
+from testbed.eval.campaign import CAMPAIGN_BACKENDS, CampaignRun, run_campaign
+from testbed.eval.campaign_backend import BackendUnavailable
 from testbed.eval.campaign_cost import (
     WALL_PER_SIM_S_CAMERA,
     WALL_PER_SIM_S_NO_CAMERA,
@@ -56,6 +61,102 @@ def test_an_unreachable_ray_cluster_is_one_line_and_runs_nothing(tmp_path, monke
     assert capsys.readouterr().err == ("ld3: error: cannot connect to the Ray cluster at 'auto': Could not find any "
                                        "running Ray instance.\n")
     assert not (tmp_path / "c" / "ld3-start6").exists()
+
+
+def _unused_loopback_port() -> int:
+    """A loopback TCP port nothing listens on (bound once by the OS, then released)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.mark.parametrize("scheme", ["", "ray://"])
+def test_a_dead_ray_address_is_refused_within_seconds_in_one_line(tmp_path, capsys, scheme):
+    pytest.importorskip("ray")
+    address = f"{scheme}127.0.0.1:{_unused_loopback_port()}"
+    t0 = time.monotonic()
+    assert cli.main(_table4_argv(tmp_path, "--backend", "ray", "--address", address)) == cli.EXIT_USAGE
+    assert time.monotonic() - t0 < 10.0
+    err = capsys.readouterr().err
+    assert err.startswith(f"ld3: error: cannot connect to the Ray cluster at {address!r}: nothing answers at "
+                          f"127.0.0.1:{address.rsplit(':', 1)[1]}")
+    assert err.count("\n") == 1
+    assert not (tmp_path / "c").exists()
+
+
+def test_an_unreadable_ray_address_is_one_line(tmp_path):
+    pytest.importorskip("ray")
+    with pytest.raises(BackendUnavailable, match="cannot read the Ray cluster address 'ray://head:port'"):
+        run_campaign([], tmp_path / "c", backend="ray", address="ray://head:port")
+    assert not (tmp_path / "c").exists()
+
+
+def test_an_unknown_backend_is_refused_naming_the_known_ones(tmp_path, capsys):
+    runs = [CampaignRun("r", load_scenario("slr"), {})]
+    with pytest.raises(ValueError, match=r"^unknown campaign backend 'slurm'; known: local, ray$"):
+        run_campaign(runs, tmp_path / "c", backend="slurm")
+    with pytest.raises(SystemExit):
+        cli.main(_table4_argv(tmp_path, "--backend", "slurm"))
+    error = capsys.readouterr().err.splitlines()[-1]
+    assert "--backend: invalid choice: 'slurm'" in error and "'local', 'ray'" in error
+    assert not (tmp_path / "c").exists()
+
+
+PLUGIN = textwrap.dedent('''
+    """A third-party campaign backend: runs in this process, newest first, and records the order."""
+    from testbed.eval.campaign_backend import CampaignBackend, RunOutcome
+    from testbed.eval.campaign_run import attempt_within, run_limit, temp_dir
+
+    ORDER = []
+
+
+    class Reversed(CampaignBackend):
+        name = "reversed"
+        help = "this process, last run first"
+
+        def run(self, batch, out, execute, timeout, workers, address):
+            for run in reversed(batch):
+                ORDER.append(run.run_id)
+                tmp = temp_dir(out, run.run_id)
+                tmp.mkdir(parents=True)
+                yield RunOutcome(run, attempt_within(execute, run, tmp, run_limit(run, timeout)))
+
+
+    BACKEND = Reversed()
+''')
+
+
+@pytest.fixture
+def backend_plugin(tmp_path, monkeypatch):
+    """The plugin above installed (module and entry point) on sys.path for the test."""
+    site = tmp_path / "site"
+    info = site / "ld3_backendplugin-0.1.dist-info"
+    info.mkdir(parents=True)
+    (site / "ld3_backendplugin.py").write_text(PLUGIN)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: ld3-backendplugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[ld3.campaign_backends]\nreversed = ld3_backendplugin:BACKEND\n")
+    monkeypatch.syspath_prepend(str(site))
+    CAMPAIGN_BACKENDS.reload_plugins()
+    yield site
+    monkeypatch.undo()
+    CAMPAIGN_BACKENDS.reload_plugins()
+    sys.modules.pop("ld3_backendplugin", None)
+
+
+def test_a_backend_added_by_entry_point_runs_a_campaign_and_is_a_cli_choice(backend_plugin, tmp_path):
+    from tests.eval.campaign_helpers import warning_writer
+
+    assert CAMPAIGN_BACKENDS.names() == ("local", "ray", "reversed")
+    runs = [CampaignRun(f"r{i}", load_scenario("slr"), {}) for i in range(3)]
+    done = run_campaign(runs, tmp_path / "c", progress=False, execute=warning_writer, backend="reversed")
+    assert [s["run"] for _, s in done] == ["r0", "r1", "r2"]
+    assert sys.modules["ld3_backendplugin"].ORDER == ["r2", "r1", "r0"]
+    assert not list((tmp_path / "c").glob(".*.tmp-*"))
+    with pytest.raises(ValueError, match=r"a cluster address \('auto'\) needs the ray backend: add --backend ray"):
+        run_campaign(runs, tmp_path / "d", backend="reversed", address="auto")
+    parser = cli.build_parser()
+    args = parser.parse_args(["campaign", "table4", "--backend", "reversed"])
+    assert args.backend == "reversed"
 
 
 def test_ld3_campaign_passes_backend_address_and_workers_through(tmp_path, monkeypatch):

@@ -11,8 +11,14 @@ from testbed.defense.config import DefenseConfig
 from testbed.eval import paper
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.campaigns import CAMPAIGNS
-from testbed.eval.paper import EXPERIMENTS, CampaignResult, PaperOptions, announce_plan, campaign_command, planned_runs
-from testbed.eval.paper_report import ar_deceleration, load_paper_values, residual_max, write_paper_report
+from testbed.eval.paper import EXPERIMENTS, PaperOptions, announce_plan, campaign_command, planned_runs
+from testbed.eval.paper_report import (
+    CampaignResult,
+    ar_deceleration,
+    load_paper_values,
+    residual_max,
+    write_paper_report,
+)
 from testbed.eval.scenario import ScenarioError, load_scenario
 
 TRAJECTORY = ("t", "speed", "mode", "phys_dev", "msf_dev", "ld_dev", "ld_fresh")
@@ -146,7 +152,7 @@ def test_report_puts_the_papers_values_beside_ours(tmp_path):
                                                 "trials": 4}),
                    {"worst_undetected_m": 0.31, "worst_overall_m": 0.52, "undetected_departures": 0,
                     "replay": f"ld3 run {tmp_path}/adaptive/local/ld3/msf-output/search/best.toml"})])}
-    report = write_paper_report(PaperOptions(tmp_path, quick=True), results).read_text()
+    report = write_paper_report(tmp_path, results, quick=True, detector="neural").read_text()
     assert "| LD3 default | 0.31 / 0.52 ([replay](adaptive/local/ld3/msf-output/search/best.toml)) |" in report
     values = load_paper_values()
     for section in values.values():

@@ -22,7 +22,7 @@ from testbed.perception.neural import (
 
 WEIGHTS_SHIPPED = (resources.files("testbed.perception") / "weights" / DEFAULT_WEIGHTS).is_file()
 needs_weights = pytest.mark.skipif(
-    not WEIGHTS_SHIPPED, reason="no trained weights ship yet (lane-detection issue open; see the closing note)")
+    not WEIGHTS_SHIPPED, reason="no trained weights ship (testbed/perception/weights/)")
 
 
 @pytest.fixture(scope="module")

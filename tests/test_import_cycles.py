@@ -1,0 +1,136 @@
+"""No import cycle among the first-party packages (those `pyproject.toml` packages), read from the source.
+
+The graph has one node per module and an edge for every import of a first-party module anywhere in a module:
+at module level and inside functions and methods alike, since a deferred import still ties the two modules
+together (it only hides the cycle until the function runs). Imports under `if TYPE_CHECKING:` are left out:
+they never run. `from package import name` is an edge to the submodule `package.name` when there is one, else
+to the package itself. An import of `a.b.c` is an edge to `a.b.c` only, not to the packages `a` and `a.b` whose
+`__init__` it also runs: a package that re-exports its own submodules is safe as long as none of them imports
+that package back, and such an import is an edge to the package here, so it is caught.
+"""
+
+from __future__ import annotations
+
+import ast
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def first_party_packages() -> list[str]:
+    """The top-level packages setuptools installs (`[tool.setuptools.packages.find] include`)."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    patterns = config["tool"]["setuptools"]["packages"]["find"]["include"]
+    return sorted({p.split(".")[0].rstrip("*") for p in patterns})
+
+
+def module_files(packages: list[str]) -> dict[str, Path]:
+    """Dotted module name → source file, for every module of `packages` (a package is its `__init__`)."""
+    modules = {}
+    for package in packages:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def _imports(node: ast.AST) -> list[ast.Import | ast.ImportFrom]:
+    """Every import statement under `node`, skipping the bodies of `if TYPE_CHECKING:`."""
+    found = []
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.If) and _is_type_checking(child.test):
+            for other in child.orelse:
+                found += _imports_in(other)
+            continue
+        found += _imports_in(child)
+    return found
+
+
+def _imports_in(node: ast.AST) -> list[ast.Import | ast.ImportFrom]:
+    return [node] if isinstance(node, ast.Import | ast.ImportFrom) else _imports(node)
+
+
+def import_graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """Module → the first-party modules it imports (see the module docstring)."""
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        is_package = path.name == "__init__.py"
+        edges: set[str] = set()
+        for imp in _imports(ast.parse(path.read_text(), str(path))):
+            if isinstance(imp, ast.Import):
+                edges |= {alias.name for alias in imp.names if alias.name in modules}
+                continue
+            base = imp.module or ""
+            if imp.level:
+                anchor = name.split(".") if is_package else name.split(".")[:-1]
+                anchor = anchor[:len(anchor) - (imp.level - 1)]
+                base = ".".join([*anchor, *([base] if base else [])])
+            for alias in imp.names:
+                target = f"{base}.{alias.name}"
+                if target in modules:
+                    edges.add(target)
+                elif base in modules:
+                    edges.add(base)
+        edges.discard(name)
+        graph[name] = edges
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of `graph` as [a, b, ..., a], or None; depth-first, in sorted order (a stable answer)."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: finished
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return [*path[path.index(nxt):], nxt]
+            if nxt not in state and (cycle := visit(nxt)):
+                return cycle
+        path.pop()
+        state[node] = 2
+        return None
+
+    for start in sorted(graph):
+        if start not in state and (cycle := visit(start)):
+            return cycle
+    return None
+
+
+def test_the_graph_sees_every_kind_of_import():
+    graph = import_graph(module_files(first_party_packages()))
+    assert {"testbed", "hil", "tracks", "vehicles"} <= {name.split(".")[0] for name in graph}
+    assert "testbed.eval.campaign_backend" in graph["testbed.eval.ray_backend"]  # module level
+    assert "testbed.eval.runner" in graph["testbed.eval.campaign"]  # inside a function
+    assert "testbed.defense.ld3" in graph["testbed.defense"]  # a package's re-export
+
+
+def test_a_cycle_is_found_and_named():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set()}
+    assert find_cycle(graph) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_type_checking_imports_and_relative_imports_are_read_as_python_runs_them(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("from .a import x\n")
+    (pkg / "a.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg import b\n"
+                              "else:\n    import pkg.c\nx = 1\n")
+    (pkg / "b.py").write_text("def f():\n    from . import a\n")
+    (pkg / "c.py").write_text("")
+    modules = {"pkg": pkg / "__init__.py", **{f"pkg.{m}": pkg / f"{m}.py" for m in "abc"}}
+    assert import_graph(modules) == {"pkg": {"pkg.a"}, "pkg.a": {"pkg.c"}, "pkg.b": {"pkg.a"}, "pkg.c": set()}
+
+
+def test_no_import_cycle_among_the_first_party_packages():
+    cycle = find_cycle(import_graph(module_files(first_party_packages())))
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
