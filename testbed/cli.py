@@ -176,7 +176,7 @@ def cmd_patch_figure(args: argparse.Namespace) -> int:
     return 0
 
 
-LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector", "seconds")
+LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector", "seconds", "traffic")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -448,6 +448,8 @@ def build_parser() -> argparse.ArgumentParser:
     loop.add_argument("--speed", type=float, help="target speed, m/s (default: the scenario's)")
     loop.add_argument("--localization", help="localization (default: the scenario's)")
     loop.add_argument("--seconds", type=float, help="simulated seconds (default 20)")
+    loop.add_argument("--traffic", type=int, help="traffic cars on the road (sets traffic.vehicles; default: the "
+                      "scenario's)")
     loop.add_argument("--detector", help="lane detector (default neural; with --camera on the camera is rendered "
                       "even for a detector that does not read it)")
     loop.add_argument("--ground", choices=["canvas", "mesh"],

@@ -35,6 +35,12 @@ OBSTACLE_COLOURS: dict[str, tuple[float, float, float, float]] = {
     "divider": (0.85, 0.85, 0.82, 1.0),
     "tree": (0.20, 0.38, 0.16, 1.0),
 }
+TRAFFIC_COLOURS: tuple[tuple[float, float, float, float], ...] = (
+    (0.55, 0.08, 0.08, 1.0), (0.12, 0.20, 0.45, 1.0), (0.85, 0.85, 0.85, 1.0), (0.15, 0.15, 0.16, 1.0),
+    (0.45, 0.47, 0.50, 1.0))
+"""Body colours of the traffic cars the camera sees (car i gets colour i modulo their number)."""
+HIDDEN_Z = -100.0
+"""Height (m) at which a traffic body out of the car's reach waits, below the ground plane."""
 MESH_SPACING_M = SEGMENT_SPACING_M
 GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
@@ -64,6 +70,9 @@ class PhysicsWorld:
         pb.changeDynamics(self.ground_id, -1, lateralFriction=1.0, physicsClientId=self.client)
         self.obstacle_kind: dict[int, str] = {}
         self._tile_bodies: dict[int, list[int]] = {}
+        self.traffic_bodies: list[int] = []
+        self._traffic_z = 0.0
+        self._traffic_shown: set[int] = set()
         self.vehicle = PyBulletVehicle(self.client, params, start)
         self.update_obstacles(start)
 
@@ -92,6 +101,29 @@ class PhysicsWorld:
         self.obstacle_kind[body] = kind
         return body
 
+    def add_traffic(self, count: int, length: float, width: float, height: float) -> None:
+        """`count` traffic car bodies: static (kinematic) boxes of the given size, of kind `vehicle`, placed by
+        `place_traffic`; the vehicle collides with them like with any roadside body."""
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5 * length, 0.5 * width, 0.5 * height],
+                                        physicsClientId=self.client)
+        self._traffic_z = 0.5 * height
+        for _ in range(count):
+            body = pb.createMultiBody(0, shape, basePosition=[0.0, 0.0, HIDDEN_Z], physicsClientId=self.client)
+            self.obstacle_kind[body] = "vehicle"
+            self.traffic_bodies.append(body)
+
+    def place_traffic(self, poses: dict[int, Pose]) -> None:
+        """Move traffic car i's body to poses[i] (its centre on the ground, its heading); the bodies of cars
+        not given are put out of reach below the ground."""
+        self._traffic_shown = _place_bodies(self.client, self.traffic_bodies, poses, self._traffic_z,
+                                            self._traffic_shown)
+
+    def traffic_touching(self) -> list[int]:
+        """Indices of the traffic cars the vehicle touches now."""
+        index = {body: i for i, body in enumerate(self.traffic_bodies)}
+        return sorted({index[c[2]] for c in pb.getContactPoints(bodyA=self.vehicle.body_id,
+                                                                physicsClientId=self.client) if c[2] in index})
+
     def step(self) -> None:
         """One physics step (the vehicle's motors were set by its last `actuate`), with its road load."""
         if self.steps % OBSTACLE_UPDATE_STEPS == 0:
@@ -102,7 +134,7 @@ class PhysicsWorld:
         self.t = self.steps * self.dt
 
     def contact_kinds(self) -> set[str]:
-        """Kinds of roadside bodies the vehicle touches now (curb, barrier, guardrail, divider, tree)."""
+        """Kinds of bodies the vehicle touches now (curb, barrier, guardrail, divider, tree, vehicle)."""
         kinds = set()
         for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client):
             kind = self.obstacle_kind.get(c[2])
@@ -113,6 +145,18 @@ class PhysicsWorld:
     def close(self) -> None:
         if pb.isConnected(self.client):
             pb.disconnect(self.client)
+
+
+def _place_bodies(client: int, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
+    """Put bodies[i] at poses[i] (height z) and the shown bodies without a pose below the ground; the set of
+    bodies now shown."""
+    for i, p in poses.items():
+        pb.resetBasePositionAndOrientation(bodies[i], [p.x, p.y, z], [0.0, 0.0, math.sin(0.5 * p.yaw),
+                                                                      math.cos(0.5 * p.yaw)], physicsClientId=client)
+    for i in shown - poses.keys():
+        pb.resetBasePositionAndOrientation(bodies[i], [0.0, 0.0, HIDDEN_Z], [0.0, 0.0, 0.0, 1.0],
+                                           physicsClientId=client)
+    return set(poses)
 
 
 class TileStreamer:
@@ -138,12 +182,44 @@ class TileStreamer:
         self.loaded: dict[int, list[int]] = {}
         self.textures_loaded = 0
         self.resets = 0
+        self._traffic_size: tuple[int, float, float, float] | None = None
+        self._traffic_bodies: list[int] = []
+        self._traffic_poses: dict[int, Pose] = {}
+        self._traffic_shown: set[int] = set()
         self._reset_scene()
 
     def _reset_scene(self) -> None:
         pb.resetSimulation(physicsClientId=self.client)
         self.loaded.clear()
         self.textures_loaded = 0
+        self._traffic_bodies, self._traffic_shown = [], set()
+        if self._traffic_size is not None:
+            self._add_traffic_bodies(*self._traffic_size)
+
+    def add_traffic(self, count: int, length: float, width: float, height: float) -> None:
+        """`count` traffic car boxes the camera sees (kept across resets of the render client), placed by
+        `place_traffic`."""
+        self._traffic_size = (count, length, width, height)
+        self._add_traffic_bodies(count, length, width, height)
+
+    def _add_traffic_bodies(self, count: int, length: float, width: float, height: float) -> None:
+        shape = pb.createVisualShape(pb.GEOM_BOX, halfExtents=[0.5 * length, 0.5 * width, 0.5 * height],
+                                     physicsClientId=self.client)
+        for i in range(count):
+            body = pb.createMultiBody(baseVisualShapeIndex=shape, basePosition=[0.0, 0.0, HIDDEN_Z],
+                                      physicsClientId=self.client)
+            pb.changeVisualShape(body, -1, rgbaColor=list(TRAFFIC_COLOURS[i % len(TRAFFIC_COLOURS)]),
+                                 physicsClientId=self.client)
+            self._traffic_bodies.append(body)
+        if self._traffic_poses:
+            self.place_traffic(self._traffic_poses)
+
+    def place_traffic(self, poses: dict[int, Pose]) -> None:
+        """Move traffic car i's box to poses[i] (its centre on the ground, its heading); the boxes of cars not
+        given are hidden below the ground."""
+        self._traffic_poses = dict(poses)
+        z = 0.5 * self._traffic_size[3] if self._traffic_size is not None else 0.0
+        self._traffic_shown = _place_bodies(self.client, self._traffic_bodies, poses, z, self._traffic_shown)
 
     def update(self, pose: Pose) -> None:
         """Load the tiles from `behind` m behind to `ahead` m ahead of the pose, drop the others."""

@@ -52,7 +52,7 @@ def one_core() -> None:
 
 LOOP_SECTIONS = ("physics", "vehicle actuation", "localization", "map", "control", "defense", "attack",
                  "logging", "consequence monitor", "render", "ground canvas", "image effects", "tile streaming",
-                 "detector")
+                 "detector", "traffic")
 """The parts `bench loop` splits the loop's wall time into (plus `rest`: the loop's own glue). The camera's
 frame is `render` (TinyRenderer's picture of the roadside bodies, and compositing), `ground canvas` (the road
 drawn from the canvas) and `image effects` (the condition's sky, exposure and noise)."""
@@ -92,6 +92,10 @@ def _instrument(sim, timer: SectionTimer) -> None:
         timer.wrap(sim.detector, "detect", "detector")
     if sim.tracker is not None:
         timer.wrap(sim.tracker, "update", "detector")
+    if sim.traffic is not None:
+        timer.wrap(sim.traffic, "advance", "traffic")
+        timer.wrap_all(sim.world, ("place_traffic", "traffic_touching"), "traffic")
+        timer.wrap(sim.traffic_log, "add", "traffic")
 
 
 class StepSimulationClock:
@@ -150,8 +154,9 @@ def _bare_physics(sc, steps: int) -> dict[str, float]:
 
 def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector: str = "neural",
                ground: str = "canvas", camera: bool = True, speed: float | None = None,
-               localization: str | None = None) -> dict[str, Any]:
-    """The closed loop on one core, with the camera rendered at its rate or without a camera: its real-time
+               localization: str | None = None, traffic: int | None = None) -> dict[str, Any]:
+    """The closed loop on one core, with the camera rendered at its rate or without a camera, and `traffic` cars
+    of the scenario's `[traffic]` (default: its own count): its real-time
     factor (wall clock, and process CPU time, which a busy machine disturbs less), the bare-physics
     real-time factor of the same world and car (`stepSimulation` alone, as many steps), their ratio, and
     the split of wall time between the loop's parts (LOOP_SECTIONS) from a second, instrumented run. That run
@@ -159,13 +164,15 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     bare figure has none of the roadside bodies the loop streams around the car, so its steps are cheaper;
     `ratio_to_in_loop_physics` is the loop's real-time factor over the in-loop one."""
     from testbed.eval.runner import SimRun
-    from testbed.eval.scenario import ScenarioError, load_scenario
+    from testbed.eval.scenario import ScenarioError, apply_settings, load_scenario
     from testbed.perception.registry import DETECTORS
     from testbed.registry import Capability
 
     one_core()
     sc = load_scenario(scenario).with_overrides(duration=seconds, detector=detector, speed=speed,
                                                 localization=localization)
+    if traffic is not None:
+        sc = apply_settings(sc, [f"traffic.vehicles={traffic}"])
     if not camera and Capability.CAMERA_IMAGE in DETECTORS.get(sc.detector).provides:
         raise ScenarioError(f"detector {sc.detector!r} reads the camera: use --camera on, or a detector that "
                             f"does not (--detector oracle or none)")
@@ -198,6 +205,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     out: dict[str, Any] = {
         "scenario": scenario, "track": sc.track, "vehicle": sc.vehicle, "speed_mps": sc.speed,
         "localization": sc.localization, "detector": sc.detector, "camera": camera,
+        "traffic_vehicles": sc.traffic.vehicles,
         "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
         "real_time_factor": round(rtf, 2), "real_time_factor_cpu": round(sim_time / cpu, 2),
         "bare_physics_real_time_factor": round(bare_rtf, 2),
@@ -298,11 +306,11 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
 
 
 def run(what: str, seconds: float = 20.0, detector: str = "neural", ground: str = "canvas", camera: bool = True,
-        scenario: str = "urban-straight", speed: float | None = None, localization: str | None = None
-        ) -> dict[str, Any]:
+        scenario: str = "urban-straight", speed: float | None = None, localization: str | None = None,
+        traffic: int | None = None) -> dict[str, Any]:
     """Run benchmark `what`; the other arguments are `loop`'s."""
     if what == "loop":
-        return bench_loop(seconds, scenario, detector, ground, camera, speed, localization)
+        return bench_loop(seconds, scenario, detector, ground, camera, speed, localization, traffic)
     if what == "render":
         return bench_render()
     if what == "ld":

@@ -1,5 +1,6 @@
-"""birdseye.png of a run: the road seen from above with the true and believed paths and the attack start,
-detection and stop points; the deviations against time; and the detector's statistic against its threshold.
+"""birdseye.png of a run: the road seen from above with the true and believed paths, the traffic cars' paths
+and the attack start, detection and stop points; the deviations against time; and the detector's statistic
+against its threshold.
 """
 
 from __future__ import annotations
@@ -9,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
 
+from testbed.eval.consequence import footprint_corners
 from testbed.loop import TickRecord
 from tracks.plot import draw_track
 
@@ -37,8 +40,12 @@ def _frame_equal(ax, x: np.ndarray, y: np.ndarray, pad: float) -> None:
 
 def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: float, straddle_dev: float,
                   believed_xy: np.ndarray, detection_t: float | None, stop_t: float | None, title: str,
-                  attack_t: float | None = None, threshold: float | None = None) -> None:
-    """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above."""
+                  attack_t: float | None = None, threshold: float | None = None,
+                  traffic: dict[int, np.ndarray] | None = None, traffic_size: tuple[float, float] = (0.0, 0.0)
+                  ) -> None:
+    """`attack_t` is when the attack starts, `threshold` the level the CUSUM column alarms above, `traffic` each
+    traffic car's (x, y, yaw) path by id (drawn grey, its last footprint, `traffic_size` = length × width, with
+    its id)."""
     t = _col(rows, "t")
     x, y = _col(rows, "x"), _col(rows, "y")
     phys, msf, ld = _col(rows, "phys_dev"), _col(rows, "msf_dev"), _col(rows, "ld_dev")
@@ -50,6 +57,13 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     _frame_equal(ax_map, x, y, pad=25.0)
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
+    for n, (car, xy) in enumerate(sorted((traffic or {}).items())):
+        ax_map.plot(xy[:, 0], xy[:, 1], color="0.45", lw=0.8, label="traffic" if n == 0 else None)
+        x_end, y_end, yaw_end = xy[-1]
+        ax_map.add_patch(Polygon(footprint_corners(x_end, y_end, yaw_end, *traffic_size), closed=True,
+                                 facecolor="0.55", edgecolor="0.25", lw=0.6, zorder=3))
+        ax_map.annotate(str(car), (x_end, y_end), fontsize=6, color="0.15", ha="center", va="center",
+                        clip_on=True, zorder=4)
     for when, marker, label in ((attack_t, "v", "attack start"), (detection_t, "*", "detection"),
                                 (stop_t, "s", "stop")):
         if when is not None:

@@ -1,7 +1,7 @@
 """Physical consequence of a run (DESIGN.md): contacts with roadside bodies, leaving the road surface,
 and where the car ends relative to its lane.
 
-Precedence: the first contact (curb, barrier/guardrail/tree, lane divider) or leaving the paved surface
+Precedence: the first contact (curb, barrier/guardrail/tree, lane divider, traffic car) or leaving the paved surface
 beyond a drop-off ends the run at once. Otherwise a run stopped by the attack response is
 `stop_in_lane` when its final |D| is within the lane straddle deviation, `stop_with_lane_straddle` while
 the body still overlaps the lane, `out_of_lane` beyond; a run not stopped is `out_of_lane` once |D| ever
@@ -18,6 +18,7 @@ CONTACT_CONSEQUENCE = {
     "guardrail": "hit_barrier",
     "tree": "hit_barrier",
     "divider": "hit_lane_divider",
+    "vehicle": "hit_vehicle",
 }
 ATTACK_GOAL_M = {"local": 1.3, "highway": 1.9}
 """FusionRipper's attack goal deviation per road type (paper Table 2)."""

@@ -64,6 +64,13 @@ POSE_IN_FRAME = _obj(
     pose=_pose("Pose in 3D space"),
 )
 
+POSES_IN_FRAME = _obj(
+    "foxglove.PosesInFrame", "An array of timestamped poses for an object or reference frame in 3D space",
+    timestamp=_time("Timestamp of pose"),
+    frame_id=_string("Frame of reference for pose position and orientation"),
+    poses={"type": "array", "description": "Poses in 3D space", "items": _pose("Pose in 3D space")},
+)
+
 LINE_PRIMITIVE = _obj(
     "foxglove.LinePrimitive", "A primitive representing a series of points connected by lines",
     type={"title": "foxglove.LineType", "description": "Drawing primitive to use for lines", "oneOf": [

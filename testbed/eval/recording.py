@@ -1,6 +1,7 @@
 """run.mcap: one run for Foxglove. JSON messages with Foxglove's well-known schemas for the camera (JPEG with
-the detected lines), the true, MSF and fused poses and the ego lane's lines, and the testbed's own schemas
-for the per-tick signals, the attack's state and decoded CAN frames. Log and publish time = simulated time.
+the detected lines), the true, MSF and fused poses, the traffic cars' poses and the ego lane's lines, and the
+testbed's own schemas for the per-tick signals, the attack's state and decoded CAN frames. Log and publish
+time = simulated time.
 
 World poses and lines are in frame `map` (x east, y north, z up); the image is in frame `camera`.
 """
@@ -51,6 +52,7 @@ SIGNALS = Channel("/signals", mcap_schemas.SIGNALS)
 ATTACK = Channel("/attack", mcap_schemas.ATTACK)
 CAN = Channel("/can", mcap_schemas.CAN_FRAME)
 LD3_INPUT = Channel("/ld3/input", mcap_schemas.LD3_INPUT)
+TRAFFIC = Channel("/traffic/poses", mcap_schemas.POSES_IN_FRAME)
 CHANNELS = (CAMERA, POSE_TRUE, POSE_MSF, POSE_FUSED, LANES, SIGNALS, ATTACK, CAN)
 
 
@@ -135,6 +137,11 @@ class Recording:
             "steer": rec.steer, "accel": rec.accel})
         if rec.attack_stage is not None:
             self._add(ATTACK, t, {"t": t, "stage": rec.attack_stage, "offset": _finite(rec.attack_offset)})
+
+    def add_traffic(self, t: float, poses: Sequence[Pose]) -> None:
+        """The traffic cars' poses at time t, in car id order."""
+        self._add(TRAFFIC, t, {"timestamp": _stamp(t), "frame_id": MAP_FRAME,
+                               "poses": [_pose(p.x, p.y, p.yaw) for p in poses]})
 
     def add_can(self, t: float, arbitration_id: int, data: bytes, decoded: Mapping[str, Any]) -> None:
         """One CAN frame and its DBC-decoded signals (numbers; named enum values are written as strings)."""

@@ -3,7 +3,7 @@ the lane detector and tracker, the defense, the attack and the control loop (`Ru
 the built track and vehicle can make. `SimRun` steps what this builds.
 
 The run's random streams are spawned from the scenario seed in a fixed order (camera noise, localization,
-attack, detector), so the same scenario and seed give byte-identical trajectories.
+attack, detector, then traffic), so the same scenario and seed give byte-identical trajectories.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
+from testbed.traffic.fleet import Fleet, PlacementError
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
 from tracks.road import Track
@@ -105,6 +106,8 @@ class RunParts:
     defense: Defense
     loop: ControlLoop
     lane_width: float
+    traffic: Fleet | None = None
+    """The traffic cars (their bodies are in `world`), or None on an empty road."""
 
 
 def physics_world_for(sc: Scenario, track: Track, params: VehicleParams, start: Pose) -> PhysicsWorld:
@@ -150,7 +153,8 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     provided = check_needs(sc)
     if sc.speed > params.max_speed:
         raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach ({params.max_speed} m/s)")
-    seeds = np.random.SeedSequence(sc.seed).spawn(4)
+    root_seed = np.random.SeedSequence(sc.seed)
+    seeds = root_seed.spawn(4)
     rng_camera, rng_loc, rng_attack, rng_detector = (np.random.default_rng(s) for s in seeds)
     smap = TrackMap(track)
     lane, start = _lane_and_start(sc, track)
@@ -208,7 +212,31 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     if attack is not None:
         attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
+    traffic = _traffic(sc, track, params, lane, world, streamer, np.random.default_rng(root_seed.spawn(1)[0]))
     return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,
                     Recording(rig) if o.record else None, localization, detector, detector_name, settings, tracker,
-                    defense, loop, smap.lane_width(start, lane))
+                    defense, loop, smap.lane_width(start, lane), traffic)
+
+
+def _traffic(sc: Scenario, track: Track, params: VehicleParams, lane: int, world: PhysicsWorld | None,
+             streamer: TileStreamer | None, rng: np.random.Generator) -> Fleet | None:
+    """The scenario's traffic cars placed on the track, their bodies added to the world and, for the camera,
+    to the streamer's render client (None: no traffic)."""
+    if sc.traffic.vehicles == 0:
+        return None
+    if world is None:
+        raise ScenarioError("[traffic] needs the physics world of the run; this chassis brings none")
+    size = vehicle(sc.traffic.vehicle)
+    try:
+        fleet = Fleet.place(sc.traffic, track, lane, sc.start_s, sc.speed, rng, (size.length, size.width),
+                            (params.length, params.width), track.length - END_MARGIN_M)
+    except PlacementError as exc:
+        raise ScenarioError(str(exc)) from None
+    poses = dict(enumerate(fleet.poses()))
+    world.add_traffic(len(fleet.cars), size.length, size.width, size.height)
+    world.place_traffic(poses)
+    if streamer is not None:
+        streamer.add_traffic(len(fleet.cars), size.length, size.width, size.height)
+        streamer.place_traffic(poses)
+    return fleet

@@ -26,11 +26,14 @@ from testbed.eval.recording import ego_lane_lines
 from testbed.eval.run_build import END_MARGIN_M, RunOptions, build_run
 from testbed.eval.run_folder import run_folder
 from testbed.eval.scenario import Scenario, ScenarioError
-from testbed.eval.summary import RunSummary
+from testbed.eval.summary import HitVehicle, RunSummary
 from testbed.eval.video import FrameSignals
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.loop import SensorPorts, TickRecord
+from testbed.traffic.fleet import EgoOnRoad
+from testbed.traffic.record import RECORD_HZ, TrafficLog, vehicle_hit
 from testbed.world import PhysicsWorld
+from tracks.map_api import OffMapError
 from tracks.pose import Pose
 
 STOP_SPEED = 0.05
@@ -73,6 +76,13 @@ class SimRun:
         self._still_since: float | None = None
         self.wall_time = 0.0
         self.done = False
+        self.traffic_log = TrafficLog()
+        self.hit: HitVehicle | None = None
+        self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
+        self._traffic_reach = 0.0
+        if self.traffic is not None:
+            self._traffic_reach = (max(self.world.window, self.streamer.ahead if self.streamer is not None else 0.0)
+                                   + self.traffic.length)
 
     def __getattr__(self, name: str) -> Any:
         if name == "parts":  # not built yet
@@ -107,8 +117,9 @@ class SimRun:
         return off[0] if len(off) >= 2 else None
 
     def step(self) -> TickRecord:
-        """One control tick; sets `done` once the run is over: a consequence (curb, barrier, off road, out of
-        lane), standstill after a stop, the end of the road, or the scenario's duration."""
+        """One control tick, then the traffic's; sets `done` once the run is over: a consequence (curb, barrier,
+        traffic car, off road, out of lane), standstill after a stop, the end of the road, or the scenario's
+        duration."""
         if self.done:
             raise RuntimeError("the run is over; build a new SimRun to run again")
         wall0 = time.perf_counter()
@@ -120,12 +131,38 @@ class SimRun:
             self._record_tick(rec)
         pose = self.loop.last_state.true_pose
         contacts = self.world.contact_kinds() if self.world is not None else set()
+        if "vehicle" in contacts and self.hit is None:
+            state = self.loop.last_state
+            self.hit = vehicle_hit(self.traffic, self.world.traffic_touching()[0], rec.t, state.speed, pose.yaw)
         edge = self._edge_beyond(pose)
+        if self.traffic is not None:
+            self._advance_traffic(rec, pose)
         self.done = (self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off")
                      or self._stopped(rec) or self.smap.project(pose, self.lane).s > self.track.length - END_MARGIN_M
                      or len(self.rows) >= self.n_ticks)
         self.wall_time += time.perf_counter() - wall0
         return rec
+
+    def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
+        """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
+        move them to the next control instant behind the ego as it is now (off the map, it leads no car), and
+        place the bodies (physics, camera) of those within reach of the ego's collision bodies or camera."""
+        if (len(self.rows) - 1) % self._record_every == 0:
+            every = self.traffic.poses()
+            self.traffic_log.add(rec.t, self.traffic, every)
+            if self.recording is not None:
+                self.recording.add_traffic(rec.t, every)
+        try:
+            c = self.smap.project(pose, self.lane)
+            ego = EgoOnRoad(c.s, c.l + self.track.lanes[self.lane].offset_at(c.s), rec.speed)
+        except OffMapError:
+            ego = None
+        self.traffic.advance(1.0 / self.loop.rates.control_hz, ego)
+        near = self.traffic.cars if ego is None else self.traffic.near(ego.s, self._traffic_reach)
+        poses = {car.id: p for car, p in zip(near, self.traffic.poses(near), strict=True)}
+        self.world.place_traffic(poses)
+        if self.streamer is not None:
+            self.streamer.place_traffic(poses)
 
     def _stopped(self, rec: TickRecord) -> bool:
         """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""
@@ -188,12 +225,17 @@ class SimRun:
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
             "attack_state": self.attack.state() if self.attack is not None else None,
+            "traffic_vehicles": len(self.traffic.cars) if self.traffic is not None else None,
+            "hit_vehicle": self.hit,
         })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
-        """summary.json, trajectory.csv, birdseye.png (and camera.mp4 when recorded) of a finished run."""
+        """summary.json, trajectory.csv, traffic.csv (with traffic), birdseye.png (and camera.mp4, run.mcap when
+        recorded) of a finished run."""
         sc = self.sc
         write_trajectory(out_dir / "trajectory.csv", result.rows)
+        if self.traffic is not None:
+            self.traffic_log.write(out_dir / "traffic.csv")
         result.record.write(out_dir / "summary.json")
         save_birdseye(out_dir / "birdseye.png", self.track, result.rows, lane_width=self.lane_width,
                       straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
@@ -201,7 +243,9 @@ class SimRun:
                       title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}"
                             + title_suffix,
                       attack_t=self.attack.start_time if self.attack is not None else None,
-                      threshold=self.defense.alarm_threshold)
+                      threshold=self.defense.alarm_threshold,
+                      traffic=self.traffic_log.paths() if self.traffic is not None else None,
+                      traffic_size=(self.traffic.length, self.traffic.width) if self.traffic is not None else (0, 0))
         if self.attack is not None and has_fusion(result.rows):
             save_fusion_plot(out_dir / "ar_fusion.png", result.rows, straddle_dev=self.monitor.straddle_dev,
                              title=f"{sc.name} · {sc.track} · {self.attack.name} · attack response")

@@ -22,6 +22,7 @@ from testbed.params import error_key, error_problem
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
+from testbed.traffic.config import TrafficConfig
 from tracks.presets import parse_track_spec
 
 
@@ -67,6 +68,8 @@ class Scenario(BaseModel):
     stop_at: float | None = Field(None, ge=0, description="time of a planned in-lane stop (s), independent of "
                                                           "any defense")
     stop_decel: float = Field(4.0, gt=0, le=15, description="deceleration of the planned stop (m/s²)")
+    traffic: TrafficConfig = Field(default_factory=TrafficConfig, description="[traffic]: same-direction cars "
+                                                                              "on IDM, their lanes, gaps and speeds")
 
     @model_validator(mode="after")
     def _components(self) -> Scenario:
@@ -126,8 +129,8 @@ def _one_line(exc: ValidationError) -> str:
     key = error_key(err)
     if err["type"] == "extra_forbidden":
         section = key.rpartition(".")[0]
-        known = Rates.model_fields if section == "rates" else _TOP_KEYS
-        return f"unknown scenario key {key!r}; known{' in [rates]' if section == 'rates' else ''}: " \
+        known = _SECTIONS[section].model_fields if section in _SECTIONS else _TOP_KEYS
+        return f"unknown scenario key {key!r}; known{f' in [{section}]' if section in _SECTIONS else ''}: " \
                f"{', '.join(sorted(known))}"
     if err["loc"][:1] == ("attack",) and err["type"] != "value_error":
         return f"attack must be a table with a 'kind' or a non-empty list of such tables, got {err['input']!r}"
@@ -166,6 +169,8 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
 
 
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
+_SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig}
+"""The scenario's typed tables, by name."""
 
 
 def _kind_and_params(value: Any, default_kind: str) -> tuple[Any, dict[str, Any]]:
@@ -204,13 +209,14 @@ def _toml_value(raw: str) -> Any:
 def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
     name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table),
-    `rates.control_hz=50` or `rates.localization.gnss_hz=5` (the [rates] table), or a top-level key such as
-    `speed=10`."""
+    `rates.control_hz=50` or `rates.localization.gnss_hz=5` (the [rates] table), `traffic.vehicles=6` (the
+    [traffic] table), or a top-level key such as `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
     detector, detector_params = sc.detector, dict(sc.detector_params)
     attacks = [dict(t) for t in attack_tables(sc.attack)]
     rates = sc.rates.model_dump()
+    traffic = sc.traffic.explicit()
     for item in settings:
         key, eq, raw = item.partition("=")
         key = key.strip()
@@ -218,7 +224,7 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
         value = _toml_value(raw.strip())
         section, dot, name = key.partition(".")
         if not dot:
-            plain = sorted(_TOP_KEYS - {"defense", "attack", "detector", "rates"})
+            plain = sorted(_TOP_KEYS - {"defense", "attack", "detector", *_SECTIONS})
             _check(key in plain, f"--set {item!r}: unknown scenario key {key!r}; known: {plain}")
             top[key] = value
         elif section == "defense":
@@ -243,11 +249,13 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
                 attacks[0][name] = value
         elif section == "rates":
             _set_nested(rates, name.split("."), value, item)
+        elif section == "traffic":
+            traffic[name] = value
         else:
             raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
-                                f"attack.KEY, rates.KEY or KEY")
+                                f"attack.KEY, rates.KEY, traffic.KEY or KEY")
     return sc.replace(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
-                      attack=attack_value(attacks), rates=rates, **top)
+                      attack=attack_value(attacks), rates=rates, traffic=traffic, **top)
 
 
 def _set_nested(table: dict[str, Any], path: list[str], value: Any, item: str) -> None:

@@ -15,6 +15,7 @@ from testbed.params import reference_rows
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import Registry
+from testbed.traffic.config import TrafficConfig
 from tracks.opendrive.load import PREFIX as XODR_PREFIX
 
 
@@ -36,8 +37,8 @@ def _table(rows: list[tuple[str, str, str, str]], extra: list[str] | None = None
 
 
 def reference_markdown() -> str:
-    """Every scenario key: the top level, [defense] (and which defenses read each key), [detector] and
-    [attack] per kind."""
+    """Every scenario key: the top level, [rates], [traffic], [defense] (and which defenses read each key),
+    [detector] and [attack] per kind."""
     out = ["## Scenario keys", "", "Top level of the scenario TOML:", ""]
     rows = []
     for key, typ, default, meaning in reference_rows(Scenario):
@@ -45,11 +46,14 @@ def reference_markdown() -> str:
             continue
         if key in _CHOICES:
             meaning += f"; one of {_choices(_CHOICES[key])}"
-        default = {"name": "the file's stem", "track": "required", "rates": "see [rates]"}.get(key, default)
+        default = {"name": "the file's stem", "track": "required", "rates": "see [rates]",
+                   "traffic": "see [traffic]"}.get(key, default)
         typ = "table | list of tables | None" if key == "attack" else typ
         rows.append((key, typ, default, meaning))
     out += _table(rows)
     out += ["", "`[rates]`:", "", *_table(reference_rows(Rates))]
+    out += ["", "`[traffic]` (same-direction cars; a table that places none, or names a lane the track lacks, is "
+                "refused):", "", *_table(reference_rows(TrafficConfig))]
     readers = [", ".join(f"`{d.name}`" for d in DEFENSES if key in d.reads or key in ALWAYS_READ) or "–"
                for key in DefenseConfig.model_fields]
     out += ["", "`[defense]` (a key no chosen defense reads is refused):", ""]
@@ -83,6 +87,7 @@ def json_schema() -> dict[str, Any]:
     props["track"].update(pattern=f"^(({'|'.join(TRACKS.names())})(@[0-9]+)?|{XODR_PREFIX}.+)$")
     props["vehicle"].update(names["vehicle"])
     props["localization"].update(names["localization"])
+    defs["TrafficConfig"]["properties"]["vehicle"].update(names["vehicle"])
     defense_table = DefenseConfig.model_json_schema()
     defense_table["properties"] = {"kind": names["defense"], **defense_table["properties"]}
     props["defense"]["anyOf"] = [names["defense"], defense_table]

@@ -25,6 +25,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
         doc["stop_at"], doc["stop_decel"] = float(sc.stop_at), float(sc.stop_decel)
     if sc.rates.explicit():
         doc["rates"] = sc.rates.explicit()
+    if sc.traffic.explicit():
+        doc["traffic"] = sc.traffic.explicit()
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
     reads = DEFENSES.get(sc.defense).reads
     doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}

@@ -11,8 +11,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
-SCHEMA_VERSION = 4
-"""Version of summary.json's layout; raised when a key changes meaning or goes away."""
+SCHEMA_VERSION = 5
+"""Version of summary.json's layout; raised when a key is added, changes meaning or goes away."""
 
 
 class FaultRecord(BaseModel):
@@ -26,6 +26,17 @@ class FaultRecord(BaseModel):
     detail: str
     last_time: float | None = None
     count: int | None = None
+
+
+class HitVehicle(BaseModel):
+    """The ego's first contact with a traffic car: its id and lane, when, and the ego's speed relative to it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: int
+    lane: int
+    time_s: float
+    relative_speed_mps: float
 
 
 class RunSummary(BaseModel):
@@ -67,6 +78,10 @@ class RunSummary(BaseModel):
     ar_stop_dev_m: float | None
     stop_time_s: float | None
     attack_state: Any = None
+    traffic_vehicles: int | None = None
+    """Traffic cars on the road (None: an empty road)."""
+    hit_vehicle: HitVehicle | None = None
+    """The traffic car the ego hit (consequence `hit_vehicle`), else None."""
 
     @field_serializer("faults")
     def _faults(self, faults: list[FaultRecord]) -> list[dict[str, Any]]:

@@ -34,6 +34,10 @@ def test_every_shipped_scenario_validates_against_the_schema(validator):
     {"track": "local", "attack": {"kind": "drp-patch"}},
     {"track": "local", "rates": {"control_hz": 0}},
     {"track": "local", "rates": {"control_hertz": 50}},
+    {"track": "local", "traffic": {"vehicles": -1}},
+    {"track": "local", "traffic": {"vehicles": 2, "cars": 3}},
+    {"track": "local", "traffic": {"vehicles": 2, "vehicle": "bus"}},
+    {"track": "local", "traffic": {"vehicles": 2, "gap_spread": 1.0}},
     {"track": "local", "speed": 0},
     {"track": "local", "seed": 1.5},
     {"track": "local", "name": "../escape"},
@@ -45,5 +49,5 @@ def test_the_schema_refuses_what_the_loader_refuses(validator, bad):
 def test_the_reference_names_every_key_with_its_default():
     text = reference_markdown()
     for needle in ("| `heading` |", "`'fused'`", "| `noise_std` |", "[attack]` with kind = `drp-patch`",
-                   "| `stop_decel` | float | `4.0` |"):
+                   "| `stop_decel` | float | `4.0` |", "| `headway` | float | `1.5` |"):
         assert needle in text

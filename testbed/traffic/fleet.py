@@ -1,0 +1,139 @@
+"""The traffic cars as a kinematic fleet on a track: each holds its lane's centre line (reference arc length s,
+advanced at its speed) and sets its speed by IDM behind the nearest car ahead in its lane, the ego car counted
+in every lane its footprint overlaps, and the road's end as a standing obstacle. No physics engine."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+
+from testbed.traffic.config import TrafficConfig
+from testbed.traffic.idm import IdmParams, idm_accel, integrate
+from tracks.pose import Pose
+from tracks.road import Track
+
+
+class PlacementError(ValueError):
+    """A `[traffic]` table the track cannot hold (a lane it lacks, cars beyond the road's end)."""
+
+
+@dataclass
+class TrafficCar:
+    """One car: id (its index in the fleet), lane, reference arc length s of its centre (m), speed and desired
+    speed (m/s)."""
+
+    id: int
+    lane: int
+    s: float
+    speed: float
+    desired: float
+
+
+@dataclass(frozen=True)
+class EgoOnRoad:
+    """The ego car as the fleet sees it: reference arc length and lateral offset of its centre, its speed."""
+
+    s: float
+    t: float
+    speed: float
+
+
+class Fleet:
+    """Traffic cars of one footprint (`length` × `width`) on `track`, stepped by `advance`."""
+
+    def __init__(self, track: Track, cars: list[TrafficCar], idm: IdmParams, length: float, width: float,
+                 ego_length: float, ego_width: float, end_s: float) -> None:
+        self.track = track
+        self.cars = cars
+        self.idm = idm
+        self.length, self.width = length, width
+        self.ego_length, self.ego_width = ego_length, ego_width
+        self.end_s = end_s
+
+    @classmethod
+    def place(cls, config: TrafficConfig, track: Track, ego_lane: int, ego_s: float, default_speed: float,
+              rng: np.random.Generator, size: tuple[float, float], ego_size: tuple[float, float],
+              end_s: float) -> Fleet:
+        """The cars of `config` placed (see `TrafficConfig`), desired speeds and gaps drawn from `rng` car by
+        car; PlacementError naming the fix when a lane is not on the track or a car would start past `end_s`."""
+        n_lanes = len(track.lanes)
+        lanes = config.lanes if config.lanes is not None else list(range(n_lanes))
+        for lane in lanes:
+            if not 0 <= lane < n_lanes:
+                raise PlacementError(f"traffic.lanes names lane {lane}, which {track.name} lacks (lanes 0.."
+                                     f"{n_lanes - 1})")
+        length, width = size
+        mean = default_speed if config.speed is None else config.speed
+        next_s = {lane: ego_s + (0.5 * ego_size[0] + config.ahead + 0.5 * length if lane == ego_lane
+                                 else config.beside) for lane in lanes}
+        cars = []
+        for i in range(config.vehicles):
+            lane = lanes[i % len(lanes)]
+            desired = max(0.0, float(rng.uniform(mean - config.speed_spread, mean + config.speed_spread)))
+            gap = config.gap * float(rng.uniform(1.0 - config.gap_spread, 1.0 + config.gap_spread))
+            s = next_s[lane]
+            if not 0.5 * length <= s <= end_s:
+                raise PlacementError(f"traffic car {i} would start at s = {s:.0f} m in lane {lane}, off the road "
+                                     f"(0..{end_s:.0f} m): lower traffic.vehicles, traffic.gap or traffic.ahead, "
+                                     f"or raise traffic.beside")
+            cars.append(TrafficCar(i, lane, s, desired, desired))
+            next_s[lane] = s + length + gap
+        return cls(track, cars, config.idm(), length, width, ego_size[0], ego_size[1], end_s)
+
+    def _ego_lanes(self, ego: EgoOnRoad) -> set[int]:
+        """Lanes the ego footprint overlaps laterally at its arc length."""
+        lanes = set()
+        for ln in self.track.lanes:
+            c, w = ln.offset_at(ego.s), ln.width_at(ego.s)
+            if abs(ego.t - c) < 0.5 * (w + self.ego_width):
+                lanes.add(ln.index)
+        return lanes
+
+    def advance(self, dt: float, ego: EgoOnRoad | None) -> None:
+        """Move every car over dt: IDM acceleration behind its leader (the next car in its lane, the ego, or the
+        road's end), evaluated for all cars before any moves; an ego off the map (None) leads no car."""
+        ego_lanes = self._ego_lanes(ego) if ego is not None else set()
+        leaders: dict[int, TrafficCar] = {}
+        by_lane: dict[int, list[TrafficCar]] = {}
+        for car in sorted(self.cars, key=lambda c: c.s):
+            by_lane.setdefault(car.lane, []).append(car)
+        for cars in by_lane.values():
+            leaders.update((behind.id, ahead) for behind, ahead in pairwise(cars))
+        steps = []
+        for car in self.cars:
+            if car.desired <= 0.0:
+                steps.append((0.0, 0.0))
+                continue
+            gap, lead_speed = self.end_s + 0.5 * self.length - car.s, 0.0
+            ahead = leaders.get(car.id)
+            if ahead is not None and ahead.s - car.s - self.length < gap:
+                gap, lead_speed = ahead.s - car.s - self.length, ahead.speed
+            if ego is not None and car.lane in ego_lanes and ego.s > car.s:
+                ego_gap = ego.s - car.s - 0.5 * (self.length + self.ego_length)
+                if ego_gap < gap:
+                    gap, lead_speed = ego_gap, ego.speed
+            steps.append(integrate(car.speed, idm_accel(self.idm, car.speed, car.desired, gap,
+                                                        car.speed - lead_speed), dt))
+        for car, (ds, v) in zip(self.cars, steps, strict=True):
+            car.s, car.speed = car.s + ds, v
+
+    def near(self, s: float, radius: float) -> list[TrafficCar]:
+        """The cars whose centres lie within `radius` m of reference arc length s."""
+        return [car for car in self.cars if abs(car.s - s) <= radius]
+
+    def poses(self, cars: list[TrafficCar] | None = None) -> list[Pose]:
+        """Each car's (default: every car's) centre on its lane's centre line, heading along the road."""
+        out = []
+        for car in self.cars if cars is None else cars:
+            x, y, h = self.track.reference.frame(car.s)
+            t = self.track.lanes[car.lane].offset_at(car.s)
+            out.append(Pose(x - t * math.sin(h), y + t * math.cos(h), h))
+        return out
+
+    def velocity(self, car: TrafficCar) -> tuple[float, float]:
+        """The car's world velocity (m/s)."""
+        yaw = self.track.lanes[car.lane].heading_at(car.s)
+        return car.speed * math.cos(yaw), car.speed * math.sin(yaw)
