@@ -7,6 +7,7 @@ from testbed.direct_chassis import DirectChassis
 from testbed.eval.runner import physics_world_for
 from testbed.eval.scenario import Scenario
 from testbed.presets import build_track, vehicle
+from testbed.world import PHYSICS_HZ
 
 
 def scenario_plant(sc: Scenario) -> DirectChassis:
@@ -23,7 +24,7 @@ def pybullet_plant(
     vehicle: str = "sedan",
     start_s: str | float = 20.0,
     lane: str | int | None = None,
-    physics_hz: str | float = 240.0,
+    physics_hz: str | float = PHYSICS_HZ,
 ) -> DirectChassis:
     """Factory for `ld3 ecu --plant pybullet --plant-arg track=parking-lot ...` (values may be strings)."""
     sc = Scenario(
@@ -40,7 +41,7 @@ def pybullet_plant(
 def plant_args_for(sc: Scenario) -> dict[str, str]:
     """The `pybullet_plant` keyword strings that rebuild `sc`'s plant in an ECU process."""
     args = {"track": sc.track, "vehicle": sc.vehicle, "start_s": repr(sc.start_s)}
-    args["physics_hz"] = repr(float(sc.rates.get("physics_hz", 240.0)))
+    args["physics_hz"] = repr(float(sc.rates.get("physics_hz", PHYSICS_HZ)))
     if sc.lane is not None:
         args["lane"] = str(sc.lane)
     return args

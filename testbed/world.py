@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import math
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -39,14 +38,8 @@ MESH_SPACING_M = SEGMENT_SPACING_M
 GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    physics_hz: float = 240.0
-    render: bool = True
-    tile_radius_m: float = 90.0
-    texture_budget: int = 40
+PHYSICS_HZ = 240.0
+"""Default physics rate (`[rates] physics_hz`): the lowest rate whose results match 240 Hz (docs/decisions.md)."""
 
 
 class PhysicsWorld:
@@ -57,7 +50,7 @@ class PhysicsWorld:
     loading a whole road's curbs at once would make each step an order of magnitude slower.
     """
 
-    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = 240.0,
+    def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
                  obstacle_window_m: float = 60.0) -> None:
         self.client = pb.connect(pb.DIRECT)
         self.track = track

@@ -162,6 +162,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     from testbed.eval.scenario import ScenarioError, load_scenario
     from testbed.perception.registry import DETECTORS
     from testbed.registry import Capability
+    from testbed.world import PHYSICS_HZ
 
     one_core()
     sc = load_scenario(scenario).with_overrides(duration=seconds, detector=detector, speed=speed,
@@ -182,7 +183,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     cpu = time.process_time() - cpu0
     summary = result.summary
     sim_time, wall = summary["sim_time_s"], summary["wall_time_s"]
-    steps = round(sim_time * sc.rates.get("physics_hz", 240.0))
+    physics_hz = sc.rates.get("physics_hz", PHYSICS_HZ)
+    steps = round(sim_time * physics_hz)
     bare = _bare_physics(sc, steps)
 
     timed, timer = build(), SectionTimer()
@@ -197,8 +199,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     rtf, bare_rtf = sim_time / wall, sim_time / bare["wall_s"]
     out: dict[str, Any] = {
         "scenario": scenario, "track": sc.track, "vehicle": sc.vehicle, "speed_mps": sc.speed,
-        "localization": sc.localization, "detector": sc.detector, "camera": camera,
-        "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
+        "localization": sc.localization, "detector": sc.detector, "camera": camera, "physics_hz": physics_hz,
+        "control_hz": sc.rates.get("control_hz", 100.0), "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
         "real_time_factor": round(rtf, 2), "real_time_factor_cpu": round(sim_time / cpu, 2),
         "bare_physics_real_time_factor": round(bare_rtf, 2),
         "bare_physics_real_time_factor_cpu": round(sim_time / bare["cpu_s"], 2),

@@ -47,7 +47,7 @@ from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
-from testbed.world import PhysicsWorld, TileStreamer
+from testbed.world import PHYSICS_HZ, PhysicsWorld, TileStreamer
 from tracks.pose import Pose
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
@@ -68,7 +68,7 @@ class RunResult:
 
 def physics_world_for(sc: Scenario, track, params, start: Pose) -> PhysicsWorld:
     """The physics world a scenario runs in (the CAN chassis emulator builds the same one as its plant)."""
-    return PhysicsWorld(track, params, start, physics_hz=sc.rates.get("physics_hz", 240.0))
+    return PhysicsWorld(track, params, start, physics_hz=sc.rates.get("physics_hz", PHYSICS_HZ))
 
 
 class SimRun:
