@@ -200,7 +200,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     out: dict[str, Any] = {
         "scenario": scenario, "track": sc.track, "vehicle": sc.vehicle, "speed_mps": sc.speed,
         "localization": sc.localization, "detector": sc.detector, "camera": camera, "physics_hz": physics_hz,
-        "control_hz": sc.rates.get("control_hz", 100.0), "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
+        "control_hz": sc.rates.get("control_hz", 100.0), "sim_time_s": sim_time, "physics_steps": steps,
+        "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
         "real_time_factor": round(rtf, 2), "real_time_factor_cpu": round(sim_time / cpu, 2),
         "bare_physics_real_time_factor": round(bare_rtf, 2),
         "bare_physics_real_time_factor_cpu": round(sim_time / bare["cpu_s"], 2),

@@ -32,8 +32,8 @@ _N = 7
 
 def propagate_covariance(p: np.ndarray, f: np.ndarray, q_diag: np.ndarray, scratch: np.ndarray) -> None:
     """P ← F P Fᵀ + diag(q) in place (filterpy's `predict` for a zero state), `scratch` an array like P."""
-    np.matmul(f, p, out=scratch)
-    np.matmul(scratch, f.T, out=p)
+    np.dot(f, p, out=scratch)  # np.dot: the same BLAS product as np.matmul, with less call overhead
+    np.dot(scratch, f.T, out=p)
     p.flat[:: len(p) + 1] += q_diag
 
 
@@ -159,7 +159,7 @@ class MultiSensorFusion:
 
     @property
     def pose(self) -> Pose:
-        return Pose(float(self.nominal[0]), float(self.nominal[1]), float(self.nominal[2]))
+        return Pose(*self.nominal[:3].tolist())
 
     @property
     def speed(self) -> float:
