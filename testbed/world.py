@@ -38,7 +38,7 @@ MESH_SPACING_M = SEGMENT_SPACING_M
 GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
-PHYSICS_HZ = 240.0
+PHYSICS_HZ = 100.0
 """Default physics rate (`[rates] physics_hz`): the lowest rate whose results match 240 Hz (docs/decisions.md)."""
 
 

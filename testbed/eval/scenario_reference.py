@@ -30,7 +30,7 @@ TOP_LEVEL: dict[str, str] = {
     "localization": "localization source",
     "defense": "defense: a name, or a [defense] table with `kind` (default ld3) and parameters",
     "attack": "an [attack] table with `kind` and its parameters, a list of them (composed in order), or none",
-    "rates": "[rates] control_hz (100), camera_hz (20), physics_hz (240), command_hold_s (0), and a "
+    "rates": "[rates] control_hz (100), camera_hz (20), physics_hz (100), command_hold_s (0), and a "
              "[rates.localization] table of sensor rates and noise",
     "stop_at": "time of a planned in-lane stop (s), independent of any defense",
     "stop_decel": "deceleration of the planned stop (m/s²)",
