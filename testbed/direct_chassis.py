@@ -32,10 +32,14 @@ class DirectChassis(ChassisPort):
         return round(self._t_target, 9)
 
     def read(self) -> ChassisState:
+        """The state the vehicle sensed at the end of the last advance (read afresh before the first one)."""
         v = self.vehicle
-        pose, speed, yaw_rate = v.kinematics()
-        return ChassisState(t=self.t, speed=speed, steer=v.steer_angle(), accel=v.accel(), true_pose=pose,
-                            yaw_rate=yaw_rate)
+        sensed = v.sensed
+        if sensed is None:
+            pose, speed, yaw_rate = v.kinematics()
+            sensed = (pose, speed, yaw_rate, v.steer_angle())
+        pose, speed, yaw_rate, steer = sensed
+        return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose, yaw_rate=yaw_rate)
 
     def send(self, cmd: ChassisCommand) -> None:
         self._pending = cmd

@@ -30,8 +30,9 @@ from tracks.pose import Pose
 log = logging.getLogger(__name__)
 
 
-PHYSICS_HZ = 240.0
-"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise."""
+PHYSICS_HZ = 100.0
+"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise: the lowest rate whose
+results match 240 Hz (docs/decisions.md)."""
 
 
 @dataclass(frozen=True)

@@ -109,6 +109,9 @@ class ReferenceLine:
         self.x, self.y = self._integrate_positions(self.s)
         self._xs, self._ys, self._curv = self.x.tolist(), self.y.tolist(), self.curvature.tolist()
         self._cos, self._sin = np.cos(self.heading).tolist(), np.sin(self.heading).tolist()
+        self._last_sample = len(self._xs) - 1
+        self._seg_coeffs = list(zip(self._seg_s0, self._seg_h0, self._seg_k0, self._seg_dk, strict=True))
+        """(s0, heading, curvature, curvature rate) at the start of each segment."""
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
         self._hint: int | None = None
@@ -171,11 +174,11 @@ class ReferenceLine:
     # ---- point queries ----------------------------------------------------------------------
     def frame(self, s: float) -> tuple[float, float, float]:
         """(x, y, heading) of the reference point at arc length s (extrapolated straight beyond the ends)."""
+        ds = self.ds
         sc = min(max(s, 0.0), self.length)
-        i = min(int(sc / self.ds), len(self._xs) - 1)
-        d = sc - i * self.ds
-        j = max(0, bisect.bisect_right(self._seg_s0, sc) - 1)
-        s0, h0, k0, dk = self._seg_s0[j], self._seg_h0[j], self._seg_k0[j], self._seg_dk[j]
+        i = min(int(sc / ds), self._last_sample)
+        d = sc - i * ds
+        s0, h0, k0, dk = self._seg_coeffs[bisect.bisect_right(self._seg_s0, sc) - 1]
         u = sc - s0
         h = h0 + k0 * u + 0.5 * dk * u * u
         um = u - 0.5 * d
@@ -234,7 +237,7 @@ class ReferenceLine:
         """Refine from the sample just behind the answer, so the result (to the bit) does not depend on
         the query history that produced the starting index."""
         s, t = self._refine(x, y, i)
-        k = min(max(math.floor(s / self.ds), 0), len(self._xs) - 1)
+        k = min(max(math.floor(s / self.ds), 0), self._last_sample)
         if k != i:
             s, t = self._refine(x, y, k)
         self._hint = k
@@ -243,10 +246,11 @@ class ReferenceLine:
     def _walk(self, x: float, y: float, i: int) -> tuple[int, bool]:
         """Step along the samples by the along-track distance until it stays (or bounces between two
         neighbours, which happens just outside a curve); returns (index, settled)."""
-        last, previous = len(self._xs) - 1, -1
+        last, previous = self._last_sample, -1
+        xs, ys, cos, sin, ds = self._xs, self._ys, self._cos, self._sin, self.ds
         for _ in range(12):
-            a = (x - self._xs[i]) * self._cos[i] + (y - self._ys[i]) * self._sin[i]
-            j = min(max(i + math.floor(a / self.ds), 0), last)
+            a = (x - xs[i]) * cos[i] + (y - ys[i]) * sin[i]
+            j = min(max(i + math.floor(a / ds), 0), last)
             if j in (i, previous):
                 return min(i, j), True
             previous, i = i, j

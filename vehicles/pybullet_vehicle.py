@@ -85,6 +85,8 @@ class PyBulletVehicle:
         self._load = 0.0
         self._speed = 0.0
         self._accel = 0.0
+        self.sensed: tuple[Pose, float, float, float] | None = None
+        """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
         self.reset_pose(pose)
 
     # -- commands and actuation -----------------------------------------------------------------------
@@ -126,13 +128,16 @@ class PyBulletVehicle:
 
     def apply_road_load(self) -> None:
         """Push the road load of the last `actuate` on the body, along its x axis at its centre of mass, for
-        the next physics step (PyBullet clears external forces after every step)."""
+        the next physics step (PyBullet clears external forces after every step); `sensed` is stale after it."""
+        self.sensed = None
         p.applyExternalForce(self.body_id, -1, (-self._load, 0.0, 0.0), _ORIGIN, p.LINK_FRAME,
                              physicsClientId=self._cid)
 
     def sense(self, dt: float) -> None:
-        """Measure the speed after `dt` s of physics since the last `sense` and update the filtered accel."""
-        v = self.speed()
+        """Measure the state after `dt` s of physics since the last `sense` (kept in `sensed` until the next
+        physics step) and update the filtered accel from its speed."""
+        pose, v, yaw_rate = self.kinematics()
+        self.sensed = (pose, v, yaw_rate, self.steer_angle())
         alpha = dt / (_ACCEL_FILTER_TAU + dt)
         self._accel += alpha * ((v - self._speed) / dt - self._accel)
         self._speed = v
@@ -173,6 +178,7 @@ class PyBulletVehicle:
         self._speed = speed
         self._accel = 0.0
         self._load = 0.0
+        self.sensed = None
 
     # -- measurements ---------------------------------------------------------------------------------
 

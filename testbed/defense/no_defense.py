@@ -8,6 +8,8 @@ from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 
+_NEVER_DETECTED = DefenseStatus(detected=False)
+
 
 class NoDefense(Defense):
     """Always normal; MSF passes straight through."""
@@ -29,4 +31,4 @@ class NoDefense(Defense):
         return msf.pose
 
     def status(self) -> DefenseStatus:
-        return DefenseStatus(detected=False)
+        return _NEVER_DETECTED

@@ -189,7 +189,8 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     cpu = time.process_time() - cpu0
     summary = result.summary
     sim_time, wall = summary["sim_time_s"], summary["wall_time_s"]
-    steps = round(sim_time * sc.rates.physics_hz)
+    physics_hz = sc.rates.physics_hz
+    steps = round(sim_time * physics_hz)
     bare = _bare_physics(sc, steps)
 
     timed, timer = build(), SectionTimer()
@@ -204,9 +205,9 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     rtf, bare_rtf = sim_time / wall, sim_time / bare["wall_s"]
     out: dict[str, Any] = {
         "scenario": scenario, "track": sc.track, "vehicle": sc.vehicle, "speed_mps": sc.speed,
-        "localization": sc.localization, "detector": sc.detector, "camera": camera,
-        "traffic_vehicles": sc.traffic.vehicles,
-        "sim_time_s": sim_time, "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
+        "localization": sc.localization, "detector": sc.detector, "camera": camera, "physics_hz": physics_hz,
+        "control_hz": sc.rates.control_hz, "traffic_vehicles": sc.traffic.vehicles, "sim_time_s": sim_time,
+        "physics_steps": steps, "wall_time_s": round(wall, 3), "cpu_time_s": round(cpu, 3),
         "real_time_factor": round(rtf, 2), "real_time_factor_cpu": round(sim_time / cpu, 2),
         "bare_physics_real_time_factor": round(bare_rtf, 2),
         "bare_physics_real_time_factor_cpu": round(sim_time / bare["cpu_s"], 2),

@@ -32,8 +32,8 @@ _N = 7
 
 def propagate_covariance(p: np.ndarray, f: np.ndarray, q_diag: np.ndarray, scratch: np.ndarray) -> None:
     """P ← F P Fᵀ + diag(q) in place (filterpy's `predict` for a zero state), `scratch` an array like P."""
-    np.matmul(f, p, out=scratch)
-    np.matmul(scratch, f.T, out=p)
+    np.dot(f, p, out=scratch)  # np.dot: the same BLAS product as np.matmul, with less call overhead
+    np.dot(scratch, f.T, out=p)
     p.flat[:: len(p) + 1] += q_diag
 
 
@@ -88,6 +88,7 @@ class MultiSensorFusion:
         self._fp = np.empty((_N, _N))
         self._q = np.array([0.0, 0.0, p.gyro_noise**2, p.accel_noise**2, p.gyro_bias_walk**2,
                             p.accel_bias_walk**2, p.lat_vel_walk**2])
+        self._q_dt = np.empty(_N)
         self.t: float | None = None
         self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
         self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
@@ -120,7 +121,8 @@ class MultiSensorFusion:
         f[1, 2], f[1, 3], f[1, 4], f[1, 6] = (v * c - vl * s) * dt, s * dt, -p.lever * c * dt, c * dt
         f[2, 4] = -dt
         f[3, 5] = -dt
-        propagate_covariance(self.P, f, self._q * dt, self._fp)
+        np.multiply(self._q, dt, out=self._q_dt)
+        propagate_covariance(self.P, f, self._q_dt, self._fp)
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
         n = len(z)
@@ -157,7 +159,7 @@ class MultiSensorFusion:
 
     @property
     def pose(self) -> Pose:
-        return Pose(float(self.nominal[0]), float(self.nominal[1]), float(self.nominal[2]))
+        return Pose(*self.nominal[:3].tolist())
 
     @property
     def speed(self) -> float:

@@ -244,8 +244,9 @@ class Imu:
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
         sq = math.sqrt(dt)
-        self.accel_bias += m.accel_bias_walk * sq * float(self.rng.normal())
-        self.gyro_bias += m.gyro_bias_walk * sq * float(self.rng.normal())
-        a = accel + self.accel_bias + m.accel_std * float(self.rng.normal())
-        w = yaw_rate + self.gyro_bias + m.gyro_std * float(self.rng.normal())
+        walk_a, walk_g, noise_a, noise_g = self.rng.normal(size=4).tolist()  # the same draws as four scalar ones
+        self.accel_bias += m.accel_bias_walk * sq * walk_a
+        self.gyro_bias += m.gyro_bias_walk * sq * walk_g
+        a = accel + self.accel_bias + m.accel_std * noise_a
+        w = yaw_rate + self.gyro_bias + m.gyro_std * noise_g
         return ImuSample(t, a, w)

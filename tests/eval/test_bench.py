@@ -5,6 +5,7 @@ import json
 
 from testbed.cli import EXIT_USAGE, main
 from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
+from testbed.loop import PHYSICS_HZ
 
 
 def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
@@ -23,7 +24,8 @@ def test_loop_bench_without_camera_reports_both_real_time_factors_and_a_complete
     assert main(["bench", "loop", "--camera", "off", "--scenario", "highway", "--speed", "27", "--localization",
                  "msf", "--detector", "none", "--seconds", "0.5", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["camera"] is False and result["sim_time_s"] == 0.5 and result["physics_steps"] == 120
+    assert result["camera"] is False and result["sim_time_s"] == 0.5 and result["physics_hz"] == PHYSICS_HZ
+    assert result["physics_steps"] == round(0.5 * PHYSICS_HZ)
     assert result["real_time_factor"] > 0 and result["bare_physics_real_time_factor"] > 0
     assert 0 < result["ratio_to_in_loop_physics"] < 1 and result["in_loop_physics_real_time_factor"] > 0
     assert set(result["time_fraction"]) == {*LOOP_SECTIONS, "rest"}

@@ -11,6 +11,7 @@ from hil.plants import plant_args_for, pybullet_plant, scenario_plant
 from hil.scenario_run import LinkConfig, run_hil_scenario
 from testbed.eval.runner import SimRun
 from testbed.eval.scenario import load_scenario
+from testbed.loop import PHYSICS_HZ
 
 TOLERANCE_M = 0.05
 
@@ -71,7 +72,7 @@ def test_ecu_process_plant_arguments_rebuild_the_scenario_plant():
     here, there = scenario_plant(sc), pybullet_plant(**plant_args_for(sc))
     try:
         assert here.read().true_pose == pytest.approx(there.read().true_pose)
-        assert there.world.dt == pytest.approx(1 / 240)
+        assert there.world.dt == here.world.dt == pytest.approx(1 / PHYSICS_HZ)
     finally:
         here.world.close()
         there.world.close()
