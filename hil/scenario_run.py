@@ -40,7 +40,7 @@ from hil.secoc_key import link_key
 from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
 from testbed.errors import UserError
-from testbed.eval.run_folder import claim_out_dir
+from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
 from testbed.eval.summary import HilSummary
@@ -179,33 +179,29 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
     before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
     through the real readers (`hil.sensor_io`; the link's `sensor_io` then). A finished run in `out_dir` is
-    replaced only with `force` (`claim_out_dir`)."""
+    replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
     if out_dir is not None:
-        try:
-            claim_out_dir(out_dir, force)
-        except BaseException:
-            link.close()
-            raise
         log_path = log_path or out_dir / "can.asc"
     recorder: FrameRecorder | None = None
     sim: SimRun | None = None
     try:
-        if log_path is not None:
-            recorder = FrameRecorder(log_path)
-            link.bridge.add_listener(recorder)
-        if sensors == "io":
-            link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
-        if prepare is not None:
-            prepare(link)
-        sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
-                     sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
-        if sim.recording is not None:
-            link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
+        with claimed_out_dir(out_dir, force) if out_dir is not None else contextlib.nullcontext():
+            if log_path is not None:
+                recorder = FrameRecorder(log_path)
+                link.bridge.add_listener(recorder)
+            if sensors == "io":
+                link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
+            if prepare is not None:
+                prepare(link)
+            sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
+                         sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
+            if sim.recording is not None:
+                link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
         with interruptible(link.bridge.interrupt):
             link.engage()  # last before the run: a realtime bridge starts its clock here
             result = _drive(sim, link.bridge, progress)

@@ -5,7 +5,6 @@ failed."""
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -13,7 +12,7 @@ from pathlib import Path
 from hil.geodetic import DEFAULT_ORIGIN, parse_origin
 from hil.link_errors import LINK_ERRORS, link_error_line
 from hil.profile import DEFAULT_PROFILE
-from testbed.eval.run_folder import check_out_dir
+from testbed.eval.run_folder import claimed_out_dir
 
 EXIT_FAULT, EXIT_LINK = 3, 4
 
@@ -59,11 +58,9 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
                            profile=args.profile)
     if args.out is None:
         args.out = Path("runs") / f"vehicle-{time.strftime('%Y%m%d-%H%M%S')}"
-    check_out_dir(args.out, args.force)
-    if args.force and args.out.exists():
-        shutil.rmtree(args.out)
     try:
-        run = VehicleRun(config, bus_from_args(args), args.out)
+        with claimed_out_dir(args.out, args.force):
+            run = VehicleRun(config, bus_from_args(args), args.out)
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK

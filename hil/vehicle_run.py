@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -144,7 +143,6 @@ class VehicleRun:
         self.bus = bus.open()
         self.interface = bus.interface
         self.readers: list[Any] = []
-        created = not out_dir.exists()
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
             self.recorder = FrameRecorder(out_dir / "can.asc")
@@ -161,8 +159,6 @@ class VehicleRun:
                 self.readers.append(self.camera)
         except BaseException:
             self.close()
-            if created:  # a refused start leaves no folder behind
-                shutil.rmtree(out_dir, ignore_errors=True)
             raise
 
     def _start_pose(self) -> tuple[Pose, int]:

@@ -28,16 +28,32 @@ def check_out_dir(out: Path, force: bool) -> None:
         raise UserError(f"--out {out} holds a finished run; pass --force to replace it, or choose another folder")
 
 
-def claim_out_dir(out: Path, force: bool) -> None:
-    """Make `out` an empty folder for a run that writes in place as it goes (a CAN log, a vehicle drive):
-    refused as `check_out_dir` refuses; a finished run there is removed first when `force`."""
+@contextmanager
+def claimed_out_dir(out: Path, force: bool) -> Iterator[Path]:
+    """`out` as an empty folder for a run that writes in place as it goes (a CAN log, a vehicle drive), for
+    the body that starts the run: refused as `check_out_dir` refuses; with `force` a finished run there is moved
+    aside and removed only once the body returns; if the body raises, the new folder goes and the earlier run
+    comes back."""
     check_out_dir(out, force)
+    old = out.parent / f".{out.name}.old-{os.getpid()}"
+    moved = (out / SUMMARY).is_file()
     try:
-        if (out / SUMMARY).is_file():
-            shutil.rmtree(out)
+        if moved:
+            shutil.rmtree(old, ignore_errors=True)
+            os.rename(out, old)
+        created = not out.exists()
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot write to output directory {out}: {exc.strerror}") from None
+    try:
+        yield out
+    except BaseException:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        if moved:
+            os.rename(old, out)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
 
 
 @contextmanager
