@@ -73,14 +73,10 @@ class Scenario(BaseModel):
 
     @model_validator(mode="after")
     def _components(self) -> Scenario:
-        try:
-            parse_track_spec(self.track)
-        except ValueError as exc:
-            raise ScenarioError(str(exc)) from None
         from testbed.conditions import get_condition  # the camera's conditions need OpenCV (not on a vehicle)
 
+        track, _ = parse_track_spec(self.track)
         get_condition(self.condition)
-        track = parse_track_spec(self.track)[0]
         for registry, name in ((TRACKS, track), (VEHICLES, self.vehicle), (LOCALIZATIONS, self.localization),
                                (DETECTORS, self.detector), (DEFENSES, self.defense)):
             _check(name in registry, f"unknown {registry.family} {name!r}; known: {', '.join(registry.names())}")
@@ -145,11 +141,6 @@ def _one_line(exc: ValidationError) -> str:
 def _check(cond: bool, msg: str) -> None:
     if not cond:
         raise ScenarioError(msg)
-
-
-def validate(sc: Scenario) -> Scenario:
-    """`sc`, checked again (a Scenario is validated when built; kept for callers that build then check)."""
-    return Scenario.build(**sc.fields())
 
 
 def check_needs(sc: Scenario) -> frozenset[Capability]:
