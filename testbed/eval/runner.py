@@ -63,7 +63,7 @@ class SimRun:
                  defense: Defense | None = None, detector: LaneDetector | None = None,
                  attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
                  sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
-        """The options are `RunOptions`'."""
+        """The keyword options are those of `RunOptions`."""
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
         options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
                              sensor_ports)
