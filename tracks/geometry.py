@@ -15,12 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracks.compiled import compiled_module
 from tracks.pose import Pose
 from tracks.recent import RecentAnswers
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
 _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-point search
 _MEMO_SIZE = 16  # recent projections kept: a control tick asks about the same few points several times
+_KERNEL_REACH = 1e9  # m: coordinates the compiled kernel takes (beyond, and for NaN, the pure-Python path answers)
+_KERNELS = compiled_module("tracks.reference_kernels")
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,11 @@ class ReferenceLine:
         """(s0, heading, curvature, curvature rate) at the start of each segment."""
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
+        self._kernel = None if _KERNELS is None else _KERNELS.LineKernel(
+            np.column_stack([self.x, self.y, self._cos, self._sin, self.curvature]),
+            np.array(self._seg_coeffs, dtype=float), self._coarse_xy, self._coarse_stride, self.ds, self.length)
+        """The compiled `frame` and `project` (tracks/reference_kernels.pyx), where built; None: the pure-Python
+        methods below answer, the reference the kernel is tested equal to."""
         self._hint: int | None = None
         self._memo: RecentAnswers[tuple[float, float, float], tuple[float, float]] = RecentAnswers(_MEMO_SIZE)
 
@@ -174,6 +182,11 @@ class ReferenceLine:
     # ---- point queries ----------------------------------------------------------------------
     def frame(self, s: float) -> tuple[float, float, float]:
         """(x, y, heading) of the reference point at arc length s (extrapolated straight beyond the ends)."""
+        if self._kernel is not None and -_KERNEL_REACH < s < _KERNEL_REACH:
+            return self._kernel.frame(s)
+        return self._frame(s)
+
+    def _frame(self, s: float) -> tuple[float, float, float]:
         ds = self.ds
         sc = min(max(s, 0.0), self.length)
         i = min(int(sc / ds), self._last_sample)
@@ -220,7 +233,13 @@ class ReferenceLine:
         returned again for the same point.
         """
         found = self._memo.get((x, y, max_offset))
-        return found if found is not None else self._memo.keep((x, y, max_offset), self._project(x, y, max_offset))
+        return found if found is not None else self._memo.keep((x, y, max_offset), self._solve(x, y, max_offset))
+
+    def _solve(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
+        kernel = self._kernel
+        if kernel is None or not (abs(x) < _KERNEL_REACH and abs(y) < _KERNEL_REACH):
+            return self._project(x, y, max_offset)
+        return kernel.project(x, y, max_offset)
 
     def _project(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         if self._hint is not None:
@@ -264,7 +283,7 @@ class ReferenceLine:
         k = self._curv[i]
         s = i * self.ds + (math.atan2(k * a, 1.0 - k * t) / k if abs(k) > 1e-12 else a)
         for _ in range(4):
-            px, py, h = self.frame(s)
+            px, py, h = self._frame(s)
             c, sn = math.cos(h), math.sin(h)
             dx, dy = x - px, y - py
             a = dx * c + dy * sn
