@@ -120,8 +120,8 @@ class ReferenceLine:
         self._kernel = None if _KERNELS is None else _KERNELS.LineKernel(
             np.column_stack([self.x, self.y, self._cos, self._sin, self.curvature]),
             np.array(self._seg_coeffs, dtype=float), self._coarse_xy, self._coarse_stride, self.ds, self.length)
-        """The compiled `frame` and `project` (tracks/reference_kernels.pyx), where built; None: the pure-Python
-        methods below answer, the reference the kernel is tested equal to."""
+        """The compiled point queries and `project` (tracks/reference_kernels.pyx), where built; None: the
+        pure-Python methods below answer, the reference the kernel is tested equal to."""
         self._hint: int | None = None
         self._memo: RecentAnswers[tuple[float, float, float], tuple[float, float]] = RecentAnswers(_MEMO_SIZE)
 
@@ -131,6 +131,11 @@ class ReferenceLine:
 
     def heading_at(self, s: float) -> float:
         """Heading (rad) at arc length s; constant beyond the ends."""
+        if self._kernel is not None:
+            return self._kernel.heading_at(s)
+        return self._heading_at(s)
+
+    def _heading_at(self, s: float) -> float:
         s = min(max(s, 0.0), self.length)
         i = self._seg_index(s)
         u = s - self._seg_s0[i]
@@ -138,6 +143,11 @@ class ReferenceLine:
 
     def curvature_at(self, s: float) -> float:
         """Signed curvature (1/m, + left) at arc length s; zero beyond the ends."""
+        if self._kernel is not None:
+            return self._kernel.curvature_at(s)
+        return self._curvature_at(s)
+
+    def _curvature_at(self, s: float) -> float:
         if s < 0.0 or s > self.length:
             return 0.0
         i = self._seg_index(s)
@@ -195,7 +205,7 @@ class ReferenceLine:
         u = sc - s0
         h = h0 + k0 * u + 0.5 * dk * u * u
         um = u - 0.5 * d
-        h_mid = h0 + k0 * um + 0.5 * dk * um * um if um >= 0.0 else self.heading_at(sc - 0.5 * d)
+        h_mid = h0 + k0 * um + 0.5 * dk * um * um if um >= 0.0 else self._heading_at(sc - 0.5 * d)
         k = self._curv[i]
         chord = d * (1.0 - k * k * d * d / 24.0)
         x = self._xs[i] + chord * math.cos(h_mid)
@@ -290,7 +300,7 @@ class ReferenceLine:
             t = -dx * sn + dy * c
             if abs(a) < 1e-6:
                 return s + a, t
-            k = self.curvature_at(s)
+            k = self._curvature_at(s)
             denom = 1.0 - k * t
             s += a / denom if denom > 0.1 else a
         return s, t

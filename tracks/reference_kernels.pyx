@@ -1,5 +1,6 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
-"""`ReferenceLine.frame` and `ReferenceLine.project` compiled, over the line's sample arrays.
+"""`ReferenceLine`'s point queries (`heading_at`, `curvature_at`, `frame`) and `project`, compiled, over the
+line's sample arrays.
 
 The same arithmetic as the pure-Python methods in `tracks/geometry.py`, operation for operation and in the
 same order (C evaluates left to right like Python, the build turns off multiply-add contraction, and the
@@ -98,6 +99,14 @@ cdef class LineKernel:
             px += (s - sc) * cos(hh)
             py += (s - sc) * sin(hh)
         x[0], y[0], h[0] = px, py, hh
+
+    def heading_at(self, double s):
+        """Heading (rad) at arc length s; constant beyond the ends."""
+        return self._heading_at(s)
+
+    def curvature_at(self, double s):
+        """Signed curvature (1/m) at arc length s; zero beyond the ends."""
+        return self._curvature_at(s)
 
     def frame(self, double s):
         """(x, y, heading) at arc length s; s finite."""

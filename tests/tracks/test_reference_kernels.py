@@ -1,6 +1,6 @@
-"""The compiled reference-line kernel answers `frame` and `project` to the bit as the pure-Python methods do,
-on every preset: along the lanes (the walk from the last answer), at random offsets, beyond the ends and far
-off (the coarse search)."""
+"""The compiled reference-line kernel answers `heading_at`, `curvature_at`, `frame` and `project` to the bit as
+the pure-Python methods do, on every preset: along the lanes (the walk from the last answer), at random offsets,
+beyond the ends and far off (the coarse search)."""
 
 import copy
 import pickle
@@ -40,6 +40,8 @@ def test_kernel_answers_as_the_python_reference(spec):
     for si, ti in zip(s, t, strict=True):
         x, y = pure.point(float(np.clip(si, 0.0, line.length)), float(ti))
         assert line.frame(float(si)) == pure.frame(float(si))
+        assert line.heading_at(float(si)) == pure.heading_at(float(si))
+        assert line.curvature_at(float(si)) == pure.curvature_at(float(si))
         assert line.project(x, y) == pure.project(x, y)
         assert line.project(x, y, 5.0) == pure.project(x, y, 5.0)
 
