@@ -6,7 +6,7 @@ import sys
 from setuptools import Extension, setup
 
 NO_CONTRACTION = [] if sys.platform == "win32" else ["-ffp-contract=off"]  # bit-equal to the Python reference
-KERNELS = ["tracks.reference_kernels"]
+KERNELS = ["tracks.reference_kernels", "testbed.localization.msf_kernels"]
 
 setup(ext_modules=[Extension(name, [name.replace(".", "/") + ".pyx"], optional=True,
                              extra_compile_args=NO_CONTRACTION) for name in KERNELS])
