@@ -36,6 +36,9 @@ from testbed.world import PhysicsWorld
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 
+COLLISION_REACH_M = 15.0
+"""Traffic cars whose centres lie farther than this plus a car length (reference arc length) from the ego's get no
+physics body this tick: neither can close that gap within one control tick."""
 STOP_SPEED = 0.05
 
 
@@ -83,7 +86,7 @@ class SimRun:
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
         self._traffic_reach = 0.0
         if self.traffic is not None:
-            self._traffic_reach = (max(self.world.window, self.streamer.ahead if self.streamer is not None else 0.0)
+            self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
                                    + self.traffic.length)
 
     def __getattr__(self, name: str) -> Any:
