@@ -36,6 +36,9 @@ from testbed.world import PhysicsWorld
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 
+COLLISION_REACH_M = 15.0
+"""Traffic cars whose centres lie farther than this plus a car length (reference arc length) from the ego's get no
+physics body this tick: neither can close that gap within one control tick."""
 STOP_SPEED = 0.05
 
 
@@ -68,7 +71,9 @@ class SimRun:
         options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
                              sensor_ports)
         self.parts = build_run(sc, options, self._keep_frame)
-        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length)
+        left = self.lane + 1
+        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length,
+                                          left < len(self.track.lanes) and self.track.lanes[left].oncoming)
         self._half_diagonal = 0.5 * math.hypot(self.params.length, self.params.width)
         self.n_ticks = round(sc.duration * self.loop.rates.control_hz)
         self.rows: list[TickRecord] = []
@@ -82,7 +87,7 @@ class SimRun:
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
         self._traffic_reach = 0.0
         if self.traffic is not None:
-            self._traffic_reach = (max(self.world.window, self.streamer.ahead if self.streamer is not None else 0.0)
+            self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
                                    + self.traffic.length)
 
     def __getattr__(self, name: str) -> Any:
