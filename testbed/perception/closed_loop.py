@@ -31,7 +31,7 @@ from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
 from testbed.eval.run_build import END_MARGIN_M
 from testbed.eval.runner import SimRun
-from testbed.eval.scenario import load_scenario
+from testbed.eval.scenario import Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import make_detector
@@ -41,6 +41,7 @@ from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.road import Track
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -77,11 +78,9 @@ def error_stats(err: np.ndarray) -> dict[str, float | None]:
     return {"mean_m": float(e.mean()), "p99_m": float(np.percentile(e, 99)), "max_m": float(e.max())}
 
 
-def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
-          existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M) -> dict:
-    """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
-    (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
-    or before the first frame)."""
+def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, traffic: int = 0,
+                   lead_gap: float = LEAD_GAP_M) -> tuple[Scenario, Track]:
+    """The scenario of a cell's drive and its track; a UserError where its road cannot hold the traffic."""
     base = load_scenario(cell.preset)
     spec = f"{cell.preset}@{cell.track_seed}"
     track = load_track(spec)
@@ -95,6 +94,16 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     sc = base.with_overrides(track=spec, condition=cell.condition, duration=duration, speed=speed, seed=seed,
                              detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}",
                              traffic=table)
+    return sc, track
+
+
+def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
+          existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M) -> dict:
+    """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
+    (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
+    or before the first frame)."""
+    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap)
+    spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
     tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed)))
     sim = SimRun(sc, detector=tap, tracking=True)
@@ -153,6 +162,9 @@ def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "
         get_condition(condition)
     todo = cells(presets, conditions)
     options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap}
+    if traffic:
+        for cell in todo:
+            drive_scenario(cell, detector, duration, **options)
     bar = tqdm(total=len(todo), desc="closed loop", unit="drive", disable=not progress)
     if workers <= 1:
         _one_thread()
