@@ -1,27 +1,41 @@
 """A lane as a lateral offset of the road's reference line (highway-env `AbstractLane` style).
 
 Longitudinal coordinate s is the reference line's arc length (shared by all lanes of a road, so lanes
-line up at the same s); lateral coordinate l is signed, + left of this lane's centreline. Offset and width
-are constants, or `Profile`s along s where the lane widens or narrows (roads read from OpenDRIVE).
+line up at the same s); lateral coordinate l is signed, + left of this lane's centreline as seen in the lane's
+direction of travel: along the reference line (`direction` +1), or against it for an oncoming lane (−1, which
+is travelled towards decreasing s). Heading and curvature are those of travel too. Offset and width are
+constants, or `Profile`s along s where the lane widens or narrows (roads read from OpenDRIVE); the offset is
+always measured on the reference line, + left of it.
 """
 
 from __future__ import annotations
+
+import math
 
 from tracks.geometry import ReferenceLine
 from tracks.profile import Profile
 
 
 class Lane:
-    """Lane `index` (0 = rightmost) centred `offset` m left of the reference line, `width` m wide; with
-    profiles, those are nominal values and `offset_at`/`width_at` follow the profiles."""
+    """Lane `index` (0 = rightmost) centred `offset` m left of the reference line, `width` m wide, travelled
+    along the reference line (`direction` +1) or against it (−1); with profiles, offset and width are nominal
+    values and `offset_at`/`width_at` follow the profiles."""
 
     def __init__(self, reference: ReferenceLine, index: int, offset: float, width: float,
-                 profiles: tuple[Profile, Profile] | None = None) -> None:
+                 profiles: tuple[Profile, Profile] | None = None, direction: int = 1) -> None:
+        if direction not in (1, -1):
+            raise ValueError(f"lane direction must be +1 or -1, got {direction}")
         self.reference = reference
         self.index = index
         self.offset = offset
         self.width = width
         self.profiles = profiles
+        self.direction = direction
+
+    @property
+    def oncoming(self) -> bool:
+        """True for a lane travelled against the reference line."""
+        return self.direction < 0
 
     @property
     def length(self) -> float:
@@ -29,15 +43,17 @@ class Lane:
 
     def position(self, s: float, lat: float = 0.0) -> tuple[float, float]:
         """World (x, y) of the point at reference arc length s, `lat` metres left of the lane centre."""
-        return self.reference.point(s, self.offset_at(s) + lat)
+        return self.reference.point(s, self.offset_at(s) + self.direction * lat)
 
     def local_coordinates(self, x: float, y: float) -> tuple[float, float]:
         """(s, l) of a world point: s along the reference line, l signed offset from this lane's centre."""
         s, t = self.reference.project(x, y)
-        return s, t - self.offset_at(s)
+        return s, self.direction * (t - self.offset_at(s))
 
     def heading_at(self, s: float) -> float:
-        return self.reference.heading_at(s)
+        """Heading of travel (rad): the reference line's, turned by π for an oncoming lane."""
+        h = self.reference.heading_at(s)
+        return h if self.direction > 0 else h + math.pi
 
     def offset_at(self, s: float) -> float:
         """Offset (m, + left) of the lane centre from the reference line at s."""
@@ -47,6 +63,7 @@ class Lane:
         return self.width if self.profiles is None else self.profiles[1].at(s)
 
     def curvature_at(self, s: float) -> float:
-        """Curvature of the lane centreline itself (1/m, + left): k / (1 - k * offset) for an offset curve."""
+        """Curvature of the lane centreline itself in its direction of travel (1/m, + left): k / (1 - k * offset)
+        for an offset curve, negated for an oncoming lane."""
         k = self.reference.curvature_at(s)
-        return k / (1.0 - k * self.offset_at(s))
+        return self.direction * k / (1.0 - k * self.offset_at(s))

@@ -258,6 +258,40 @@ def local(seed: int) -> Track:
     )
 
 
+TWO_WAY_BENDS = [(250.0, 25, 180), (-180.0, 35, 220), (300.0, 20, 160), (-220.0, 30, 200), (200.0, 25, 150)]
+
+
+def two_way(seed: int) -> Track:
+    rng = None if seed == 0 else np.random.default_rng(seed)
+    widths = [3.40, _pick(rng, 3.40, 3.20, 3.60)]
+    segs = _curves(
+        rng,
+        TWO_WAY_BENDS,
+        (150.0, 450.0),
+        (15.0, 40.0),
+        (120.0, 260.0),
+        lambda r, a: min(30.0, 0.4 * r * a),
+        total=1500.0,
+        run_in=150.0,
+    )
+    ref = ReferenceLine(Pose(0.0, 0.0, 0.0), segs)
+    trees = RoadsideBody("tree", gap=1.6, thickness=0.5, height=5.0, spacing=_pick(rng, 12.0, 9.0, 15.0))
+    edge = Edge("curb", paved=0.30, ground="grass", bodies=(RoadsideBody("curb", 0.30, 0.30, 0.15), trees))
+    return Track(
+        "two-way",
+        seed,
+        "two-way road (ego 3.40 m, one oncoming lane, double yellow centre line, R >= 150 m), curbs and trees",
+        ref,
+        widths,
+        ["solid_white", "double_yellow", "solid_white"],
+        edge,
+        edge,
+        lidar_profile=lidar_profile(seed, ref.length, 0.75, 2),
+        painters=_painters(rng),
+        oncoming=1,
+    )
+
+
 def parking_lot(seed: int) -> Track:
     rng = None if seed == 0 else np.random.default_rng(seed)
     edge = Edge("open", paved=12.0, ground="asphalt", roadside=2.0)
@@ -282,6 +316,7 @@ PRESETS: dict[str, Callable[[int], Track]] = {
     "highway": highway,
     "local": local,
     "parking-lot": parking_lot,
+    "two-way": two_way,
 }
 
 

@@ -1,5 +1,6 @@
-"""A track: one road of same-direction lanes on a reference line, with markings, edges, intersections,
-a LiDAR feature-quality profile and the painters of its tiles. A track is data: its semantic map
+"""A track: one road of lanes on a reference line, with markings, edges, intersections, a LiDAR
+feature-quality profile and the painters of its tiles. The lanes run along the reference line, except the
+leftmost `oncoming` ones, which carry the other direction's traffic (a two-way road). A track is data: its semantic map
 (`tracks.semantic_map.TrackMap`), tiles (`tracks.texture`) and collision bodies (`tracks.obstacles`) are
 built from it.
 
@@ -48,11 +49,16 @@ class Track:
         tile_length: float = 20.0,
         px_per_m: float = 25.0,
         width_table: tuple[np.ndarray, np.ndarray] | None = None,
+        oncoming: int = 0,
     ) -> None:
         if len(line_kinds) != len(lane_widths) + 1:
             raise ValueError("need one marking kind per lane line (lanes + 1)")
-        if not 0 <= ego_lane < len(lane_widths):
-            raise ValueError(f"ego lane {ego_lane} out of range")
+        if not 0 <= oncoming < len(lane_widths):
+            raise ValueError(f"{oncoming} oncoming lanes on a road of {len(lane_widths)}: at least one lane must "
+                             f"run along the reference line")
+        if not 0 <= ego_lane < len(lane_widths) - oncoming:
+            raise ValueError(f"ego lane {ego_lane} out of range (lanes along the road: "
+                             f"0..{len(lane_widths) - oncoming - 1})")
         self.name = name
         self.seed = seed
         self.description = description
@@ -63,8 +69,9 @@ class Track:
         self.intersections = sorted((float(a), float(b)) for a, b in intersections)
         offsets = np.concatenate([[0.0], np.cumsum(lane_widths)])
         offsets -= offsets[ego_lane] + 0.5 * lane_widths[ego_lane]
+        first_oncoming = len(lane_widths) - oncoming
         self.lanes = [
-            Lane(reference, i, float(offsets[i] + 0.5 * w), float(w), profiles)
+            Lane(reference, i, float(offsets[i] + 0.5 * w), float(w), profiles, -1 if i >= first_oncoming else 1)
             for i, (w, profiles) in enumerate(zip(lane_widths, self._profiles(width_table, len(lane_widths),
                                                                                ego_lane), strict=True))
         ]
@@ -118,6 +125,11 @@ class Track:
     def lateral_range(self) -> tuple[float, float]:
         """Lateral extent [t_min, t_max] covered by the tiles (road plus roadside)."""
         return self.boundaries[0].t - self.right.extent, self.boundaries[-1].t + self.left.extent
+
+    @property
+    def oncoming(self) -> int:
+        """Number of lanes (the leftmost) that run against the reference line."""
+        return sum(ln.oncoming for ln in self.lanes)
 
     def in_intersection(self, s: float) -> bool:
         return any(a <= s < b for a, b in self.intersections)

@@ -2,11 +2,16 @@
 
 A pose is projected once onto the track's reference line (local search from the previous answer, exact
 Newton refinement), then expressed against the requested lane, or against the lane containing it (the
-nearest lane centre when between or beyond lanes) when `lane` is None. Lanes with width profiles are
-measured against their centre and edges at the projection's s.
+nearest lane centre when between or beyond lanes) when `lane` is None. On a two-way road, `lane` None looks
+only among the lanes whose direction of travel is within 90° of the pose's heading (a car pushed over the
+centre line is still on its own side's map, far left of its lane). Offsets l are + left in the answered lane's
+direction of travel. Lanes with width profiles are measured against their centre and edges at the projection's
+s.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -28,6 +33,7 @@ class TrackMap:
         self._centres = [ln.offset for ln in track.lanes]
         self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
         self._profiled = any(ln.profiles is not None for ln in track.lanes)
+        self._sides = self._directions(track)
         lo, hi = self._bounds[0][0], self._bounds[-1][1]
         for ln in track.lanes if self._profiled else ():
             centre, width = ln.profiles[0].v, ln.profiles[1].v
@@ -35,6 +41,12 @@ class TrackMap:
         self._reach = (lo - OFF_MAP_MARGIN, hi + OFF_MAP_MARGIN)
         self._length = track.length
         self._memo: RecentAnswers[tuple[Pose, int | None], LaneCoord] = RecentAnswers(_MEMO_SIZE)
+
+    @staticmethod
+    def _directions(track: Track) -> tuple[range, range] | None:
+        """(lanes along, lanes against) the reference line on a two-way road; None on a one-way road."""
+        n, against = len(track.lanes), track.oncoming
+        return None if against == 0 else (range(n - against), range(n - against, n))
 
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
         """The pose on `lane` (default: the lane containing it); the last few answers are returned again for
@@ -60,14 +72,23 @@ class TrackMap:
         else:
             centres, bounds = self._centres, self._bounds
         if lane is None:
-            lane = self._lane_at(t, bounds)
-        return LaneCoord(lane, s, t - centres[lane])
+            lane = self._lane_at(t, bounds, self._candidates(pose, s))
+        return LaneCoord(lane, s, self._lanes[lane].direction * (t - centres[lane]))
 
-    def _lane_at(self, t: float, bounds: list[tuple[float, float]]) -> int:
-        for i, (lo, hi) in enumerate(bounds):
+    def _candidates(self, pose: Pose, s: float) -> range:
+        """The lanes a pose may be matched to: those of its direction of travel on a two-way road."""
+        if self._sides is None:
+            return range(len(self._lanes))
+        along = math.cos(pose.yaw - self.track.reference.heading_at(s)) >= 0.0
+        return self._sides[0] if along else self._sides[1]
+
+    @staticmethod
+    def _lane_at(t: float, bounds: list[tuple[float, float]], lanes: range) -> int:
+        for i in lanes:
+            lo, hi = bounds[i]
             if lo <= t < hi:
                 return i
-        return 0 if t < bounds[0][0] else len(self._lanes) - 1
+        return lanes[0] if t < bounds[lanes[0]][0] else lanes[-1]
 
     def lane_dev(self, pose: Pose, lane: int | None = None) -> float:
         return self.project(pose, lane).l

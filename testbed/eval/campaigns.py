@@ -221,6 +221,33 @@ def fusionripper_ld3_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
+# ---- FusionRipper into oncoming traffic ------------------------------------------------------------------
+TWO_WAY_SPEED = 13.0
+TWO_WAY_STARTS = (8.0, 14.0, 20.0)
+TWO_WAY_TRAFFIC = {"vehicles": 8, "speed": TWO_WAY_SPEED + 2.0, "gap": 35.0}
+"""Four cars each way; those ahead in the ego lane drive faster than the ego car, which does not follow cars."""
+
+
+def fusionripper_two_way_runs(detector: str) -> list[CampaignRun]:
+    """FusionRipper spoofing right, so lane centring steers the car left over the centre line into the oncoming
+    stream: held-out two-way layouts × noise seeds × start times, without defense and with default LD3."""
+    runs = []
+    for defense in ("none", "ld3"):
+        for track_seed in FR_LD3_TRACK_SEEDS:
+            base = load_scenario("two-way").with_overrides(
+                track=f"two-way@{track_seed}", speed=TWO_WAY_SPEED, duration=45.0, localization="msf",
+                defense=defense, detector=detector if defense != "none" else "none", traffic=TWO_WAY_TRAFFIC)
+            for seed in FR_LD3_NOISE_SEEDS[:2]:
+                for start in TWO_WAY_STARTS:
+                    runs.append(CampaignRun(f"{defense}-two-way@{track_seed}-seed{seed}-start{start:g}",
+                                            base.with_overrides(seed=seed, name=f"fr-two-way-{defense}", attack={
+                                                "kind": "fusionripper", **FR_BEST, "start": start,
+                                                "direction": "right"}),
+                                            {"track": "two-way", "track_seed": track_seed, "seed": seed,
+                                             "start": start}))
+    return runs
+
+
 # ---- benign false alarms ---------------------------------------------------------------------------------
 BENIGN_PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -404,6 +431,9 @@ for _spec in (
     CampaignSpec("fusionripper-ld3", "FusionRipper (d=1.0, f=1.5) through the MSF on local and highway, LD3: "
                  "3 held-out track seeds × 3 noise seeds × 5 start times per track",
                  fusionripper_ld3_runs, defense_table),
+    CampaignSpec("fusionripper-two-way", "FusionRipper (d=1.0, f=1.5) steering the car over the centre line of a "
+                 "two-way road into oncoming traffic (8 cars): 3 held-out layouts × 2 noise seeds × 3 start times, "
+                 "no defense and LD3", fusionripper_two_way_runs, defense_table),
     CampaignSpec("benign", "benign LD3 runs on every preset, 5 seeds each: false alarms", benign_runs, benign_table),
     CampaignSpec("benign-traffic", "benign LD3 runs in traffic (6 cars at the ego's speed, a lead car close ahead "
                  "in the ego lane) on every preset × camera condition, 3 seeds, 30 s: false alarms and the tracked "

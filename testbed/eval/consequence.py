@@ -4,8 +4,9 @@ and where the car ends relative to its lane.
 Precedence: the first contact (curb, barrier/guardrail/tree, lane divider, traffic car) or leaving the paved surface
 beyond a drop-off ends the run at once. Otherwise a run stopped by the attack response is
 `stop_in_lane` when its final |D| is within the lane straddle deviation, `stop_with_lane_straddle` while
-the body still overlaps the lane, `out_of_lane` beyond; a run not stopped is `out_of_lane` once |D| ever
-exceeded the straddle deviation (a wheel crossed a lane line), else `reach_destination`.
+the body still overlaps the lane, `out_of_lane` beyond; a run not stopped is `wrong_way` once a wheel crossed
+the centre line into an oncoming lane (D beyond the straddle deviation on that side), `out_of_lane` once |D|
+ever exceeded the straddle deviation otherwise, else `reach_destination`.
 """
 
 from __future__ import annotations
@@ -41,19 +42,24 @@ def footprint_corners(x: float, y: float, yaw: float, length: float, width: floa
 
 
 class ConsequenceMonitor:
-    """Watches a run tick by tick; `terminal` is set on the first run-ending event."""
+    """Watches a run tick by tick; `terminal` is set on the first run-ending event. `oncoming_left`: the lane left
+    of the ego lane carries the other direction (a two-way road's centre line is the ego lane's left line)."""
 
-    def __init__(self, lane_width: float, vehicle_width: float, vehicle_length: float) -> None:
+    def __init__(self, lane_width: float, vehicle_width: float, vehicle_length: float,
+                 oncoming_left: bool = False) -> None:
         self.lane_width = lane_width
         self.vehicle_width = vehicle_width
         self.vehicle_length = vehicle_length
         self.straddle_dev = (lane_width - vehicle_width) / 2.0
+        self.oncoming_left = oncoming_left
         self.terminal: str | None = None
         self.max_abs_dev = 0.0
+        self.max_left_dev = 0.0
 
     def observe(self, phys_dev: float | None, contacts: set[str], off_surface: bool, drop_off: bool) -> str | None:
         if phys_dev is not None and math.isfinite(phys_dev):
             self.max_abs_dev = max(self.max_abs_dev, abs(phys_dev))
+            self.max_left_dev = max(self.max_left_dev, phys_dev)
         if self.terminal is None:
             for kind in sorted(contacts):
                 if kind in CONTACT_CONSEQUENCE:
@@ -73,4 +79,6 @@ class ConsequenceMonitor:
             if dev < (self.lane_width + self.vehicle_width) / 2.0:
                 return "stop_with_lane_straddle"
             return "out_of_lane"
+        if self.oncoming_left and self.max_left_dev > self.straddle_dev:
+            return "wrong_way"
         return "out_of_lane" if self.max_abs_dev > self.straddle_dev else "reach_destination"

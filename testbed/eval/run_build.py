@@ -136,6 +136,9 @@ def _lane_and_start(sc: Scenario, track: Track) -> tuple[int, Pose]:
     lane = sc.lane if sc.lane is not None else track.ego_lane
     if not 0 <= lane < len(track.lanes):
         raise ScenarioError(f"lane {lane} does not exist on {sc.track} ({len(track.lanes)} lanes)")
+    if track.lanes[lane].oncoming:
+        raise ScenarioError(f"lane {lane} of {sc.track} is an oncoming lane; the ego car drives along the road: "
+                            f"lane = 0..{len(track.lanes) - track.oncoming - 1}")
     if sc.start_s > track.length - END_MARGIN_M:
         raise ScenarioError(f"start_s = {sc.start_s:g} m lies beyond the end of {sc.track} "
                             f"({track.length:.0f} m long, runs end {END_MARGIN_M:g} m before it)")

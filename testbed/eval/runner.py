@@ -68,7 +68,9 @@ class SimRun:
         options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
                              sensor_ports)
         self.parts = build_run(sc, options, self._keep_frame)
-        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length)
+        left = self.lane + 1
+        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length,
+                                          left < len(self.track.lanes) and self.track.lanes[left].oncoming)
         self.n_ticks = round(sc.duration * self.loop.rates.control_hz)
         self.rows: list[TickRecord] = []
         self.believed: list[tuple[float, float]] = []

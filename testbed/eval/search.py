@@ -35,7 +35,8 @@ from testbed.registry import FIXES, Component, missing_needs
 OBJECTIVES = ("undetected", "overall")
 """`undetected`: the physical deviation reached before detection first, then the deviation reached at all;
 `overall`: the other way round."""
-CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "hit_vehicle"})
+CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "wrong_way",
+                     "hit_vehicle"})
 """Consequences that end a drive in a collision or off its lane."""
 CRASH_BONUS_M = 1.0
 """Added to the score of a run that crashed (`undetected`: without a detection first): a crash ends the run,

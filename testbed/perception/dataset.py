@@ -181,7 +181,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
     if traffic:
         streamer.add_traffic(traffic, car.length, car.width, car.height)
     try:
-        lane = track.lanes[int(rng.integers(len(track.lanes)))]
+        along = [ln for ln in track.lanes if not ln.oncoming]  # the camera's car drives along the road
+        lane = along[int(rng.integers(len(along)))]
         mean_step = max(1.0, min(6.0, POSES_PER_STATION * (track.length - 10.0) / n_frames))
         run = mean_step * n_frames / POSES_PER_STATION
         s = float(rng.uniform(0.0, max(1.0, track.length - run - 2.0)))

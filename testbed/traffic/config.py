@@ -1,5 +1,6 @@
-"""The scenario's `[traffic]`: how many same-direction cars, in which lanes, where they start relative to the
-ego car, their desired speeds and gaps (drawn from the run's traffic stream) and their IDM parameters."""
+"""The scenario's `[traffic]`: how many cars, in which lanes (oncoming lanes of a two-way road too), where they
+start relative to the ego car, their desired speeds and gaps (drawn from the run's traffic stream) and their IDM
+parameters."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ from testbed.traffic.idm import IdmParams
 
 
 class TrafficConfig(BaseModel):
-    """Cars spread round-robin over `lanes`; in the ego lane the first starts `ahead` m in front of the ego car,
-    in the others the first starts `beside` m ahead of the ego's start (negative: behind), each next one a
-    drawn gap further. A table that would place no car (vehicles = 0 with other keys changed) is refused."""
+    """Cars spread round-robin over `lanes`; in the ego lane and in each oncoming lane the first starts `ahead` m
+    in front of the ego car, in the others `beside` m ahead of the ego's start (negative: behind), each next one a
+    drawn gap further from the ego. A table that would place no car (vehicles = 0 with other keys changed) is
+    refused."""
 
     model_config = STRICT
 
@@ -27,7 +29,7 @@ class TrafficConfig(BaseModel):
     lanes: list[int] | None = Field(None, description="lanes that carry traffic, 0 = rightmost "
                                                                     "(default: every lane of the track)")
     ahead: float = Field(30.0, ge=1, le=2000, description="gap from the ego car's front to the rear of the first "
-                                                          "car in the ego lane (m)")
+                                                          "car in the ego lane and in each oncoming lane (m)")
     beside: float = Field(-5.0, ge=-200, le=2000, description="start of the first car in each other lane, ahead "
                                                               "of the ego's start (m; 0 = beside, < 0 behind)")
     gap: float = Field(40.0, gt=0, le=2000, description="mean bumper-to-bumper gap between consecutive cars in "

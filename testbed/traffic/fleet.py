@@ -1,6 +1,11 @@
 """The traffic cars as a kinematic fleet on a track: each holds its lane's centre line (reference arc length s,
-advanced at its speed) and sets its speed by IDM behind the nearest car ahead in its lane, the ego car counted
-in every lane its footprint overlaps, and the road's end as a standing obstacle. No physics engine."""
+advanced at its speed in its lane's direction of travel: towards decreasing s in an oncoming lane) and sets its
+speed by IDM behind the nearest car ahead in its lane, the ego car counted in every lane its footprint overlaps
+(coming the other way in an oncoming lane), and the road's end as a standing obstacle.
+
+Oncoming cars run as a stream: one that has fallen `RECYCLE_BEHIND_M` behind the ego (or reached the road's
+start) re-enters its lane a drawn gap beyond the farthest car of that lane (if the road reaches that far), so the
+ego meets oncoming traffic all along its drive with a fixed number of cars. No physics engine."""
 
 from __future__ import annotations
 
@@ -15,6 +20,9 @@ from testbed.traffic.idm import IdmParams, idm_accel, integrate
 from tracks.pose import Pose
 from tracks.road import Track
 
+RECYCLE_BEHIND_M = 60.0
+"""How far behind the ego car (m of reference arc length) an oncoming car leaves and re-enters ahead."""
+
 
 class PlacementError(ValueError):
     """A `[traffic]` table the track cannot hold (a lane it lacks, cars beyond the road's end)."""
@@ -23,13 +31,14 @@ class PlacementError(ValueError):
 @dataclass
 class TrafficCar:
     """One car: id (its index in the fleet), lane, reference arc length s of its centre (m), speed and desired
-    speed (m/s)."""
+    speed (m/s), its lane's direction of travel (+1 along the reference line, -1 oncoming)."""
 
     id: int
     lane: int
     s: float
     speed: float
     desired: float
+    direction: int = 1
 
 
 @dataclass(frozen=True)
@@ -41,24 +50,39 @@ class EgoOnRoad:
     speed: float
 
 
+@dataclass(frozen=True)
+class Gaps:
+    """Bumper-to-bumper gaps drawn uniformly within `mean` × (1 ± `spread`) from `rng`."""
+
+    rng: np.random.Generator
+    mean: float
+    spread: float
+
+    def draw(self) -> float:
+        return self.mean * float(self.rng.uniform(1.0 - self.spread, 1.0 + self.spread))
+
+
 class Fleet:
-    """Traffic cars of one footprint (`length` × `width`) on `track`, stepped by `advance`."""
+    """Traffic cars of one footprint (`length` × `width`) on `track`, stepped by `advance`; `gaps` draws where a
+    recycled oncoming car re-enters."""
 
     def __init__(self, track: Track, cars: list[TrafficCar], idm: IdmParams, length: float, width: float,
-                 ego_length: float, ego_width: float, end_s: float) -> None:
+                 ego_length: float, ego_width: float, end_s: float, gaps: Gaps) -> None:
         self.track = track
         self.cars = cars
         self.idm = idm
         self.length, self.width = length, width
         self.ego_length, self.ego_width = ego_length, ego_width
         self.end_s = end_s
+        self.gaps = gaps
 
     @classmethod
     def place(cls, config: TrafficConfig, track: Track, ego_lane: int, ego_s: float, default_speed: float,
               rng: np.random.Generator, size: tuple[float, float], ego_size: tuple[float, float],
               end_s: float) -> Fleet:
         """The cars of `config` placed (see `TrafficConfig`), desired speeds and gaps drawn from `rng` car by
-        car; PlacementError naming the fix when a lane is not on the track or a car would start past `end_s`."""
+        car, in an oncoming lane from `ahead` m in front of the ego car outward like in the ego lane;
+        PlacementError naming the fix when a lane is not on the track or a car would start past `end_s`."""
         n_lanes = len(track.lanes)
         lanes = config.lanes if config.lanes is not None else list(range(n_lanes))
         for lane in lanes:
@@ -67,21 +91,23 @@ class Fleet:
                                      f"{n_lanes - 1})")
         length, width = size
         mean = default_speed if config.speed is None else config.speed
-        next_s = {lane: ego_s + (0.5 * ego_size[0] + config.ahead + 0.5 * length if lane == ego_lane
-                                 else config.beside) for lane in lanes}
+        gaps = Gaps(rng, config.gap, config.gap_spread)
+        in_front = 0.5 * ego_size[0] + config.ahead + 0.5 * length
+        next_s = {lane: ego_s + (in_front if lane == ego_lane or track.lanes[lane].oncoming else config.beside)
+                  for lane in lanes}
         cars = []
         for i in range(config.vehicles):
             lane = lanes[i % len(lanes)]
             desired = max(0.0, float(rng.uniform(mean - config.speed_spread, mean + config.speed_spread)))
-            gap = config.gap * float(rng.uniform(1.0 - config.gap_spread, 1.0 + config.gap_spread))
+            gap = gaps.draw()
             s = next_s[lane]
             if not 0.5 * length <= s <= end_s:
                 raise PlacementError(f"traffic car {i} would start at s = {s:.0f} m in lane {lane}, off the road "
                                      f"(0..{end_s:.0f} m): lower traffic.vehicles, traffic.gap or traffic.ahead, "
                                      f"or raise traffic.beside")
-            cars.append(TrafficCar(i, lane, s, desired, desired))
+            cars.append(TrafficCar(i, lane, s, desired, desired, track.lanes[lane].direction))
             next_s[lane] = s + length + gap
-        return cls(track, cars, config.idm(), length, width, ego_size[0], ego_size[1], end_s)
+        return cls(track, cars, config.idm(), length, width, ego_size[0], ego_size[1], end_s, gaps)
 
     def _ego_lanes(self, ego: EgoOnRoad) -> set[int]:
         """Lanes the ego footprint overlaps laterally at its arc length."""
@@ -94,11 +120,12 @@ class Fleet:
 
     def advance(self, dt: float, ego: EgoOnRoad | None) -> None:
         """Move every car over dt: IDM acceleration behind its leader (the next car in its lane, the ego, or the
-        road's end), evaluated for all cars before any moves; an ego off the map (None) leads no car."""
+        road's end), evaluated for all cars before any moves, then recycle the oncoming cars left behind; an ego
+        off the map (None) leads no car and recycles none."""
         ego_lanes = self._ego_lanes(ego) if ego is not None else set()
         leaders: dict[int, TrafficCar] = {}
         by_lane: dict[int, list[TrafficCar]] = {}
-        for car in sorted(self.cars, key=lambda c: c.s):
+        for car in sorted(self.cars, key=lambda c: c.direction * c.s):
             by_lane.setdefault(car.lane, []).append(car)
         for cars in by_lane.values():
             leaders.update((behind.id, ahead) for behind, ahead in pairwise(cars))
@@ -107,30 +134,49 @@ class Fleet:
             if car.desired <= 0.0:
                 steps.append((0.0, 0.0))
                 continue
-            gap, lead_speed = self.end_s + 0.5 * self.length - car.s, 0.0
+            d = car.direction
+            gap = self.end_s + 0.5 * self.length - car.s if d > 0 else math.inf
+            lead_speed = 0.0
             ahead = leaders.get(car.id)
-            if ahead is not None and ahead.s - car.s - self.length < gap:
-                gap, lead_speed = ahead.s - car.s - self.length, ahead.speed
-            if ego is not None and car.lane in ego_lanes and ego.s > car.s:
-                ego_gap = ego.s - car.s - 0.5 * (self.length + self.ego_length)
+            if ahead is not None and d * (ahead.s - car.s) - self.length < gap:
+                gap, lead_speed = d * (ahead.s - car.s) - self.length, ahead.speed
+            if ego is not None and car.lane in ego_lanes and d * (ego.s - car.s) > 0.0:
+                ego_gap = d * (ego.s - car.s) - 0.5 * (self.length + self.ego_length)
                 if ego_gap < gap:
-                    gap, lead_speed = ego_gap, ego.speed
+                    gap, lead_speed = ego_gap, d * ego.speed
             steps.append(integrate(car.speed, idm_accel(self.idm, car.speed, car.desired, gap,
                                                         car.speed - lead_speed), dt))
         for car, (ds, v) in zip(self.cars, steps, strict=True):
-            car.s, car.speed = car.s + ds, v
+            car.s, car.speed = car.s + car.direction * ds, v
+        self._recycle(ego)
+
+    def _recycle(self, ego: EgoOnRoad | None) -> None:
+        """Each oncoming car `RECYCLE_BEHIND_M` behind the ego, or at the road's start, re-enters its lane at its
+        desired speed, a drawn gap beyond the lane's farthest car; where that lies past the road's end, a car at
+        the road's start parks there instead."""
+        behind = -math.inf if ego is None else ego.s - RECYCLE_BEHIND_M
+        start = 0.5 * self.length
+        for car in self.cars:
+            if car.direction > 0 or car.desired <= 0.0 or car.s > max(behind, start):
+                continue
+            s = max(c.s for c in self.cars if c.lane == car.lane) + self.length + self.gaps.draw()
+            if s <= self.end_s:
+                car.s, car.speed = s, car.desired
+            elif car.s <= start:
+                car.s, car.speed, car.desired = start, 0.0, 0.0
 
     def near(self, s: float, radius: float) -> list[TrafficCar]:
         """The cars whose centres lie within `radius` m of reference arc length s."""
         return [car for car in self.cars if abs(car.s - s) <= radius]
 
     def poses(self, cars: list[TrafficCar] | None = None) -> list[Pose]:
-        """Each car's (default: every car's) centre on its lane's centre line, heading along the road."""
+        """Each car's (default: every car's) centre on its lane's centre line, heading in its lane's direction of
+        travel."""
         out = []
         for car in self.cars if cars is None else cars:
             x, y, h = self.track.reference.frame(car.s)
             t = self.track.lanes[car.lane].offset_at(car.s)
-            out.append(Pose(x - t * math.sin(h), y + t * math.cos(h), h))
+            out.append(Pose(x - t * math.sin(h), y + t * math.cos(h), h if car.direction > 0 else h + math.pi))
         return out
 
     def velocity(self, car: TrafficCar) -> tuple[float, float]:

@@ -13,6 +13,8 @@ from testbed.eval.summary import HitVehicle
 from testbed.traffic.fleet import Fleet
 from tracks.pose import Pose
 
+REENTRY_JUMP_M = 20.0
+"""A step between two rows of one car longer than this is a re-entry (a recycled oncoming car), not a drive."""
 RECORD_HZ = 10.0
 """Rate of the traffic trajectory rows (at most the control rate)."""
 COLUMNS = ("t", "id", "lane", "x", "y", "yaw", "speed")
@@ -30,10 +32,14 @@ class TrafficLog:
             self.rows.append((t, car.id, car.lane, p.x, p.y, p.yaw, car.speed))
 
     def paths(self) -> dict[int, np.ndarray]:
-        """Each car's (x, y, yaw) path (N × 3), by id."""
+        """Each car's (x, y, yaw) path (N × 3), by id; a row of NaN separates the drives of a car that re-entered
+        the road, so a drawn path does not jump."""
         out: dict[int, list[tuple[float, float, float]]] = {}
         for _, i, _, x, y, yaw, _ in self.rows:
-            out.setdefault(i, []).append((x, y, yaw))
+            path = out.setdefault(i, [])
+            if path and math.hypot(x - path[-1][0], y - path[-1][1]) > REENTRY_JUMP_M:
+                path.append((math.nan, math.nan, math.nan))
+            path.append((x, y, yaw))
         return {i: np.array(xy) for i, xy in out.items()}
 
     def write(self, path: Path) -> None:

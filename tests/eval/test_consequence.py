@@ -46,3 +46,17 @@ def test_footprint_corners_rotate_with_yaw():
     ys = sorted(round(c[1], 9) for c in corners)
     assert xs == [-1.0, -1.0, 1.0, 1.0]
     assert ys == [-2.0, -2.0, 2.0, 2.0]
+
+
+def test_crossing_the_centre_line_of_a_two_way_road_is_wrong_way():
+    two_way = ConsequenceMonitor(lane_width=3.4, vehicle_width=1.9, vehicle_length=4.9, oncoming_left=True)
+    for dev in (0.0, 0.5, 0.9, 0.2):  # a wheel over the centre line (straddle deviation 0.75 m) on the left
+        two_way.observe(dev, set(), False, False)
+    assert two_way.final(stopped_by_response=False, final_dev=0.2) == "wrong_way"
+    right = ConsequenceMonitor(lane_width=3.4, vehicle_width=1.9, vehicle_length=4.9, oncoming_left=True)
+    for dev in (0.0, -0.9, 0.0):  # over the right edge line: out of lane, not wrong way
+        right.observe(dev, set(), False, False)
+    assert right.final(stopped_by_response=False, final_dev=0.0) == "out_of_lane"
+    one_way = ConsequenceMonitor(lane_width=3.4, vehicle_width=1.9, vehicle_length=4.9)
+    one_way.observe(0.9, set(), False, False)
+    assert one_way.final(stopped_by_response=False, final_dev=0.9) == "out_of_lane"

@@ -107,3 +107,46 @@ def test_fusionripper_pushes_the_car_into_parked_cars_unless_ld3_stops_it_in_lan
         assert summary["hit_vehicle"]["lane"] == 1 and summary["hit_vehicle"]["relative_speed_mps"] > 5.0
     else:
         assert summary["hit_vehicle"] is None and summary["detected"]
+
+
+def _two_way(**overrides):
+    return load_scenario("two-way").replace(**{"localization": "truth", "detector": "none", **overrides})
+
+
+def test_oncoming_cars_pass_the_ego_on_a_two_way_road_and_a_benign_drive_stays_in_lane(tmp_path):
+    sc = _two_way(duration=10.0, traffic={"vehicles": 3, "lanes": [1], "speed_spread": 0.0, "ahead": 20.0})
+    summary = run_scenario(sc, tmp_path).summary
+    assert summary["consequence"] == "reach_destination" and summary["hit_vehicle"] is None
+    with (tmp_path / "traffic.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    with (tmp_path / "trajectory.csv").open() as fh:
+        ego = {r["t"]: float(r["x"]) for r in csv.DictReader(fh)}
+    first = [r for r in rows if r["id"] == "0"]
+    assert all(r["lane"] == "1" and abs(abs(float(r["yaw"])) - np.pi) < 0.3 for r in first[:20])
+    ahead = [float(r["x"]) - ego[r["t"]] for r in first[:40]]  # the road runs east for its first 150 m
+    assert ahead[0] > 20.0 and min(ahead) < -20.0  # it came at the ego and passed it
+
+
+@pytest.mark.parametrize(("defense", "consequence"), [("none", "hit_vehicle"), ("ld3", "stop_in_lane")])
+def test_fusionripper_steers_the_car_into_oncoming_traffic_unless_ld3_stops_it_in_lane(defense, consequence):
+    sc = load_scenario("two-way").replace(
+        duration=30.0, localization="msf", defense=defense, seed=1,
+        traffic={"vehicles": 6, "lanes": [1], "gap": 25.0, "speed_spread": 0.0},
+        attack={"kind": "fusionripper", "direction": "right", "start": 5.0})  # spoofed right: the car goes left
+    summary = run_scenario(sc, None).summary
+    assert summary["consequence"] == consequence
+    if defense == "none":
+        hit = summary["hit_vehicle"]
+        assert hit["lane"] == 1 and hit["relative_speed_mps"] > 10.0  # the oncoming car brakes, the ego does not
+    else:
+        assert summary["hit_vehicle"] is None and summary["detected"]
+
+
+def test_same_seed_gives_the_same_bytes_with_oncoming_traffic(tmp_path):
+    sc = _two_way(duration=6.0, localization="msf", traffic={"vehicles": 6, "gap": 15.0})
+    outs = []
+    for k, seed in enumerate((3, 3, 4)):
+        run_scenario(sc.replace(seed=seed), tmp_path / f"r{k}")
+        outs.append([(tmp_path / f"r{k}" / name).read_bytes() for name in ("trajectory.csv", "traffic.csv")])
+    assert outs[0] == outs[1]
+    assert outs[0][1] != outs[2][1]

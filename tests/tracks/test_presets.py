@@ -7,7 +7,7 @@ from tracks.obstacles import road_obstacles
 from tracks.presets import list_presets, load_track
 
 STRADDLE = {"slr": (3.56, 0.83), "urban-straight": (3.90, 1.00), "urban-curvy": (3.40, 0.75)}
-EGO = {"slr": 0, "urban-straight": 0, "urban-curvy": 0, "highway": 1, "local": 0, "parking-lot": 0}
+EGO = {"slr": 0, "urban-straight": 0, "urban-curvy": 0, "highway": 1, "local": 0, "parking-lot": 0, "two-way": 0}
 MIN_LENGTH = {
     "slr": 1500,
     "urban-straight": 1500,
@@ -15,6 +15,7 @@ MIN_LENGTH = {
     "highway": 3000,
     "local": 1500,
     "parking-lot": 80,
+    "two-way": 1400,
 }
 
 
@@ -25,7 +26,7 @@ def test_list_presets_names_every_family():
 
 
 @pytest.mark.parametrize(
-    "spec", ["slr", "urban-straight@3", "urban-curvy@7", "highway@2", "local@5", "parking-lot"]
+    "spec", ["slr", "urban-straight@3", "urban-curvy@7", "highway@2", "local@5", "parking-lot", "two-way@4"]
 )
 def test_presets_load_with_their_ego_lane_length_and_run_in(spec):
     track = load_track(spec)
@@ -107,3 +108,12 @@ def test_start_pose_sits_on_the_lane_centre():
     assert lane.local_coordinates(pose.x, pose.y) == pytest.approx((20.0, 0.0), abs=1e-9)
     assert pose.yaw == pytest.approx(lane.heading_at(20.0))
     assert math.isclose(track.start_pose(lane=0, s=50.0).y, -3.75, abs_tol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 8])
+def test_two_way_has_one_oncoming_lane_beyond_a_double_yellow_centre_line(seed):
+    track = load_track(f"two-way@{seed}")
+    assert [ln.direction for ln in track.lanes] == [1, -1] and track.oncoming == 1
+    assert [b.runs[0].kind for b in track.boundaries] == ["solid_white", "double_yellow", "solid_white"]
+    assert track.lanes[0].width == pytest.approx(3.40)
+    assert 1.0 / track.max_abs_curvature >= 150.0 - 1e-6

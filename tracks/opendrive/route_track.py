@@ -6,8 +6,10 @@ forward (left when backward, mirrored for LHT). The track keeps the drivable lan
 every road outside junctions has, the ego lane the innermost; inside junctions lanes a connecting road lacks
 are interpolated. The ego lane's centre is sampled every half metre of road (and at every geometry, section
 and width record start) and fitted by curvature-linear segments; lane widths become tabulated profiles when
-they vary; each lane line keeps the road-mark kind it has over most of the route outside junctions; the other
-direction's lanes are paved surface beyond the centre line; connecting roads are intersections.
+they vary; each lane line keeps the road-mark kind it has over most of the route outside junctions; connecting
+roads are intersections. The other direction's drivable lanes next to the centre lane become the track's
+oncoming lanes on a right-hand-traffic route (the track's oncoming lanes are its leftmost); where something
+else (a median, a left-hand-traffic route) comes first, that side is paved surface beyond the centre line.
 """
 
 from __future__ import annotations
@@ -152,23 +154,33 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     if len(set(outward)) > 1:
         raise OpenDriveError(f"{source}: route {roads}: mixes right- and left-hand traffic roads")
     order = list(range(n)) if outward[0] > 0 else list(range(n - 1, -1, -1))  # track lane -> lane from centre
-    widths = np.array([_widths(s.near, n) for s in samples])
+    m = _oncoming(samples, outside) if outward[0] < 0 else 0
+    widths = np.array([[*_widths(s.near, n), *_widths(s.far, m)] for s in samples])
     for col in widths.T:
         bad = np.isnan(col)
         col[bad] = np.interp(sigma[bad], sigma[~bad], col[~bad])
-    widths = widths[:, order]
+    widths = widths[:, order + list(range(n, n + m))]
     varies = np.ptp(widths, axis=0).max() > 1e-6
     weights = np.gradient(sigma) * np.array(outside)
     kinds = [_kind([_mark(s.near, b) for s in samples], weights)
              for b in (range(n + 1) if outward[0] > 0 else range(n, -1, -1))]
-    outer, inner = _edges(samples, outside, n)
+    kinds += [_kind([_mark(s.far, b) for s in samples], weights) for b in range(1, m + 1)]
+    outer, inner = _edges(samples, outside, n, m)
     right, left = (inner, outer) if outward[0] > 0 else (outer, inner)
     crossings = _intersections(sigma, junction)
-    description = (f"OpenDRIVE {Path(source).name}, roads {' → '.join(leg.road.id for leg in legs)}: {n} lane(s), "
-                   f"{reference.length:.0f} m")
+    both = f" and {m} oncoming" if m else ""
+    description = (f"OpenDRIVE {Path(source).name}, roads {' → '.join(leg.road.id for leg in legs)}: {n}{both} "
+                   f"lane(s), {reference.length:.0f} m")
     return Track(name, 0, description, reference, [float(w) for w in np.median(widths, axis=0)], kinds, right,
                  left, ego_lane=order.index(0), intersections=crossings,
-                 width_table=(sigma, widths) if varies else None)
+                 width_table=(sigma, widths) if varies else None, oncoming=m)
+
+
+def _oncoming(samples: list[_Sample], outside: list[bool]) -> int:
+    """How many of the other direction's drivable lanes start at the centre lane at every sample outside
+    junctions (0 where one has none there)."""
+    counts = [s.far.drivable() for s, o in zip(samples, outside, strict=True) if o]
+    return 0 if any(first != 0 for first, _ in counts) else min(count for _, count in counts)
 
 
 def _check_join(a: _Sample, b: _Sample, where: str) -> None:
@@ -197,19 +209,24 @@ def _kind(kinds: list[str], weights: np.ndarray) -> str:
     return max(tally, key=lambda k: tally[k]) if sum(tally.values()) > 0.0 else "none"
 
 
-def _edges(samples: list[_Sample], outside: list[bool], n: int) -> tuple[Edge, Edge]:
-    """(outer edge, edge beyond the centre line): paved widths the narrowest outside junctions."""
-    outer, curb, inner = math.inf, False, math.inf
-    for s, o in zip(samples, outside, strict=True):
-        if not o:
-            continue
-        first, _ = s.near.drivable()
-        paved, kerb = s.near.paved_beyond(first + n)
-        outer, curb = min(outer, paved), curb or kerb
-        inner = min(inner, abs(s.near.borders[first] - s.far.borders[-1]))
-    outer_edge = (Edge("curb", outer, "concrete", bodies=(CURB,)) if curb
-                  else Edge("shoulder", outer, "grass"))
-    return outer_edge, Edge("shoulder", inner, "grass")
+def _edges(samples: list[_Sample], outside: list[bool], n: int, m: int) -> tuple[Edge, Edge]:
+    """(outer edge, edge beyond the centre line or beyond the `m` oncoming lanes): paved widths the narrowest
+    outside junctions."""
+    near = _edge([s.near for s, o in zip(samples, outside, strict=True) if o], n)
+    if m:
+        return near, _edge([s.far for s, o in zip(samples, outside, strict=True) if o], m)
+    inner = min(abs(s.near.borders[s.near.drivable()[0]] - s.far.borders[-1])
+                for s, o in zip(samples, outside, strict=True) if o)
+    return near, Edge("shoulder", inner, "grass")
+
+
+def _edge(sections: list[CrossSection], n: int) -> Edge:
+    """The edge beyond the n-th drivable lane of one side: a curb edge if a curb or sidewalk follows anywhere."""
+    paved, curb = math.inf, False
+    for cs in sections:
+        width, kerb = cs.paved_beyond(cs.drivable()[0] + n)
+        paved, curb = min(paved, width), curb or kerb
+    return Edge("curb", paved, "concrete", bodies=(CURB,)) if curb else Edge("shoulder", paved, "grass")
 
 
 def _intersections(sigma: np.ndarray, junction: list[bool]) -> list[tuple[float, float]]:

@@ -1,5 +1,6 @@
-"""Write a `Track` as OpenDRIVE 1.7: the reference line on the ego lane's centre, the lanes right of a centre
-lane on the leftmost lane line (through `laneOffset`), shoulders as shoulder lanes, a curb edge as a curb lane.
+"""Write a `Track` as OpenDRIVE 1.7: the reference line on the ego lane's centre, the lanes along it right of a
+centre lane on the leftmost such lane line (through `laneOffset`), oncoming lanes left of it, shoulders as
+shoulder lanes, a curb edge as a curb lane (on the left only beyond oncoming lanes).
 
 Every intersection zone becomes a junction with one connecting road (no cross street); the roads between are
 joined through it lane by lane. Lines, arcs and clothoids are written as line, arc and spiral records; lane
@@ -89,34 +90,43 @@ def _profile(track: Track, lane: int, s0: float, s1: float, what: int) -> list[t
 
 def _lanes(track: Track, s0: float, s1: float) -> ET.Element:
     lanes = ET.Element("lanes")
-    top = track.lanes[-1]
+    n = len(track.lanes) - track.oncoming
+    top = track.lanes[n - 1]
     if top.profiles is None:
-        _poly(lanes, "laneOffset", "s", 0.0, track.boundaries[-1].t)
+        _poly(lanes, "laneOffset", "s", 0.0, track.boundaries[n].t)
     else:
         s = top.profiles[0].s
         left = top.profiles[0].v + 0.5 * top.profiles[1].v
         for start, a, b in _linear_records(s, left, s0, s1):
             _poly(lanes, "laneOffset", "s", start, a, b)
     section = ET.SubElement(lanes, "laneSection", s="0.0")
-    if track.left.paved > 0.0:
-        left_side = ET.SubElement(section, "left")
-        _lane(left_side, 1, "shoulder", [(0.0, track.left.paved, 0.0)], "none")
-    centre = ET.SubElement(ET.SubElement(section, "center"), "lane", id="0", type="none", level="false")
     middle = 0.5 * (s0 + s1)
-    _mark(centre, track.boundaries[-1].kind_at(middle))
+    left_side = ET.SubElement(section, "left")
+    for k in range(track.oncoming):
+        _lane(left_side, k + 1, "driving", _profile(track, n + k, s0, s1, 1),
+              track.boundaries[n + k + 1].kind_at(middle), link=True)
+    _edge_lanes(left_side, track.oncoming + 1, 1, track.left.paved, track.oncoming > 0 and track.left.kind == "curb")
+    if not len(left_side):
+        section.remove(left_side)
+    centre = ET.SubElement(ET.SubElement(section, "center"), "lane", id="0", type="none", level="false")
+    _mark(centre, track.boundaries[n].kind_at(middle))
     right = ET.SubElement(section, "right")
-    n = len(track.lanes)
     for k in range(n):
         i = n - 1 - k
         _lane(right, -(k + 1), "driving", _profile(track, i, s0, s1, 1), track.boundaries[i].kind_at(middle),
               link=True)
-    outer = -(n + 1)
-    if track.right.paved > 0.0:
-        _lane(right, outer, "shoulder", [(0.0, track.right.paved, 0.0)], "none")
-        outer -= 1
-    if track.right.kind == "curb":
-        _lane(right, outer, "curb", [(0.0, 0.3, 0.0)], "none")
+    _edge_lanes(right, n + 1, -1, track.right.paved, track.right.kind == "curb")
     return lanes
+
+
+def _edge_lanes(side: ET.Element, first: int, sign: int, paved: float, curb: bool) -> None:
+    """The shoulder (when `paved` > 0) and curb lanes of one side, ids from `first` outward (`sign` −1 right)."""
+    lane_id = first
+    if paved > 0.0:
+        _lane(side, sign * lane_id, "shoulder", [(0.0, paved, 0.0)], "none")
+        lane_id += 1
+    if curb:
+        _lane(side, sign * lane_id, "curb", [(0.0, 0.3, 0.0)], "none")
 
 
 def _lane(side: ET.Element, lane_id: int, kind: str, widths: list[tuple[float, float, float]], mark: str,
@@ -168,7 +178,7 @@ def track_to_xodr(track: Track) -> str:
             continue
         conn = ET.SubElement(junction, "connection", id="0", incomingRoad=road_ids[i - 1],
                              connectingRoad=road_ids[i], contactPoint="start")
-        for k in range(len(track.lanes)):
+        for k in range(len(track.lanes) - track.oncoming):
             ET.SubElement(conn, "laneLink", **{"from": str(-(k + 1)), "to": str(-(k + 1))})
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"

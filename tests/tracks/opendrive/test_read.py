@@ -37,8 +37,9 @@ def test_each_geometry_type_matches_the_analytic_lanes_within_1_cm(shape, tmp_pa
     path, root = _write(tmp_path, document(road("7", 80.0, [geometry(0, 12.0, -4.0, 0.4, 80.0, SHAPES[shape])],
                                                 TWO_LANES)))
     track = load_xodr(str(path))
-    assert len(track.lanes) == 2 and track.ego_lane == 1  # lane −2 is track lane 0, the ego lane −1 the innermost
-    assert [b.runs[0].kind for b in track.boundaries] == ["solid_white", "dashed_white", "solid_yellow"]
+    # lane −2 is track lane 0, the ego lane −1 the innermost, the other side's lane 1 the oncoming track lane 2
+    assert len(track.lanes) == 3 and track.ego_lane == 1 and track.oncoming == 1 and track.lanes[2].oncoming
+    assert [b.runs[0].kind for b in track.boundaries] == ["solid_white", "dashed_white", "solid_yellow", "solid_white"]
     worst = map_errors(track, root, [("7", 1)], step=4.0)
     assert worst["dev"] < 0.01 and worst["point"] < 0.01 and worst["width"] < 0.01, worst
     assert worst["heading"] < 1e-3, worst
@@ -82,7 +83,7 @@ def _junction_file() -> str:
 def test_a_route_through_a_junction_follows_every_road_and_marks_the_junction(route, tmp_path):
     path, root = _write(tmp_path, _junction_file())
     track = load_xodr(f"{path}{route}")
-    assert track.description.endswith(f"roads 1 → 10 → 2: 2 lane(s), {track.length:.0f} m")
+    assert track.description.endswith(f"roads 1 → 10 → 2: 2 and 1 oncoming lane(s), {track.length:.0f} m")
     (a, b), = track.intersections
     outer_arc = (30.0 + 1.75) * math.pi / 2  # the ego lane (−1) is outside the left turn
     assert a == pytest.approx(60.0, abs=0.01) and b - a == pytest.approx(outer_arc, abs=0.01)
@@ -99,6 +100,8 @@ def test_a_road_driven_against_its_direction_uses_its_left_lanes(tmp_path):
                          link=link2))
     path, root = _write(tmp_path, text)
     track = load_xodr(f"{path}#2,1")
-    assert len(track.lanes) == 1 and track.left.paved == pytest.approx(6.75)  # the other way's lanes beyond the centre
+    # the driven side's one lane, then the other side's two as oncoming lanes left of it
+    assert len(track.lanes) == 3 and track.oncoming == 2 and track.ego_lane == 0
+    assert [ln.width for ln in track.lanes] == pytest.approx([3.5, 3.5, 3.25])
     worst = map_errors(track, root, [("2", -1), ("1", -1)])
     assert max(worst["dev"], worst["point"], worst["width"]) < 0.01 and worst["heading"] < 1e-3, worst
