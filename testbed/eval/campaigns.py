@@ -275,13 +275,15 @@ def benign_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> s
 
 
 # ---- benign false alarms in traffic ----------------------------------------------------------------------
+BENIGN_TRAFFIC_PRESETS = (*BENIGN_PRESETS, "two-way")
 BENIGN_TRAFFIC_CARS = 6
 BENIGN_TRAFFIC_SEEDS = range(3)
-BENIGN_TRAFFIC_DURATION_S = 30.0
+BENIGN_TRAFFIC_DURATION_S = 15.0
 
 
 def benign_traffic_runs(detector: str) -> list[CampaignRun]:
-    """Benign default LD3 on the MSF in every benign preset × condition × seed with `BENIGN_TRAFFIC_CARS` cars
+    """Benign default LD3 on the MSF in every benign preset and the two-way road × condition × seed with
+    `BENIGN_TRAFFIC_CARS` cars
     (`testbed.perception.traffic_drive`: every car at the ego's speed, a lead car close ahead in the ego lane),
     for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`."""
     from testbed.conditions import CONDITIONS
@@ -289,7 +291,7 @@ def benign_traffic_runs(detector: str) -> list[CampaignRun]:
     from tracks.presets import load_track
 
     runs = []
-    for p in BENIGN_PRESETS:
+    for p in BENIGN_TRAFFIC_PRESETS:
         base = load_scenario(p)
         track = load_track(base.track)
         duration = min(BENIGN_TRAFFIC_DURATION_S, base.duration)
@@ -436,8 +438,8 @@ for _spec in (
                  "no defense and LD3", fusionripper_two_way_runs, defense_table),
     CampaignSpec("benign", "benign LD3 runs on every preset, 5 seeds each: false alarms", benign_runs, benign_table),
     CampaignSpec("benign-traffic", "benign LD3 runs in traffic (6 cars at the ego's speed, a lead car close ahead "
-                 "in the ego lane) on every preset × camera condition, 3 seeds, 30 s: false alarms and the tracked "
-                 "D_LD error", benign_traffic_runs, benign_traffic_table),
+                 "in the ego lane, oncoming cars on the two-way road) on every preset × camera condition, 3 seeds, "
+                 "15 s: false alarms and the tracked D_LD error", benign_traffic_runs, benign_traffic_table),
     CampaignSpec("fusionripper-grid", "FusionRipper d×f grid without defense, 20 drives per cell (start time, "
                  "noise seed and road layout vary; paper Table 2)", fr_grid_runs, fr_grid_table),
     CampaignSpec("ablation", "LD3 response variants (paper mode first) × FusionRipper, trace, drp-trace, "

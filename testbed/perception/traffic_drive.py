@@ -1,6 +1,7 @@
 """The `[traffic]` of a lane-detection drive in traffic (`ld3 ld closed-loop --traffic`, the `benign-traffic`
 campaign): a lead car close ahead in the ego lane, hiding the far part of the ego lines
-(`testbed.perception.occlusion`), and the other cars ahead of it in every lane.
+(`testbed.perception.occlusion`), and the other cars ahead of it in every lane (an oncoming lane's from as far
+ahead as the lead car, coming towards the ego).
 
 Every car's desired speed is the ego's, without spread, and the IDM time headway and jam distance are 0: at
 one speed the IDM then has no interaction term, so no car closes on the one ahead. Started at rest with the
@@ -74,7 +75,8 @@ def traffic_drive(track: Track, lane: int, start_s: float, ego_vehicle: str, spe
     end_s = track.length - END_MARGIN_M
     lead_s = start_s + 0.5 * get_vehicle(ego_vehicle).length + ahead + 0.5 * car_length
     n_lanes = len(track.lanes)
-    first = {ln: lead_s if ln == lane else lead_s + OTHERS_AHEAD_M for ln in range(n_lanes)}
+    beside = [ln for ln in range(n_lanes) if ln != lane and not track.lanes[ln].oncoming]
+    first = {ln: lead_s + OTHERS_AHEAD_M if ln in beside else lead_s for ln in range(n_lanes)}
     count = {ln: len(range(ln, vehicles, n_lanes)) for ln in range(n_lanes)}
     gap = GAP_M
     for ln in range(n_lanes):
@@ -92,7 +94,7 @@ def traffic_drive(track: Track, lane: int, start_s: float, ego_vehicle: str, spe
                         f"{duration:g} s: lower --traffic or the duration")
     table = {"vehicles": vehicles, "speed": fitted, "speed_spread": 0.0, "ahead": ahead, "gap": gap,
              "gap_spread": 0.0, "accel": LEAD_ACCEL, "headway": 0.0, "min_gap": 0.0}
-    if n_lanes > 1:
+    if beside:
         table["beside"] = lead_s + OTHERS_AHEAD_M - start_s
     return TrafficDrive(table, fitted)
 

@@ -1,7 +1,7 @@
 import numpy as np
 
 from testbed.conditions import CONDITIONS
-from testbed.eval.campaigns import BENIGN_PRESETS, CAMPAIGNS, benign_traffic_table, selected_runs
+from testbed.eval.campaigns import BENIGN_TRAFFIC_PRESETS, CAMPAIGNS, benign_traffic_table, selected_runs
 from testbed.eval.outputs import TRAJECTORY_COLUMNS
 from testbed.perception.traffic_drive import LEAD_GAP_M
 from testbed.traffic.fleet import Fleet
@@ -11,8 +11,8 @@ from vehicles.params import get_vehicle
 
 def test_benign_traffic_drives_every_preset_and_condition_with_six_cars_at_the_egos_speed():
     runs = selected_runs("benign-traffic", "neural")
-    assert "benign-traffic" in CAMPAIGNS.names() and len(runs) == len(BENIGN_PRESETS) * len(CONDITIONS) * 3
-    assert {(r.tags["track"], r.tags["condition"]) for r in runs} == {(p, c) for p in BENIGN_PRESETS
+    assert "benign-traffic" in CAMPAIGNS.names() and len(runs) == len(BENIGN_TRAFFIC_PRESETS) * len(CONDITIONS) * 3
+    assert {(r.tags["track"], r.tags["condition"]) for r in runs} == {(p, c) for p in BENIGN_TRAFFIC_PRESETS
                                                                        for c in CONDITIONS}
     for run in runs[::3]:
         sc = run.scenario
