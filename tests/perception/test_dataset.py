@@ -14,7 +14,7 @@ from tracks.presets import PRESETS
 def test_held_out_seeds_are_disjoint_from_training_seeds():
     assert not set(TRAIN_SEEDS) & set(HELD_OUT_SEEDS)
     train = episodes("train", 72, 0)
-    held = episodes("heldout", 36, 0)
+    held = episodes("heldout", len(PRESETS) * len(CONDITIONS), 0)
     assert all(ep.seed in TRAIN_SEEDS for ep in train)
     assert all(ep.seed in HELD_OUT_SEEDS for ep in held)
     assert {(ep.preset, ep.condition) for ep in held} == {(p, c) for p in PRESETS for c in CONDITIONS}
