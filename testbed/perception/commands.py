@@ -62,6 +62,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.set_defaults(func=_export_onnx)
 
     from testbed.perception.registry import DETECTORS
+    from testbed.perception.traffic_drive import LEAD_GAP_M
 
     p = sub.add_parser("closed-loop", help="drive held-out tracks of every preset in every condition and table "
                                            "|D_LD - phys_dev| with and without lane tracking")
@@ -74,7 +75,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                    help="N traffic cars at the ego's speed, the first of the ego lane --lead-gap ahead, hiding the "
                         "far part of the ego lines; the tables split the ticks by occlusion (default 0: none)")
     p.add_argument("--lead-gap", type=float, default=None, metavar="M",
-                   help="ego front to lead car rear with --traffic (m; default 8)")
+                   help=f"ego front to lead car rear with --traffic (m; default {LEAD_GAP_M:g})")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
