@@ -1,4 +1,5 @@
-# Set-up is a stamp file: it is rebuilt only when pyproject.toml changes, so repeat runs skip installs.
+# Set-up is a stamp file: it is rebuilt only when pyproject.toml, setup.py or a compiled kernel's source changes,
+# so repeat runs skip installs.
 PY      := .venv/bin/python
 STAMP   := .venv/.ld3-installed
 OUT     ?= runs/demo
@@ -8,7 +9,9 @@ OUT     ?= runs/demo
 $(PY):
 	python3 -m venv .venv
 
-$(STAMP): pyproject.toml | $(PY)
+KERNELS := $(wildcard tracks/*.pyx testbed/*/*.pyx)
+
+$(STAMP): pyproject.toml setup.py $(KERNELS) | $(PY)
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)

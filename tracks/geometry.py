@@ -15,12 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracks.compiled import compiled_module
 from tracks.pose import Pose
 from tracks.recent import RecentAnswers
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(6)
 _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-point search
 _MEMO_SIZE = 16  # recent projections kept: a control tick asks about the same few points several times
+_KERNEL_REACH = 1e9  # m: coordinates the compiled kernel takes (beyond, and for NaN, the pure-Python path answers)
+_KERNELS = compiled_module("tracks.reference_kernels")
 
 
 @dataclass(frozen=True)
@@ -114,6 +117,11 @@ class ReferenceLine:
         """(s0, heading, curvature, curvature rate) at the start of each segment."""
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
+        self._kernel = None if _KERNELS is None else _KERNELS.LineKernel(
+            np.column_stack([self.x, self.y, self._cos, self._sin, self.curvature]),
+            np.array(self._seg_coeffs, dtype=float), self._coarse_xy, self._coarse_stride, self.ds, self.length)
+        """The compiled point queries and `project` (tracks/reference_kernels.pyx), where built; None: the
+        pure-Python methods below answer, the reference the kernel is tested equal to."""
         self._hint: int | None = None
         self._memo: RecentAnswers[tuple[float, float, float], tuple[float, float]] = RecentAnswers(_MEMO_SIZE)
 
@@ -123,6 +131,11 @@ class ReferenceLine:
 
     def heading_at(self, s: float) -> float:
         """Heading (rad) at arc length s; constant beyond the ends."""
+        if self._kernel is not None:
+            return self._kernel.heading_at(s)
+        return self._heading_at(s)
+
+    def _heading_at(self, s: float) -> float:
         s = min(max(s, 0.0), self.length)
         i = self._seg_index(s)
         u = s - self._seg_s0[i]
@@ -130,6 +143,11 @@ class ReferenceLine:
 
     def curvature_at(self, s: float) -> float:
         """Signed curvature (1/m, + left) at arc length s; zero beyond the ends."""
+        if self._kernel is not None:
+            return self._kernel.curvature_at(s)
+        return self._curvature_at(s)
+
+    def _curvature_at(self, s: float) -> float:
         if s < 0.0 or s > self.length:
             return 0.0
         i = self._seg_index(s)
@@ -174,6 +192,11 @@ class ReferenceLine:
     # ---- point queries ----------------------------------------------------------------------
     def frame(self, s: float) -> tuple[float, float, float]:
         """(x, y, heading) of the reference point at arc length s (extrapolated straight beyond the ends)."""
+        if self._kernel is not None and -_KERNEL_REACH < s < _KERNEL_REACH:
+            return self._kernel.frame(s)
+        return self._frame(s)
+
+    def _frame(self, s: float) -> tuple[float, float, float]:
         ds = self.ds
         sc = min(max(s, 0.0), self.length)
         i = min(int(sc / ds), self._last_sample)
@@ -182,7 +205,7 @@ class ReferenceLine:
         u = sc - s0
         h = h0 + k0 * u + 0.5 * dk * u * u
         um = u - 0.5 * d
-        h_mid = h0 + k0 * um + 0.5 * dk * um * um if um >= 0.0 else self.heading_at(sc - 0.5 * d)
+        h_mid = h0 + k0 * um + 0.5 * dk * um * um if um >= 0.0 else self._heading_at(sc - 0.5 * d)
         k = self._curv[i]
         chord = d * (1.0 - k * k * d * d / 24.0)
         x = self._xs[i] + chord * math.cos(h_mid)
@@ -220,7 +243,13 @@ class ReferenceLine:
         returned again for the same point.
         """
         found = self._memo.get((x, y, max_offset))
-        return found if found is not None else self._memo.keep((x, y, max_offset), self._project(x, y, max_offset))
+        return found if found is not None else self._memo.keep((x, y, max_offset), self._solve(x, y, max_offset))
+
+    def _solve(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
+        kernel = self._kernel
+        if kernel is None or not (abs(x) < _KERNEL_REACH and abs(y) < _KERNEL_REACH):
+            return self._project(x, y, max_offset)
+        return kernel.project(x, y, max_offset)
 
     def _project(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         if self._hint is not None:
@@ -264,14 +293,14 @@ class ReferenceLine:
         k = self._curv[i]
         s = i * self.ds + (math.atan2(k * a, 1.0 - k * t) / k if abs(k) > 1e-12 else a)
         for _ in range(4):
-            px, py, h = self.frame(s)
+            px, py, h = self._frame(s)
             c, sn = math.cos(h), math.sin(h)
             dx, dy = x - px, y - py
             a = dx * c + dy * sn
             t = -dx * sn + dy * c
             if abs(a) < 1e-6:
                 return s + a, t
-            k = self.curvature_at(s)
+            k = self._curvature_at(s)
             denom = 1.0 - k * t
             s += a / denom if denom > 0.1 else a
         return s, t

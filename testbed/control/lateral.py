@@ -76,7 +76,8 @@ class LqrLateralController:
         pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
         i = min(int(pos), len(self._gain_rows) - 2)
         f = pos - i
-        return tuple(a + f * (b - a) for a, b in zip(self._gain_rows[i], self._gain_rows[i + 1], strict=True))
+        (a1, a2, a3, a4), (b1, b2, b3, b4) = self._gain_rows[i], self._gain_rows[i + 1]
+        return a1 + f * (b1 - a1), a2 + f * (b2 - a2), a3 + f * (b3 - a3), a4 + f * (b4 - a4)
 
     def reset(self) -> None:
         self._last = 0.0

@@ -58,7 +58,8 @@ def save_birdseye(path: Path, track, rows: Sequence[TickRecord], *, lane_width: 
     ax_map.plot(x, y, color="tab:blue", lw=1.6, label="true path")
     ax_map.plot(believed_xy[:, 0], believed_xy[:, 1], color="tab:red", lw=1.0, ls="--", label="believed (MSF)")
     for n, (car, xy) in enumerate(sorted((traffic or {}).items())):
-        ax_map.plot(xy[:, 0], xy[:, 1], color="0.45", lw=0.8, label="traffic" if n == 0 else None)
+        ax_map.plot(xy[:, 0], xy[:, 1], color="0.45", lw=0.8, label="traffic" if n == 0 else None,
+                    zorder=1.9)  # under the ego's paths, which share the lane centre
         x_end, y_end, yaw_end = xy[-1]
         ax_map.add_patch(Polygon(footprint_corners(x_end, y_end, yaw_end, *traffic_size), closed=True,
                                  facecolor="0.55", edgecolor="0.25", lw=0.6, zorder=3))

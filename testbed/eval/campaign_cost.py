@@ -11,11 +11,11 @@ from testbed.perception.registry import DETECTORS
 from testbed.registry import Capability
 
 WALL_PER_SIM_S_CAMERA = 0.23
-WALL_PER_SIM_S_NO_CAMERA = 0.08
+WALL_PER_SIM_S_NO_CAMERA = 0.06
 """Seconds one worker (one core) spends per simulated second of a run whose detector reads the rendered
 camera (neural), and of one whose detector does not (no frame is rendered): CPU seconds of whole runs
 (set-up, loop, outputs; one torch thread) per simulated second on the development machine, FusionRipper
-campaign runs (docs/cluster.md, per-run cost)."""
+campaign runs, the no-camera figure with the compiled kernels (docs/cluster.md, per-run cost)."""
 
 
 def wall_per_sim_s(run: CampaignRun) -> float:

@@ -41,7 +41,7 @@ EXPERIMENTS = (
     Experiment("adaptive", "local/ld3-paper/msf-output,local/ld3/msf-output"),
 )
 
-WALL_PER_SIM_S = {"neural": 0.5, "classical": 0.5, "oracle": 0.06, "none": 0.07}
+WALL_PER_SIM_S = {"neural": 0.5, "classical": 0.5, "oracle": 0.05, "none": 0.05}
 """Seconds of one core per simulated second of a run, by lane detector (the camera is rendered for neural and
 classical only; classical taken as neural), measured on the 2-core development machine (docs/decisions.md).
 Runs that stop early take less: the estimate is an upper bound."""

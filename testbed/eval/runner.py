@@ -36,6 +36,9 @@ from testbed.world import PhysicsWorld
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 
+COLLISION_REACH_M = 15.0
+"""Traffic cars whose centres lie farther than this plus a car length (reference arc length) from the ego's get no
+physics body this tick: neither can close that gap within one control tick."""
 STOP_SPEED = 0.05
 
 
@@ -71,6 +74,7 @@ class SimRun:
         left = self.lane + 1
         self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length,
                                           left < len(self.track.lanes) and self.track.lanes[left].oncoming)
+        self._half_diagonal = 0.5 * math.hypot(self.params.length, self.params.width)
         self.n_ticks = round(sc.duration * self.loop.rates.control_hz)
         self.rows: list[TickRecord] = []
         self.believed: list[tuple[float, float]] = []
@@ -83,7 +87,7 @@ class SimRun:
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
         self._traffic_reach = 0.0
         if self.traffic is not None:
-            self._traffic_reach = (max(self.world.window, self.streamer.ahead if self.streamer is not None else 0.0)
+            self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
                                    + self.traffic.length)
 
     def __getattr__(self, name: str) -> Any:
@@ -111,10 +115,11 @@ class SimRun:
 
     def _edge_beyond(self, pose: Pose) -> str | None:
         """Kind of road edge a whole side of the footprint is beyond (two corners off the paved surface)."""
-        if self.track.surface_holds_disc(pose.x, pose.y, 0.5 * math.hypot(self.params.length, self.params.width)):
+        track = self.parts.track
+        if track.surface_holds_disc(pose.x, pose.y, self._half_diagonal):
             return None
         corners = footprint_corners(pose.x, pose.y, pose.yaw, self.params.length, self.params.width)
-        kinds = [self.track.edge_kind_at(x, y) for x, y in corners]
+        kinds = [track.edge_kind_at(x, y) for x, y in corners]
         off = [k for k in kinds if k is not None]
         return off[0] if len(off) >= 2 else None
 
@@ -125,22 +130,25 @@ class SimRun:
         if self.done:
             raise RuntimeError("the run is over; build a new SimRun to run again")
         wall0 = time.perf_counter()
-        rec = self.loop.tick()
+        parts, loop = self.parts, self.parts.loop
+        rec = loop.tick()
         self.rows.append(rec)
-        est_pose = self.loop.last_estimate.pose
+        est_pose = loop.last_estimate.pose
         self.believed.append((est_pose.x, est_pose.y))
-        if self.video is not None or self.recording is not None:
+        if parts.video is not None or parts.recording is not None:
             self._record_tick(rec)
-        pose = self.loop.last_state.true_pose
-        contacts = self.world.contact_kinds() if self.world is not None else set()
+        state = loop.last_state
+        pose = state.true_pose
+        world = parts.world
+        contacts = world.contact_kinds() if world is not None else set()
         if "vehicle" in contacts and self.hit is None:
-            state = self.loop.last_state
-            self.hit = vehicle_hit(self.traffic, self.world.traffic_touching()[0], rec.t, state.speed, pose.yaw)
+            self.hit = vehicle_hit(parts.traffic, world.traffic_touching()[0], rec.t, state.speed, pose.yaw)
         edge = self._edge_beyond(pose)
-        if self.traffic is not None:
+        if parts.traffic is not None:
             self._advance_traffic(rec, pose)
         self.done = (self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off")
-                     or self._stopped(rec) or self.smap.project(pose, self.lane).s > self.track.length - END_MARGIN_M
+                     or self._stopped(rec)
+                     or parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M
                      or len(self.rows) >= self.n_ticks)
         self.wall_time += time.perf_counter() - wall0
         return rec
@@ -168,7 +176,7 @@ class SimRun:
 
     def _stopped(self, rec: TickRecord) -> bool:
         """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""
-        if not ((self.loop.stopping or self.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED):
+        if not ((self.parts.loop.stopping or self.parts.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED):
             self._still_since = None
             return False
         self._still_since = rec.t if self._still_since is None else self._still_since

@@ -25,9 +25,11 @@ from scipy.stats import chi2
 
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix, ImuSample, LidarFix
+from tracks.compiled import compiled_module
 from tracks.pose import Pose, wrap_angle
 
 _N = 7
+_KERNELS = compiled_module("testbed.localization.msf_kernels")
 
 
 def propagate_covariance(p: np.ndarray, f: np.ndarray, q_diag: np.ndarray, scratch: np.ndarray) -> None:
@@ -89,6 +91,10 @@ class MultiSensorFusion:
         self._q = np.array([0.0, 0.0, p.gyro_noise**2, p.accel_noise**2, p.gyro_bias_walk**2,
                             p.accel_bias_walk**2, p.lat_vel_walk**2])
         self._q_dt = np.empty(_N)
+        self._predictor = None if _KERNELS is None else _KERNELS.Predictor(self.nominal, self._f, self.P, self._q,
+                                                                          self._fp, p.lever)
+        """`predict`'s propagation compiled (testbed/localization/msf_kernels.pyx), where built; it works on
+        `nominal`, F and P in place, so P is only ever updated in place."""
         self.t: float | None = None
         self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
         self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
@@ -104,6 +110,9 @@ class MultiSensorFusion:
         dt = imu.t - self.t
         self.t = imu.t
         if dt <= 0.0:
+            return
+        if self._predictor is not None:
+            self._predictor.predict(imu.yaw_rate, imu.accel_long, dt)
             return
         p = self.params
         x, y, yaw, v, bg, ba, u = self.nominal.tolist()
@@ -134,7 +143,7 @@ class MultiSensorFusion:
             if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
                 self._readmit(source, t, z)
             return False
-        dx, self.P = observed_prefix_update(self.P, z, r, s)
+        dx, self.P[...] = observed_prefix_update(self.P, z, r, s)
         self.nominal += dx
         self.nominal[2] = wrap_angle(self.nominal[2])
         self._last_accepted[source] = t

@@ -116,9 +116,8 @@ class Episode:
 
 
 def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None) -> list[Episode]:
-    """`count` episodes cycling over every preset and over `conditions` (default: all), track seeds drawn from
-    the split: the k-th round over the presets shifts the conditions by k, so every len(presets) ×
-    len(conditions) episodes hold each preset in each condition once."""
+    """`count` episodes cycling over every preset and over `conditions` (default: all), each preset × condition
+    pair once in every presets × conditions episodes; track seeds drawn from the split."""
     seeds = TRAIN_SEEDS if split == "train" else HELD_OUT_SEEDS
     if split not in ("train", "heldout"):
         raise ValueError(f"split must be 'train' or 'heldout', got {split!r}")
@@ -131,7 +130,7 @@ def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None
     out = []
     for i in range(count):
         preset = presets[i % len(presets)]
-        condition = conditions[(i // len(presets) + i % len(presets)) % len(conditions)]
+        condition = conditions[(i // len(presets) + i % len(presets)) % len(conditions)]  # every pair per round
         out.append(Episode(preset, int(rng.choice(seeds)), condition))
     return out
 

@@ -75,6 +75,7 @@ class Fleet:
         self.ego_length, self.ego_width = ego_length, ego_width
         self.end_s = end_s
         self.gaps = gaps
+        self._leaders: dict[int, TrafficCar] | None = None
 
     @classmethod
     def place(cls, config: TrafficConfig, track: Track, ego_lane: int, ego_s: float, default_speed: float,
@@ -123,25 +124,26 @@ class Fleet:
         road's end), evaluated for all cars before any moves, then recycle the oncoming cars left behind; an ego
         off the map (None) leads no car and recycles none."""
         ego_lanes = self._ego_lanes(ego) if ego is not None else set()
-        leaders: dict[int, TrafficCar] = {}
-        by_lane: dict[int, list[TrafficCar]] = {}
-        for car in sorted(self.cars, key=lambda c: c.direction * c.s):
-            by_lane.setdefault(car.lane, []).append(car)
-        for cars in by_lane.values():
-            leaders.update((behind.id, ahead) for behind, ahead in pairwise(cars))
+        if self._leaders is None:
+            self._leaders = self._leader_of()
+        leaders, half_pair, length = self._leaders, 0.5 * (self.length + self.ego_length), self.length
         steps = []
         for car in self.cars:
             if car.desired <= 0.0:
                 steps.append((0.0, 0.0))
                 continue
             d = car.direction
-            gap = self.end_s + 0.5 * self.length - car.s if d > 0 else math.inf
+            gap = self.end_s + 0.5 * length - car.s if d > 0 else math.inf
             lead_speed = 0.0
             ahead = leaders.get(car.id)
-            if ahead is not None and d * (ahead.s - car.s) - self.length < gap:
-                gap, lead_speed = d * (ahead.s - car.s) - self.length, ahead.speed
+            if ahead is not None:
+                lead_gap = d * (ahead.s - car.s) - length
+                if lead_gap < -length:
+                    self._leaders = None  # the two swapped places: find the leaders again next tick
+                if lead_gap < gap:
+                    gap, lead_speed = lead_gap, ahead.speed
             if ego is not None and car.lane in ego_lanes and d * (ego.s - car.s) > 0.0:
-                ego_gap = d * (ego.s - car.s) - 0.5 * (self.length + self.ego_length)
+                ego_gap = d * (ego.s - car.s) - half_pair
                 if ego_gap < gap:
                     gap, lead_speed = ego_gap, d * ego.speed
             steps.append(integrate(car.speed, idm_accel(self.idm, car.speed, car.desired, gap,
@@ -149,6 +151,16 @@ class Fleet:
         for car, (ds, v) in zip(self.cars, steps, strict=True):
             car.s, car.speed = car.s + car.direction * ds, v
         self._recycle(ego)
+
+    def _leader_of(self) -> dict[int, TrafficCar]:
+        """The car ahead of each car in its lane (in its direction of travel), by id."""
+        leaders: dict[int, TrafficCar] = {}
+        by_lane: dict[int, list[TrafficCar]] = {}
+        for car in sorted(self.cars, key=lambda c: c.direction * c.s):
+            by_lane.setdefault(car.lane, []).append(car)
+        for cars in by_lane.values():
+            leaders.update((behind.id, ahead) for behind, ahead in pairwise(cars))
+        return leaders
 
     def _recycle(self, ego: EgoOnRoad | None) -> None:
         """Each oncoming car `RECYCLE_BEHIND_M` behind the ego, or at the road's start, re-enters its lane at its
@@ -162,6 +174,7 @@ class Fleet:
             s = max(c.s for c in self.cars if c.lane == car.lane) + self.length + self.gaps.draw()
             if s <= self.end_s:
                 car.s, car.speed = s, car.desired
+                self._leaders = None
             elif car.s <= start:
                 car.s, car.speed, car.desired = start, 0.0, 0.0
 

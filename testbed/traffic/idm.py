@@ -8,6 +8,7 @@ clipped below at -`brake_limit` (what the tyres give); pure arithmetic, no physi
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -27,10 +28,15 @@ class IdmParams:
     delta: float = 4.0
     brake_limit: float = 9.0
 
+    @functools.cached_property
+    def braking_scale(self) -> float:
+        """2 sqrt(a b), the scale of the closing term of s*."""
+        return 2.0 * math.sqrt(self.accel * self.decel)
+
 
 def desired_gap(p: IdmParams, v: float, dv: float) -> float:
     """s*(v, dv): the gap the driver wants at speed v closing on the leader at dv (m)."""
-    return p.min_gap + max(0.0, v * p.headway + v * dv / (2.0 * math.sqrt(p.accel * p.decel)))
+    return p.min_gap + max(0.0, v * p.headway + v * dv / p.braking_scale)
 
 
 def idm_accel(p: IdmParams, v: float, v0: float, gap: float | None = None, dv: float = 0.0) -> float:

@@ -13,7 +13,7 @@ from tracks.presets import PRESETS
 
 def test_held_out_seeds_are_disjoint_from_training_seeds():
     assert not set(TRAIN_SEEDS) & set(HELD_OUT_SEEDS)
-    train = episodes("train", 72, 0)
+    train = episodes("train", 2 * len(PRESETS) * len(CONDITIONS), 0)
     held = episodes("heldout", len(PRESETS) * len(CONDITIONS), 0)
     assert all(ep.seed in TRAIN_SEEDS for ep in train)
     assert all(ep.seed in HELD_OUT_SEEDS for ep in held)
@@ -23,10 +23,11 @@ def test_held_out_seeds_are_disjoint_from_training_seeds():
 
 
 def test_episodes_can_be_drawn_in_chosen_conditions_only():
-    chosen = episodes("train", 24, 5, ["night", "worn"])
+    n = 4 * len(PRESETS)
+    chosen = episodes("train", n, 5, ["night", "worn"])
     assert {(ep.preset, ep.condition) for ep in chosen} == {(p, c) for p in PRESETS for c in ("night", "worn")}
-    assert [ep.seed for ep in chosen] == [ep.seed for ep in episodes("train", 24, 5)]  # same track seeds
-    assert episodes("train", 24, 5, list(CONDITIONS)) == episodes("train", 24, 5)
+    assert [ep.seed for ep in chosen] == [ep.seed for ep in episodes("train", n, 5)]  # same track seeds
+    assert episodes("train", n, 5, list(CONDITIONS)) == episodes("train", n, 5)
     for bad in (["fog"], [], ["night", "night"]):
         with pytest.raises(ValueError, match="conditions"):
             episodes("train", 3, 0, bad)

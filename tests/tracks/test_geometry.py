@@ -38,11 +38,7 @@ def test_projection_does_not_depend_on_the_query_history(circle_line):
     points = [
         circle_line.point(s, t) for s, t in zip(rng.uniform(90, 280, 50), rng.uniform(-9, 9, 50), strict=True)
     ]
-    cold = []
-    for p in points:
-        circle_line._hint = None
-        circle_line._memo.clear()
-        cold.append(circle_line.project(*p))
+    cold = [ReferenceLine(circle_line.start, circle_line.segments).project(*p) for p in points]
     circle_line._memo.clear()
     circle_line.project(0.0, 0.0)
     warm = [circle_line.project(*p) for p in points]
