@@ -6,6 +6,12 @@ steer the car and one drive serves both columns. Per control tick the error is |
 Alg. 3 as the loop computes it (map lane width at the MSF pose, last D held between frames and while no line is
 valid): once of the tracked detections the loop used, once of the raw detections of the same frames.
 A preset too short for the duration is driven slower, so that it lasts the duration.
+
+With traffic (`traffic` cars, `testbed.perception.traffic_drive`: a lead car `lead_gap` m ahead in the ego lane,
+every car starting at rest with the ego) each frame also gets its occluded fraction
+(`testbed.perception.occlusion`: the share of the ego lines' points in the detector's range that a car hides
+from the camera), held per tick like D_LD, and the tables split the ticks into occluded (fraction > 0) and
+clear.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import math
 import multiprocessing
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
@@ -24,14 +31,17 @@ from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
 from testbed.eval.run_build import END_MARGIN_M
 from testbed.eval.runner import SimRun
-from testbed.eval.scenario import load_scenario
+from testbed.eval.scenario import Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import make_detector
 from testbed.perception.seeds import Cell, cells
+from testbed.perception.traffic_drive import LEAD_GAP_M, start_at_rest, traffic_drive
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.presets import load_track
+from tracks.road import Track
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -42,7 +52,8 @@ P99_TARGET_M = 0.20
 
 
 class _RawTap(LaneDetector):
-    """Passes a detector's output through, keeping each raw detection with the MSF pose of its tick."""
+    """Passes a detector's output through, keeping each raw detection with the MSF pose of its tick and the
+    frame's occluded fraction (`occlusion` of its true pose; None without traffic)."""
 
     def __init__(self, detector: LaneDetector) -> None:
         self.detector = detector
@@ -50,11 +61,13 @@ class _RawTap(LaneDetector):
         self.reads_camera = detector.reads_camera
         self.name = getattr(detector, "name", type(detector).__name__)
         self.pose_now = lambda: None
-        self.frames: list[tuple[LaneDetection, Pose | None]] = []
+        self.occlusion: Callable[[Pose], float | None] = lambda pose: None
+        self.frames: list[tuple[LaneDetection, Pose | None, float | None]] = []
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
         ld = self.detector.detect(frame)
-        self.frames.append((ld, self.pose_now()))
+        occluded = None if frame.true_pose is None else self.occlusion(frame.true_pose)
+        self.frames.append((ld, self.pose_now(), occluded))
         return ld
 
 
@@ -65,21 +78,42 @@ def error_stats(err: np.ndarray) -> dict[str, float | None]:
     return {"mean_m": float(e.mean()), "p99_m": float(np.percentile(e, 99)), "max_m": float(e.max())}
 
 
-def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
-          existence_threshold: float = 0.5) -> dict:
-    """Drive one cell: what was driven, and the per-tick errors (m) without (`raw`) and with (`tracked`)
-    tracking."""
+def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, traffic: int = 0,
+                   lead_gap: float = LEAD_GAP_M) -> tuple[Scenario, Track]:
+    """The scenario of a cell's drive and its track; a UserError where its road cannot hold the traffic."""
     base = load_scenario(cell.preset)
     spec = f"{cell.preset}@{cell.track_seed}"
     track = load_track(spec)
     room = track.length - base.start_s - END_MARGIN_M
     speed = min(base.speed, room / duration)
+    table = None
+    if traffic:
+        fitted = traffic_drive(track, base.lane if base.lane is not None else track.ego_lane, base.start_s,
+                               base.vehicle, speed, duration, traffic, lead_gap)
+        speed, table = fitted.speed, fitted.traffic
     sc = base.with_overrides(track=spec, condition=cell.condition, duration=duration, speed=speed, seed=seed,
-                             detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}")
+                             detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}",
+                             traffic=table)
+    return sc, track
+
+
+def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
+          existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M) -> dict:
+    """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
+    (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
+    or before the first frame)."""
+    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap)
+    spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
     tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed)))
     sim = SimRun(sc, detector=tap, tracking=True)
     tap.pose_now = lambda: sim.loop.last_estimate.pose
+    fleet = sim.traffic
+    if fleet is not None:
+        start_at_rest(fleet)
+        car = get_vehicle(sc.traffic.vehicle)
+        tap.occlusion = lambda pose: occluded_fraction(track, pose, rig, fleet.poses(),
+                                                       (car.length, car.width, car.height))
     try:
         result = sim.run()
     finally:
@@ -87,17 +121,19 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     rows = result.rows
     phys = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
     tracked = np.array([np.nan if r.ld_dev is None else r.ld_dev for r in rows])
-    raw = np.full(len(rows), np.nan)
-    alg3, frames, last = LdDeviation(existence_threshold), iter(tap.frames), None
+    raw, occluded = np.full(len(rows), np.nan), np.full(len(rows), np.nan)
+    alg3, frames, last, hidden = LdDeviation(existence_threshold), iter(tap.frames), None, None
     for i, r in enumerate(rows):
         if r.ld_fresh:
-            ld, pose = next(frames)
+            ld, pose, hidden = next(frames)
             with contextlib.suppress(OffMapError):
                 last = alg3.update(ld, sim.smap.lane_width(pose))
         raw[i] = np.nan if last is None else last
+        occluded[i] = np.nan if hidden is None else hidden
     return {"preset": cell.preset, "condition": cell.condition, "track": spec, "speed_mps": round(speed, 2),
             "sim_time_s": round(len(rows) / sim.loop.rates.control_hz, 2), "frames": len(tap.frames),
-            "raw": np.abs(raw - phys), "tracked": np.abs(tracked - phys)}
+            "traffic": traffic, "consequence": result.summary["consequence"],
+            "raw": np.abs(raw - phys), "tracked": np.abs(tracked - phys), "occluded": occluded}
 
 
 def _one_thread() -> None:
@@ -107,29 +143,41 @@ def _one_thread() -> None:
 
 
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
-                    workers: int = 1, progress: bool = False) -> list[dict]:
-    """Drive every cell (one torch thread each; `workers` processes at once), results in cell order; a bad
-    preset, condition or duration is a UserError before any drive."""
+                    workers: int = 1, progress: bool = False, traffic: int = 0,
+                    lead_gap: float | None = None) -> list[dict]:
+    """Drive every cell (one torch thread each; `workers` processes at once; `traffic` cars, the lead
+    `lead_gap` m ahead, default `LEAD_GAP_M`), results in cell order; a bad preset, condition, duration or
+    traffic is a UserError before any drive."""
     if not (math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a time > 0 s, got {duration}")
+    if traffic < 0:
+        raise UserError(f"--traffic must be a number of cars >= 0, got {traffic}")
+    if lead_gap is not None and not traffic:
+        raise UserError("--lead-gap places the lead car of --traffic: add --traffic N or drop it")
+    if lead_gap is not None and not (math.isfinite(lead_gap) and 1.0 <= lead_gap <= 2000.0):
+        raise UserError(f"--lead-gap must be a gap of 1-2000 m, got {lead_gap}")
     for preset in presets:
         TRACKS.get(preset)
     for condition in conditions:
         get_condition(condition)
     todo = cells(presets, conditions)
+    options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap}
+    if traffic:
+        for cell in todo:
+            drive_scenario(cell, detector, duration, **options)
     bar = tqdm(total=len(todo), desc="closed loop", unit="drive", disable=not progress)
     if workers <= 1:
         _one_thread()
         out = []
         for cell in todo:
             bar.set_postfix_str(f"{cell.preset} {cell.condition}")
-            out.append(drive(cell, detector, duration))
+            out.append(drive(cell, detector, duration, **options))
             bar.update(1)
         return out
     results: dict[Cell, dict] = {}
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                              initializer=_one_thread) as pool:
-        futures = {pool.submit(drive, cell, detector, duration): cell for cell in todo}
+        futures = {pool.submit(drive, cell, detector, duration, **options): cell for cell in todo}
         for future in as_completed(futures):
             results[futures[future]] = future.result()
             bar.update(1)
@@ -167,7 +215,55 @@ def markdown_table(results: list[dict]) -> str:
         lines.append(f"| {cond} | {_f(s['raw']['mean_m'])} | {_f(s['raw']['p99_m'])} | {_f(s['raw']['max_m'])} "
                      f"| {_f(s['tracked']['mean_m'])} | {_f(s['tracked']['p99_m'])} | {_f(s['tracked']['max_m'])} "
                      f"| {'yes' if ok else 'no'} |")
+    if any(r.get("traffic") for r in results):
+        lines += ["", *occlusion_table(results)]
     return "\n".join(lines) + "\n"
+
+
+def _split(r: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The tracked errors of a drive's occluded ticks and of its clear ones."""
+    occluded = np.nan_to_num(r["occluded"]) > 0.0
+    return r["tracked"][occluded], r["tracked"][~occluded]
+
+
+def occlusion_table(results: list[dict]) -> list[str]:
+    """With traffic: per cell the share of ticks occluded, their mean occluded fraction, and the tracked errors
+    of the occluded and of the clear ticks, judged against the p99 target; then per condition, pooled."""
+    lines = [f"With traffic: ticks whose last frame had a car hiding part of the ego lines within "
+             f"{NEAR_M:g}-{FAR_M:g} m (occluded) and the others (clear); tracked |D_LD error|, p99 target "
+             f"{P99_TARGET_M:.2f} m on every tick.", "",
+             "| condition | preset | cars | speed (m/s) | consequence | occluded ticks | mean hidden share "
+             "| occluded mean | occluded p99 | occluded max | clear mean | clear p99 | all p99 | meets p99 |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        occ, clear = (error_stats(e) for e in _split(r))
+        share = np.nan_to_num(r["occluded"]) > 0.0
+        every = error_stats(r["tracked"])
+        ok = every["p99_m"] is not None and every["p99_m"] <= P99_TARGET_M
+        hidden = r["occluded"][share]
+        lines.append(f"| {r['condition']} | {r['preset']} | {r['traffic']} | {r['speed_mps']:g} | {r['consequence']} "
+                     f"| {share.mean():.2f} | {_f(float(hidden.mean()) if len(hidden) else None)} "
+                     f"| {_f(occ['mean_m'])} | {_f(occ['p99_m'])} | {_f(occ['max_m'])} | {_f(clear['mean_m'])} "
+                     f"| {_f(clear['p99_m'])} | {_f(every['p99_m'])} | {'yes' if ok else 'no'} |")
+    lines += ["", "| condition | occluded ticks | occluded mean | occluded p99 | clear mean | clear p99 | all p99 "
+              "| meets p99 |", "|---|---|---|---|---|---|---|---|"]
+    for cond in dict.fromkeys(r["condition"] for r in results):
+        group = [r for r in results if r["condition"] == cond]
+        occ = error_stats(np.concatenate([_split(r)[0] for r in group]))
+        clear = error_stats(np.concatenate([_split(r)[1] for r in group]))
+        every = error_stats(np.concatenate([r["tracked"] for r in group]))
+        share = np.concatenate([np.nan_to_num(r["occluded"]) > 0.0 for r in group]).mean()
+        ok = every["p99_m"] is not None and every["p99_m"] <= P99_TARGET_M
+        lines.append(f"| {cond} | {share:.2f} | {_f(occ['mean_m'])} | {_f(occ['p99_m'])} | {_f(clear['mean_m'])} "
+                     f"| {_f(clear['p99_m'])} | {_f(every['p99_m'])} | {'yes' if ok else 'no'} |")
+    return lines
+
+
+def _occlusion_columns(r: dict) -> dict[str, float | None]:
+    occluded, clear = _split(r)
+    return ({"occluded_ticks": float((np.nan_to_num(r["occluded"]) > 0.0).mean())}
+            | {f"occluded_{m}": v for m, v in error_stats(occluded).items()}
+            | {f"clear_{m}": v for m, v in error_stats(clear).items()})
 
 
 def write_report(results: list[dict], out: Path) -> dict[str, Path]:
@@ -177,8 +273,9 @@ def write_report(results: list[dict], out: Path) -> dict[str, Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = {"markdown": out / "closed_loop.md", "csv": out / "closed_loop.csv"}
     paths["markdown"].write_text(markdown_table(results))
-    flat = [{k: v for k, v in r.items() if k not in ("raw", "tracked")}
+    flat = [{k: v for k, v in r.items() if k not in ("raw", "tracked", "occluded")}
             | {f"{k}_{m}": v for k in ("raw", "tracked") for m, v in error_stats(r[k]).items()}
+            | (_occlusion_columns(r) if r.get("traffic") else {})
             for r in results]
     pd.DataFrame(flat).to_csv(paths["csv"], index=False)
     return paths

@@ -25,6 +25,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--label-draws", type=int, default=0, metavar="K",
                    help="also label each frame under K other draws of the sensor's exposure, blur and noise; "
                         "`ld3 ld eval` then reports how repeatable the existence labels are")
+    p.add_argument("--traffic", type=_cars, default=0, metavar="N",
+                   help="up to N traffic cars in each frame, most often a lead car 3-25 m ahead in the ego lane "
+                        "(default 0: none)")
     p.set_defaults(func=_dataset)
 
     p = sub.add_parser("train", help="train LaneNet from scratch on CPU")
@@ -59,6 +62,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.set_defaults(func=_export_onnx)
 
     from testbed.perception.registry import DETECTORS
+    from testbed.perception.traffic_drive import LEAD_GAP_M
 
     p = sub.add_parser("closed-loop", help="drive held-out tracks of every preset in every condition and table "
                                            "|D_LD - phys_dev| with and without lane tracking")
@@ -67,16 +71,33 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--conditions", nargs="+", metavar="CONDITION", help="camera conditions (default: all)")
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds per drive")
     p.add_argument("--workers", type=int, default=1, help="drives run at once, each in its own process")
+    p.add_argument("--traffic", type=_cars, default=0, metavar="N",
+                   help="N traffic cars at the ego's speed, the first of the ego lane --lead-gap ahead, hiding the "
+                        "far part of the ego lines; the tables split the ticks by occlusion (default 0: none)")
+    p.add_argument("--lead-gap", type=float, default=None, metavar="M",
+                   help=f"ego front to lead car rear with --traffic (m; default {LEAD_GAP_M:g})")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
+
+
+def _cars(text: str) -> int:
+    """A number of traffic cars (0 = none), for argparse."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of cars, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be a number of cars >= 0, got {n}")
+    return n
 
 
 def _dataset(args: argparse.Namespace) -> int:
     from testbed.perception.dataset import build_dataset
 
     n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
-                      workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws)
+                      workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws,
+                      traffic=args.traffic)
     print(f"wrote {n} {args.split} frames to {args.out}")
     return 0
 
@@ -135,7 +156,8 @@ def _closed_loop(args: argparse.Namespace) -> int:
     if args.detector == "none":
         raise ValueError("closed-loop needs a lane detector: --detector neural, classical or oracle")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
-                              args.duration, workers=args.workers, progress=True)
+                              args.duration, workers=args.workers, progress=True, traffic=args.traffic,
+                              lead_gap=args.lead_gap)
     paths = write_report(results, args.out)
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))

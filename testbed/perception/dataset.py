@@ -9,7 +9,11 @@ exposure, blur and noise, and erases the paint of random lane-line stretches (un
 one-sided lines of lane splits and merges) so missing lines are common; the run of poses starts anywhere
 along the track (bends, intersections). Each frame's meta keeps its lines' visible fractions and, on request,
 their existence labels under other draws of the sensor randomisation of the same render (`label_draws`: how
-repeatable a label is). Track seeds for training come from `TRAIN_SEEDS`;
+repeatable a label is). With `traffic` > 0 each frame also shows up to that many traffic cars, drawn from a
+stream of their own (so the frames without traffic stay the same): with probability `LEAD_PROBABILITY` a lead
+car in the camera's lane `LEAD_GAP_RANGE_M` ahead of the car's front, the others in random lanes 5–60 m ahead;
+the labels then come from the frame with the cars in it, and the meta keeps the share of the ego lines the cars
+hide (`occluded`, `testbed.perception.occlusion`). Track seeds for training come from `TRAIN_SEEDS`;
 `HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files:
 images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
 """
@@ -28,6 +32,7 @@ import numpy as np
 from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS, get_condition
 from testbed.perception.labels import FrameVisibility, PaintLayout, ego_lines
+from testbed.perception.occlusion import occluded_fraction
 from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from testbed.world import TileStreamer
 from tracks.layout import Boundary, MarkingRun
@@ -45,6 +50,12 @@ HEIGHT_JITTER = 0.05  # m
 POSES_PER_STATION = 2  # frames rendered at each station along the road (different pose and rig)
 ERASED_PER_KM = 5.0  # unpainted stretches (15-80 m) per km of each lane line
 LABEL_KEYS = ("left", "right", "left_exists", "right_exists", "lane_width", "deviation")
+LEAD_PROBABILITY = 0.75
+LEAD_GAP_RANGE_M = (3.0, 25.0)  # ego front to lead car rear
+OTHERS_RANGE_M = (5.0, 60.0)  # centres of the other cars ahead of the camera's pose
+TRAFFIC_LATERAL_M = 0.3  # a car's offset from its lane's centre, each side
+TRAFFIC_CAR = "sedan"
+TRAFFIC_STREAM = 7  # tells the traffic's stream apart from the episode's and the label redraws'
 
 
 class MarkingFadePainter:
@@ -124,12 +135,36 @@ def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None
     return out
 
 
+def traffic_poses(track, lane, s: float, count: int, rng: np.random.Generator, ego_length: float) -> list[Pose]:
+    """Up to `count` traffic car poses for a camera at arc length `s` of `lane` (see the module): the lead car
+    first where drawn, no two cars of a lane overlapping, none past the road's end."""
+    car = get_vehicle(TRAFFIC_CAR)
+    taken: list[tuple[int, float]] = []
+    if count and rng.random() < LEAD_PROBABILITY:
+        gap = float(rng.uniform(*LEAD_GAP_RANGE_M))
+        taken.append((lane.index, s + 0.5 * ego_length + gap + 0.5 * car.length))
+    while len(taken) < count:
+        index, at = int(rng.integers(len(track.lanes))), s + float(rng.uniform(*OTHERS_RANGE_M))
+        if all(i != index or abs(at - a) > car.length + 1.0 for i, a in taken):
+            taken.append((index, at))
+    poses = []
+    for index, at in taken:
+        ln = track.lanes[index]
+        if at < ln.length - 0.5 * car.length:
+            x, y = ln.position(at, float(rng.uniform(-TRAFFIC_LATERAL_M, TRAFFIC_LATERAL_M)))
+            poses.append(Pose(x, y, ln.heading_at(at)))
+    return poses
+
+
 def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
-                   label_draws: int = 0) -> Iterator[tuple[np.ndarray, dict]]:
+                   label_draws: int = 0, traffic: int = 0) -> Iterator[tuple[np.ndarray, dict]]:
     """Yield (image, label) for `n_frames` poses along one random lane of the episode's track; with
     `label_draws` > 0 each label's meta also holds `redrawn_exists`, the (left, right) existence labels of that
-    many other sensor draws of the same render, drawn from their own stream (images and labels unchanged)."""
+    many other sensor draws of the same render, drawn from their own stream (images and labels unchanged); with
+    `traffic` > 0 up to that many traffic cars in each frame (see the module)."""
     rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))])
+    traffic_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), traffic,
+                                         TRAFFIC_STREAM])
     track = load_track(f"{ep.preset}@{ep.seed}")
     condition = get_condition(ep.condition)
     erase_stretches(track, rng)
@@ -142,6 +177,9 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
     base_rig = CameraRig(get_vehicle(vehicle).camera)
     streamer = TileStreamer(track, condition.lighting, ahead_m=70.0, behind_m=5.0)
     layout = PaintLayout(track)
+    car = get_vehicle(TRAFFIC_CAR)
+    if traffic:
+        streamer.add_traffic(traffic, car.length, car.width, car.height)
     try:
         along = [ln for ln in track.lanes if not ln.oncoming]  # the camera's car drives along the road
         lane = along[int(rng.integers(len(along)))]
@@ -152,8 +190,17 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
             if s > track.length - 2.0:
                 break
             redraw_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), i])
-            yield _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep, label_draws,
-                               redraw_rng)
+            cars = traffic_poses(track, lane, s, traffic, traffic_rng, get_vehicle(vehicle).length) if traffic else []
+            if traffic:
+                streamer.place_traffic(dict(enumerate(cars)))
+            image, label = _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep, label_draws,
+                                        redraw_rng)
+            if traffic:
+                pose = Pose(*label["meta"]["pose"])
+                hidden = occluded_fraction(track, pose, base_rig, cars, (car.length, car.width, car.height))
+                label["meta"]["traffic"] = len(cars)
+                label["meta"]["occluded"] = None if hidden is None else round(hidden, 4)
+            yield image, label
             if i % POSES_PER_STATION == POSES_PER_STATION - 1:
                 s += float(rng.uniform(0.4, 1.6)) * mean_step
     finally:
@@ -236,9 +283,9 @@ def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
     return FrameSet(meta=[m for p in parts for m in p.meta], **cat)
 
 
-def _render_to_shard(job: tuple[Episode, int, Path, int]) -> int:
-    ep, n_frames, path, label_draws = job
-    frames = list(render_episode(ep, n_frames, label_draws=label_draws))
+def _render_to_shard(job: tuple[Episode, int, Path, int, int]) -> int:
+    ep, n_frames, path, label_draws, traffic = job
+    frames = list(render_episode(ep, n_frames, label_draws=label_draws, traffic=traffic))
     if frames:
         write_shard(path, [f[0] for f in frames], [f[1] for f in frames])
     return len(frames)
@@ -246,11 +293,14 @@ def _render_to_shard(job: tuple[Episode, int, Path, int]) -> int:
 
 def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
                   workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None,
-                  label_draws: int = 0) -> int:
+                  label_draws: int = 0, traffic: int = 0) -> int:
     """Render about `frames` labelled frames into `out` (one shard per episode; episodes in `conditions`, default
-    all; each label also under `label_draws` other sensor draws, see `render_episode`); returns the frame count."""
+    all; each label also under `label_draws` other sensor draws, each frame with up to `traffic` cars, see
+    `render_episode`); returns the frame count."""
     if label_draws < 0:
         raise ValueError(f"label_draws must be >= 0, got {label_draws}")
+    if traffic < 0:
+        raise ValueError(f"--traffic must be a number of cars >= 0, got {traffic}")
     from multiprocessing import get_context
 
     from tqdm import tqdm
@@ -258,7 +308,8 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n_eps = max(1, math.ceil(frames / frames_per_episode))
-    jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz", label_draws)
+    jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz", label_draws,
+             traffic)
             for i, ep in enumerate(episodes(split, n_eps, seed, conditions))]
     bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
     done = 0
@@ -276,5 +327,5 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
                                                   "episodes": n_eps, "conditions": conditions or list(CONDITIONS),
                                                   "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop],
-                                                  "label_draws": label_draws}))
+                                                  "label_draws": label_draws, "traffic": traffic}))
     return done

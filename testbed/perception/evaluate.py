@@ -5,7 +5,11 @@ compared with the true physical deviation: mean |error|, p95, p99 (frames where 
 under `no_output`). Existence is scored per line: precision and recall of "present" and of "missing", its
 errors also per band of the lines' visible fraction; where the dataset holds labels under other sensor draws
 of the same render, the report says how often those flip (the labels' own repeatability).
-The same statistics per track preset. Latency is `detect` wall time on one torch thread (median, p99).
+The same statistics per track preset, per marking of the nearer line, and per occlusion: a frame is
+`occluded` when traffic cars hide part of its ego lines within the detector's range (meta `occluded` > 0, the
+share `testbed.perception.occlusion` computes from the frame's geometry when the dataset is rendered with
+traffic), `clear` otherwise (frames without traffic included). Latency is `detect` wall time on one torch
+thread (median, p99).
 Writes ld_eval.json, ld_eval.md, a PNG grid of frames with detected (green) and true (red) lines drawn over
 them, and a PNG of the error's cumulative distribution per condition.
 """
@@ -128,6 +132,11 @@ def near_line_kinds(frames: FrameSet) -> list[str]:
                                                                                    strict=True)]
 
 
+def occlusion_groups(frames: FrameSet) -> list[str]:
+    """Per frame, 'occluded' where traffic hides part of its ego lines (meta `occluded` > 0), else 'clear'."""
+    return ["occluded" if (m.get("occluded") or 0.0) > 0.0 else "clear" for m in frames.meta]
+
+
 def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: float = 0.5,
              progress: bool = False) -> tuple[dict, list[LaneDetection]]:
     """Detect on every frame (one torch thread) and score per condition, per track preset and overall; the
@@ -153,6 +162,7 @@ def evaluate(detector: LaneDetector, frames: FrameSet, existence_threshold: floa
                     "per_condition": by([m.get("condition", "?") for m in frames.meta]),
                     "per_preset": by([m.get("preset", "?") for m in frames.meta]),
                     "per_near_line": by(near_line_kinds(frames)),
+                    "per_occlusion": by(occlusion_groups(frames)),
                     "overall": score(said, frames, np.arange(len(frames)), errors),
                     "existence_by_visible_fraction": errors_by_visibility(said, frames),
                     "label_repeatability": label_repeatability(frames),
@@ -180,7 +190,8 @@ def markdown_table(reports: list[dict]) -> str:
 
     lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), "",
              "Per marking of the nearer true line (the one Alg. 3 uses):", "", *rows("per_near_line", "nearer line"),
-             ""]
+             "", "Per occlusion of the ego lines by traffic (occluded: a car hides part of them within 5-30 m):", "",
+             *rows("per_occlusion", "occlusion"), ""]
     for rep in reports:
         if rep.get("existence_by_visible_fraction"):
             lines += [f"{rep['detector']} existence errors by the lines' visible fraction (label: present from "

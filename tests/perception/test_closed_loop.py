@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from testbed.perception.closed_loop import drive, error_stats, markdown_table, write_report
+from testbed.errors import UserError
+from testbed.perception.closed_loop import drive, error_stats, markdown_table, run_closed_loop, write_report
 from testbed.perception.seeds import Cell, cells
 
 
@@ -35,6 +36,37 @@ def test_tables_judge_the_tracked_errors_against_the_targets(tmp_path):
     paths = write_report(results, tmp_path)
     csv = paths["csv"].read_text().splitlines()
     assert csv[0].startswith("preset,condition,track") and "tracked_p99_m" in csv[0] and len(csv) == 3
+
+
+def test_traffic_drives_are_split_by_occlusion_in_their_own_table(tmp_path):
+    busy = _result("day", 0.2, 0.05) | {"traffic": 6, "consequence": "reach_destination",
+                                         "occluded": np.array([np.nan, 0.0, 0.3, 0.3, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0])}
+    busy["tracked"] = np.array([0.01, 0.01, 0.3, 0.3, 0.3, 0.01, 0.01, 0.01, 0.01, 0.01])
+    table = markdown_table([busy])
+    assert "| day | local | 6 | 12 | reach_destination | 0.30 | 0.300 | 0.300 | 0.300 | 0.300 | 0.010 | 0.010 " \
+           "| 0.300 | no |" in table
+    assert "| day | 0.30 | 0.300 | 0.300 | 0.010 | 0.010 | 0.300 | no |" in table
+    assert "With traffic" not in markdown_table([_result("day", 0.2, 0.04)])
+    csv = write_report([busy], tmp_path)["csv"].read_text().splitlines()
+    assert "occluded_ticks" in csv[0] and "clear_p99_m" in csv[0] and "occluded\n" not in csv[0]
+
+
+def test_bad_traffic_options_are_refused_before_any_drive():
+    with pytest.raises(UserError, match="--traffic"):
+        run_closed_loop(["slr"], ["day"], traffic=-1)
+    with pytest.raises(UserError, match="--lead-gap places"):
+        run_closed_loop(["slr"], ["day"], lead_gap=10.0)
+    with pytest.raises(UserError, match="--lead-gap must"):
+        run_closed_loop(["slr"], ["day"], traffic=6, lead_gap=0.0)
+
+
+@pytest.mark.slow
+def test_a_drive_in_traffic_records_the_occlusion_of_every_tick():
+    r = drive(Cell("urban-straight", "day", 9010), "neural", duration=3.0, traffic=6)
+    assert r["consequence"] == "reach_destination" and r["traffic"] == 6
+    seen = r["occluded"][np.isfinite(r["occluded"])]
+    assert len(seen) > 280 and (seen > 0.0).all()  # the lead car 8 m ahead hides the far lines throughout
+    assert np.isfinite(r["tracked"]).sum() > 250
 
 
 @pytest.mark.slow

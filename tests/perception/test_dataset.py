@@ -76,3 +76,22 @@ def test_label_redraws_leave_the_frames_and_labels_unchanged():
         assert len(draws) == 3 and all(len(d) == 2 and all(isinstance(x, bool) for x in d) for d in draws)
     with pytest.raises(ValueError, match="label_draws"):
         build_dataset(Path("unused"), 2, label_draws=-1)
+
+
+def test_traffic_shows_cars_at_the_same_poses_and_records_what_they_hide():
+    from testbed.perception.dataset import Episode, render_episode
+
+    ep = Episode("urban-curvy", TRAIN_SEEDS[12], "day")
+    plain = list(render_episode(ep, 4))
+    busy = list(render_episode(ep, 4, traffic=6))
+    assert busy[0][0].tobytes() == next(iter(render_episode(ep, 4, traffic=6)))[0].tobytes()
+    for (_, lab_a), (_, lab_b) in zip(plain, busy, strict=True):
+        meta = dict(lab_b["meta"])
+        assert 1 <= meta.pop("traffic") <= 6 and 0.0 <= meta.pop("occluded") <= 1.0
+        assert {k: v for k, v in meta.items() if k != "visible"} == {k: v for k, v in lab_a["meta"].items()
+                                                                     if k != "visible"}
+        assert lab_a["deviation"] == lab_b["deviation"]
+    assert any(img_a.tobytes() != img_b.tobytes() for (img_a, _), (img_b, _) in zip(plain, busy, strict=True))
+    assert any(lab["meta"]["occluded"] > 0.0 for _, lab in busy)
+    with pytest.raises(ValueError, match="--traffic"):
+        build_dataset(Path("unused"), 2, traffic=-1)

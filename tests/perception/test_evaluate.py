@@ -7,7 +7,7 @@ import pytest
 
 from testbed.lane_detection import LaneDetection, LaneDetector
 from testbed.perception.dataset import load_frames, write_shard
-from testbed.perception.evaluate import evaluate, write_report
+from testbed.perception.evaluate import evaluate, markdown_table, write_report
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
@@ -46,6 +46,7 @@ def test_errors_existence_and_report(tmp_path):
     # the car is left of centre, so the left line is the nearer one; frame 3 predates recorded kinds
     near = {k: v["frames"] for k, v in report["per_near_line"].items()}
     assert near == {"dashed_white": 2, "solid_white": 1, "?": 1}
+    assert {k: v["frames"] for k, v in report["per_occlusion"].items()} == {"clear": 4}
     # right line: said on 0, 1 (true), missing on 2 (wrongly: it exists) and 3 (rightly)
     rain = report["per_condition"]["rain"]
     assert rain["missing_lines"] == 1 and rain["missing_recall"] == 1.0 and rain["missing_precision"] == 0.5
@@ -82,6 +83,17 @@ def test_existence_errors_by_visible_fraction_and_label_repeatability(tmp_path):
     assert sc["present_precision"] == 1.0 and sc["present_recall"] == pytest.approx(11 / 14)
     md = write_report([report], None, tmp_path / "out")["markdown"].read_text()
     assert "| 0.15-0.25 | 2 | 2 | 0 | 1 |" in md and "0.188 of labels flip per draw (day 0.250, rain 0.125)" in md
+
+
+def test_frames_are_scored_apart_where_traffic_hides_their_lines(tmp_path):
+    frames = _frames(tmp_path / "data")
+    for meta, hidden in zip(frames.meta, (0.25, 0.0, None, 0.5), strict=True):
+        meta.update(traffic=3, occluded=hidden)
+    report, _ = evaluate(ShiftedLeftLine(), frames)
+    groups = report["per_occlusion"]
+    assert groups["occluded"]["frames"] == 2 and groups["clear"]["frames"] == 2
+    assert groups["occluded"]["mean_abs_err_m"] == pytest.approx(0.1)
+    assert "| ShiftedLeftLine | occluded | 2 | 0.100 |" in markdown_table([report])
 
 
 def test_datasets_without_visibility_records_report_none(tmp_path):
