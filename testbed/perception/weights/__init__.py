@@ -10,4 +10,10 @@ conditions only:
     ld3 ld dataset --out D/train4 --frames 8000  --split train --seed 4 --frames-per-episode 20 --conditions night worn
     ld3 ld train --data D/train D/train2 D/train3 D/train4 --val D/heldout --out runs/ld-train
 Held-out set: `ld3 ld dataset --out D/heldout --frames 1440 --split heldout --seed 0 --frames-per-episode 20`.
+
+`lanenet-traffic.pt` is those weights fine-tuned on frames with up to 6 cars (a lead car hiding the far lines)
+plus frames without traffic (renders stopped at 2,520 and 1,170 frames), selectable with `detector.weights`:
+    ld3 ld dataset --out D/traffic --split train --seed 11 --frames-per-episode 10 --traffic 6 --frames ...
+    ld3 ld dataset --out D/plain --split train --seed 12 --frames ...
+    ld3 ld train --init lanenet.pt --data D/traffic D/plain --epochs 12 --minutes 10 --lr 1e-3
 """
