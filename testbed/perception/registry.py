@@ -16,6 +16,7 @@ from pydantic import Field, field_validator
 
 from testbed.lane_detection import LaneDetector
 from testbed.params import Params
+from testbed.perception.weights import SHIPPED, resolve
 from testbed.registry import Capability, Component, Registry
 
 _LD = frozenset({Capability.LANE_DETECTOR})
@@ -32,14 +33,16 @@ class CameraDetectorParams(Params):
 class NeuralParams(CameraDetectorParams):
     """Parameters of the neural detectors (torch and onnxruntime)."""
 
-    weights: str | None = Field(None, description="checkpoint path (default: the shipped weights); for neural-onnx "
-                                                  "also a detector graph (.onnx) from `ld3 ld export-onnx`")
+    weights: str | None = Field(None, description="checkpoint path, or a shipped checkpoint by name: lanenet.pt (the "
+                                                  "default), lanenet-traffic.pt (fine-tuned with cars in view); for "
+                                                  "neural-onnx also a detector graph (.onnx) from `ld3 ld export-onnx`")
 
     @field_validator("weights")
     @classmethod
     def _exists(cls, value: str | None) -> str | None:
-        if value is not None and not Path(value).expanduser().is_file():
-            raise ValueError(f"no checkpoint at {value}: train one with `ld3 ld train` or drop detector.weights")
+        if value is not None and not resolve(value).is_file():
+            raise ValueError(f"no checkpoint at {value}: name a shipped one ({', '.join(SHIPPED)}), train one with "
+                             f"`ld3 ld train` or drop detector.weights")
         return value
 
 
@@ -53,7 +56,7 @@ class OracleParams(Params):
 def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
     from testbed.perception.neural import NeuralLaneDetector, load_model
 
-    return NeuralLaneDetector(load_model(Path(weights).expanduser() if weights is not None else None))
+    return NeuralLaneDetector(load_model(resolve(weights) if weights is not None else None))
 
 
 def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
@@ -64,7 +67,7 @@ def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = Non
     from testbed.perception.neural import load_model
     from testbed.perception.onnx_runtime import OnnxLaneDetector
 
-    return OnnxLaneDetector(load_model(Path(weights).expanduser() if weights is not None else None))
+    return OnnxLaneDetector(load_model(resolve(weights) if weights is not None else None))
 
 
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:

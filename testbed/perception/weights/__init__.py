@@ -17,3 +17,16 @@ plus frames without traffic (renders stopped at 2,520 and 1,170 frames), selecta
     ld3 ld dataset --out D/plain --split train --seed 12 --frames ...
     ld3 ld train --init lanenet.pt --data D/traffic D/plain --epochs 12 --minutes 10 --lr 1e-3
 """
+
+from importlib import resources
+from pathlib import Path
+
+SHIPPED = ("lanenet.pt", "lanenet-traffic.pt")
+"""Checkpoints in this package, named by file name in `detector.weights`."""
+
+
+def resolve(value: str) -> Path:
+    """The checkpoint `value` names: a shipped one by its file name (`SHIPPED`), otherwise a path."""
+    if value in SHIPPED:
+        return Path(str(resources.files(__name__) / value))
+    return Path(value).expanduser()
