@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 from tracks.geometry import ReferenceLine
+from tracks.pose import Pose
 from tracks.profile import Profile
 
 
@@ -52,7 +53,16 @@ class Lane:
 
     def heading_at(self, s: float) -> float:
         """Heading of travel (rad): the reference line's, turned by π for an oncoming lane."""
-        h = self.reference.heading_at(s)
+        return self._travel(self.reference.heading_at(s))
+
+    def pose_at(self, s: float) -> Pose:
+        """The pose on the lane centre at reference arc length s, heading in the direction of travel (one
+        reference-line query)."""
+        x, y, h = self.reference.frame(s)
+        t = self.offset_at(s)
+        return Pose(x - t * math.sin(h), y + t * math.cos(h), self._travel(h))
+
+    def _travel(self, h: float) -> float:
         return h if self.direction > 0 else h + math.pi
 
     def offset_at(self, s: float) -> float:

@@ -33,6 +33,7 @@ class TrackMap:
         self._centres = [ln.offset for ln in track.lanes]
         self._bounds = [(ln.offset - 0.5 * ln.width, ln.offset + 0.5 * ln.width) for ln in track.lanes]
         self._profiled = any(ln.profiles is not None for ln in track.lanes)
+        self._all_lanes = range(len(track.lanes))
         self._sides = self._directions(track)
         lo, hi = self._bounds[0][0], self._bounds[-1][1]
         for ln in track.lanes if self._profiled else ():
@@ -78,7 +79,7 @@ class TrackMap:
     def _candidates(self, pose: Pose, s: float) -> range:
         """The lanes a pose may be matched to: those of its direction of travel on a two-way road."""
         if self._sides is None:
-            return range(len(self._lanes))
+            return self._all_lanes
         along = math.cos(pose.yaw - self.track.reference.heading_at(s)) >= 0.0
         return self._sides[0] if along else self._sides[1]
 

@@ -28,7 +28,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.direct_chassis import DirectChassis
 from testbed.eval.recording import Recording
-from testbed.eval.scenario import Scenario, ScenarioError, check_needs
+from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError, check_needs
 from testbed.eval.video import VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
@@ -46,9 +46,6 @@ from tracks.road import Track
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
 from vehicles.params import VehicleParams
-
-END_MARGIN_M = 30.0
-"""A run ends this far before the end of its road."""
 
 FrameSink = Callable[[CameraFrame, LaneDetection], None]
 

@@ -23,9 +23,9 @@ from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
 from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.recording import ego_lane_lines
-from testbed.eval.run_build import END_MARGIN_M, RunOptions, build_run
+from testbed.eval.run_build import RunOptions, build_run
 from testbed.eval.run_folder import run_folder
-from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError
 from testbed.eval.summary import HitVehicle, RunSummary
 from testbed.eval.video import FrameSignals
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector

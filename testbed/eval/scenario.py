@@ -33,6 +33,8 @@ class ScenarioError(UserError):
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
 
+END_MARGIN_M = 30.0
+"""A run ends this far before the end of its road."""
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.@+=,-]*$"
 """A run name is one safe path component: it names the run's folder under `runs/`."""
 

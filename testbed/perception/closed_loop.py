@@ -29,9 +29,8 @@ from tqdm import tqdm
 from testbed.conditions import get_condition
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
-from testbed.eval.run_build import END_MARGIN_M
 from testbed.eval.runner import SimRun
-from testbed.eval.scenario import Scenario, load_scenario
+from testbed.eval.scenario import END_MARGIN_M, Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import make_detector
@@ -220,9 +219,14 @@ def markdown_table(results: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _occluded_ticks(r: dict) -> np.ndarray:
+    """Whether each tick of a drive was occluded (its last frame had a car hiding part of the ego lines)."""
+    return np.nan_to_num(r["occluded"]) > 0.0
+
+
 def _split(r: dict) -> tuple[np.ndarray, np.ndarray]:
     """The tracked errors of a drive's occluded ticks and of its clear ones."""
-    occluded = np.nan_to_num(r["occluded"]) > 0.0
+    occluded = _occluded_ticks(r)
     return r["tracked"][occluded], r["tracked"][~occluded]
 
 
@@ -237,7 +241,7 @@ def occlusion_table(results: list[dict]) -> list[str]:
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         occ, clear = (error_stats(e) for e in _split(r))
-        share = np.nan_to_num(r["occluded"]) > 0.0
+        share = _occluded_ticks(r)
         every = error_stats(r["tracked"])
         ok = every["p99_m"] is not None and every["p99_m"] <= P99_TARGET_M
         hidden = r["occluded"][share]
@@ -252,7 +256,7 @@ def occlusion_table(results: list[dict]) -> list[str]:
         occ = error_stats(np.concatenate([_split(r)[0] for r in group]))
         clear = error_stats(np.concatenate([_split(r)[1] for r in group]))
         every = error_stats(np.concatenate([r["tracked"] for r in group]))
-        share = np.concatenate([np.nan_to_num(r["occluded"]) > 0.0 for r in group]).mean()
+        share = np.concatenate([_occluded_ticks(r) for r in group]).mean()
         ok = every["p99_m"] is not None and every["p99_m"] <= P99_TARGET_M
         lines.append(f"| {cond} | {share:.2f} | {_f(occ['mean_m'])} | {_f(occ['p99_m'])} | {_f(clear['mean_m'])} "
                      f"| {_f(clear['p99_m'])} | {_f(every['p99_m'])} | {'yes' if ok else 'no'} |")
@@ -261,7 +265,7 @@ def occlusion_table(results: list[dict]) -> list[str]:
 
 def _occlusion_columns(r: dict) -> dict[str, float | None]:
     occluded, clear = _split(r)
-    return ({"occluded_ticks": float((np.nan_to_num(r["occluded"]) > 0.0).mean())}
+    return ({"occluded_ticks": float(_occluded_ticks(r).mean())}
             | {f"occluded_{m}": v for m, v in error_stats(occluded).items()}
             | {f"clear_{m}": v for m, v in error_stats(clear).items()})
 

@@ -55,11 +55,9 @@ def occluded_fraction(track, pose: Pose, rig: CameraRig, cars: Sequence[Pose],
     pts = np.concatenate([np.column_stack([x, np.polynomial.polynomial.polyval(x, line.coeffs), np.zeros_like(x)])
                           for line in (lines.left, lines.right)])
     camera = np.array([rig.mount_x, 0.0, rig.mount_height])
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     covered = np.zeros(len(pts), dtype=bool)
     for car in cars:
-        dx, dy = car.x - pose.x, car.y - pose.y
-        local = Pose(c * dx + s * dy, -s * dx + c * dy, car.yaw - pose.yaw)
+        local = Pose(*pose.to_local(car.x, car.y), car.yaw - pose.yaw)
         if math.hypot(local.x - rig.mount_x, local.y) <= REACH_M:
             covered |= hidden(camera, pts, local, size)
     return float(covered.mean())

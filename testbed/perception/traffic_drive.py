@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from testbed.errors import UserError
+from testbed.eval.scenario import END_MARGIN_M
 from testbed.traffic.fleet import Fleet
 from testbed.traffic.idm import IdmParams
 from tracks.road import Track
@@ -33,12 +34,11 @@ GAP_M = 40.0
 MIN_GAP_M = 0.5
 OTHERS_AHEAD_M = 15.0  # the first car of every other lane starts this far ahead of the lead car's centre
 END_ZONE = 6.0  # the front car's IDM braking for the road's end stays under a / 36
-END_MARGIN_M = 30.0
-"""Runs end this far before the road's end: `testbed.eval.run_build.END_MARGIN_M`, kept here so that building a
-campaign's runs loads no physics engine (a test keeps the two equal)."""
 MIN_SPEED = 0.1  # m/s: a drive the road leaves less room for is refused
 CAR = "sedan"
 LEAD_ACCEL = 1.14  # m/s²
+ZONE_PER_SPEED2 = END_ZONE / (2.0 * math.sqrt(LEAD_ACCEL * IdmParams.decel))
+"""`END_ZONE` IDM desired gaps to a standing obstacle at a speed v, over v² (s²/m)."""
 
 
 @dataclass(frozen=True)
@@ -49,19 +49,14 @@ class TrafficDrive:
     speed: float
 
 
-def _zone(speed: float) -> float:
-    """`END_ZONE` desired gaps to a standing obstacle at `speed`, over the speed squared."""
-    return END_ZONE / (2.0 * math.sqrt(LEAD_ACCEL * IdmParams.decel))
-
-
 def _end_room(speed: float, duration: float) -> float:
     """Road the ego lane's front car needs ahead of its start: its drive plus the zone before the road's end."""
-    return speed * duration + _zone(speed) * speed**2
+    return speed * duration + ZONE_PER_SPEED2 * speed**2
 
 
 def _speed_for(room: float, duration: float) -> float:
     """The largest speed whose `_end_room` is `room`."""
-    c = _zone(1.0)
+    c = ZONE_PER_SPEED2
     return max(0.0, (-duration + math.sqrt(duration**2 + 4.0 * c * max(room, 0.0))) / (2.0 * c))
 
 

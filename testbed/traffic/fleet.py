@@ -185,12 +185,8 @@ class Fleet:
     def poses(self, cars: list[TrafficCar] | None = None) -> list[Pose]:
         """Each car's (default: every car's) centre on its lane's centre line, heading in its lane's direction of
         travel."""
-        out = []
-        for car in self.cars if cars is None else cars:
-            x, y, h = self.track.reference.frame(car.s)
-            t = self.track.lanes[car.lane].offset_at(car.s)
-            out.append(Pose(x - t * math.sin(h), y + t * math.cos(h), h if car.direction > 0 else h + math.pi))
-        return out
+        lanes = self.track.lanes
+        return [lanes[car.lane].pose_at(car.s) for car in (self.cars if cars is None else cars)]
 
     def velocity(self, car: TrafficCar) -> tuple[float, float]:
         """The car's world velocity (m/s)."""
