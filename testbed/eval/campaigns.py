@@ -27,6 +27,7 @@ from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import add_attacks, apply_settings, load_scenario
 from testbed.eval.sim_table import sim_table, sim_table_runs
 from testbed.eval.stealthy_bound import stealthy_runs, stealthy_table
+from testbed.eval.summary_stats import consequences
 from testbed.registry import Capability, Registry
 
 
@@ -333,15 +334,12 @@ def benign_traffic_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Pa
         err = np.concatenate([tracked_ld_error(out / run.run_id) for run, _ in items])
         p99 = float(np.percentile(err, 99)) if err.size else None
         worst = max(worst, p99 or 0.0)
-        alarms += sum(bool(s["detected"]) for s in sums)
-        cons: dict[str, int] = {}
-        for s in sums:
-            cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
+        detected = sum(bool(s["detected"]) for s in sums)
+        alarms += detected
         sc = items[0][0].scenario
         lines.append(f"| {track} | {cond} | {len(sums)} | {sc.traffic.vehicles} | {sc.speed:.2f} "
-                     f"| {sum(bool(s['detected']) for s in sums)} | {_fmt(float(err.mean()) if err.size else None)} "
-                     f"| {_fmt(p99)} | {_stats([s['max_abs_dev_m'] for s in sums])} "
-                     f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} |")
+                     f"| {detected} | {_fmt(float(err.mean()) if err.size else None)} "
+                     f"| {_fmt(p99)} | {_stats([s['max_abs_dev_m'] for s in sums])} | {consequences(sums)} |")
     lines += ["", f"All: {len(done)} runs, {alarms} false alarms, largest tracked D_LD err p99 {worst:.3f} m."]
     return "\n".join(lines)
 
