@@ -29,6 +29,7 @@ from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.dataset import FrameSet
 from testbed.perception.labels import VISIBLE_FRACTION
+from testbed.perception.occlusion import FAR_M, NEAR_M
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
@@ -190,7 +191,8 @@ def markdown_table(reports: list[dict]) -> str:
 
     lines = [*rows("per_condition", "condition"), "", "Per track preset:", "", *rows("per_preset", "preset"), "",
              "Per marking of the nearer true line (the one Alg. 3 uses):", "", *rows("per_near_line", "nearer line"),
-             "", "Per occlusion of the ego lines by traffic (occluded: a car hides part of them within 5-30 m):", "",
+             "", f"Per occlusion of the ego lines by traffic (occluded: a car hides part of them within "
+                 f"{NEAR_M:g}-{FAR_M:g} m):", "",
              *rows("per_occlusion", "occlusion"), ""]
     for rep in reports:
         if rep.get("existence_by_visible_fraction"):
