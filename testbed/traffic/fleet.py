@@ -83,13 +83,21 @@ class Fleet:
               end_s: float) -> Fleet:
         """The cars of `config` placed (see `TrafficConfig`), desired speeds and gaps drawn from `rng` car by
         car, in an oncoming lane from `ahead` m in front of the ego car outward like in the ego lane;
-        PlacementError naming the fix when a lane is not on the track or a car would start past `end_s`."""
+        PlacementError naming the fix when a lane is not on the track, a car would start past `end_s`, or an
+        `ahead` or `beside` given would place no car."""
         n_lanes = len(track.lanes)
         lanes = config.lanes if config.lanes is not None else list(range(n_lanes))
         for lane in lanes:
             if not 0 <= lane < n_lanes:
                 raise PlacementError(f"traffic.lanes names lane {lane}, which {track.name} lacks (lanes 0.."
                                      f"{n_lanes - 1})")
+        holding = lanes[:config.vehicles]  # round-robin: the lanes that get a car at all
+        from_front = [lane == ego_lane or track.lanes[lane].oncoming for lane in holding]
+        for key, used, where in (("ahead", any(from_front), "the ego lane or an oncoming lane"),
+                                 ("beside", not all(from_front), "a lane beside the ego lane")):
+            if key in config.model_fields_set and not used:
+                raise PlacementError(f"traffic.{key} would place no car: no car goes to {where} (cars go to lanes "
+                                     f"{holding}): drop traffic.{key} or change traffic.lanes")
         length, width = size
         mean = default_speed if config.speed is None else config.speed
         gaps = Gaps(rng, config.gap, config.gap_spread)

@@ -71,6 +71,10 @@ def test_placement_draws_from_its_stream_only() -> None:
     (TrafficConfig(vehicles=2, lanes=[0, 5]), "traffic.lanes names lane 5, which highway lacks (lanes 0..2)"),
     (TrafficConfig(vehicles=60, gap=400.0), "off the road"),
     (TrafficConfig(vehicles=2, beside=-100.0), "off the road"),
+    (TrafficConfig(vehicles=2, lanes=[1], beside=10.0),
+     "traffic.beside would place no car: no car goes to a lane beside the ego lane (cars go to lanes [1])"),
+    (TrafficConfig(vehicles=1, lanes=[0, 1], ahead=12.0),
+     "traffic.ahead would place no car: no car goes to the ego lane or an oncoming lane (cars go to lanes [0])"),
 ])
 def test_a_placement_the_track_cannot_hold_is_refused(config: TrafficConfig, message: str) -> None:
     with pytest.raises(PlacementError, match=re.escape(message)):
