@@ -35,11 +35,17 @@ PHYSICS_HZ = 100.0
 results match 240 Hz (docs/decisions.md)."""
 
 
+CONTROL_HZ = 40.0
+"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise: the lowest rate tried that
+keeps the camera's 20 Hz an exact number of ticks and whose results match 100 Hz (docs/decisions.md)."""
+
+
 @dataclass(frozen=True)
 class LoopRates:
-    """How often the loop ticks (control) and how often the camera delivers a frame."""
+    """How often the loop ticks (control) and how often the camera delivers a frame (every `camera_every`-th
+    tick: the scenario model refuses a camera rate that does not divide the control rate)."""
 
-    control_hz: float = 100.0
+    control_hz: float = CONTROL_HZ
     camera_hz: float = 20.0
 
     @property

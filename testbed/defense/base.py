@@ -62,10 +62,10 @@ class Defense(ABC):
         """A raw (possibly spoofed) GNSS fix (10 Hz): world (x, y) and its 2×2 covariance."""
 
     def on_command(self, t: float, steer: float, accel: float, speed: float) -> None:  # noqa: B027
-        """The command just sent (100 Hz): road-wheel steer (rad), accel (m/s²), measured speed (m/s)."""
+        """The command just sent (every control tick): road-wheel steer (rad), accel (m/s²), measured speed (m/s)."""
 
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:  # noqa: B027 - optional hook
-        """Chassis odometry at the start of every control tick (100 Hz): speed (m/s), yaw rate (rad/s, + left)."""
+        """Chassis odometry at the start of every control tick: speed (m/s), yaw rate (rad/s, + left)."""
 
     @abstractmethod
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:

@@ -1,6 +1,6 @@
 """SAVIOR baseline (paper §5.1, Appendix C): physical-invariant GNSS spoofing detection.
 
-An EKF over (x, y, ψ, v) predicts with a kinematic bicycle model from the control commands (100 Hz):
+An EKF over (x, y, ψ, v) predicts with a kinematic bicycle model from the control commands (every control tick):
 coefficients fitted on benign drives where given (the ROC campaign fits them), else the vanilla model
 with the vehicle's wheelbase (closed-loop runs). It corrects with the measured wheel speed; on each GNSS
 fix the residual |GNSS - predicted position| feeds a CUSUM(b, τ), and fixes are fused only while no alarm

@@ -38,7 +38,16 @@ class Rates(BaseModel):
         if self.camera_hz > self.control_hz:
             raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must not exceed rates.control_hz "
                              f"({self.control_hz:g})")
-        LocalizationConfig.from_dict(self.localization)
+        every = round(self.control_hz / self.camera_hz)
+        if abs(every * self.camera_hz - self.control_hz) > 1e-6 * self.control_hz:
+            raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must divide rates.control_hz "
+                             f"({self.control_hz:g}): a frame every {every} ticks would be "
+                             f"{self.control_hz / every:g} Hz; choose a control rate that is a multiple of it")
+        loc = LocalizationConfig.from_dict(self.localization)
+        for name, hz in (("gnss_hz", loc.gnss_hz), ("lidar_hz", loc.lidar_hz)):
+            if hz > self.control_hz:
+                raise ValueError(f"rates.localization.{name} ({hz:g}) must not exceed rates.control_hz "
+                                 f"({self.control_hz:g}): the fixes between two ticks would be dropped")
         return self
 
     def explicit(self) -> dict[str, Any]:

@@ -72,6 +72,20 @@ class _Schedule:
         while self._next <= t + 1e-9:
             self._next += self.period
 
+    def slots(self, t: float) -> list[float]:
+        """The sampling instants up to t not yet taken, the last of them t itself (the tick that reads them):
+        one at a tick as often as the sensor, several at a slower tick."""
+        if self._next is None:
+            return [t]
+        out: list[float] = []
+        nxt = self._next
+        while nxt <= t + 1e-9:
+            out.append(nxt)
+            nxt += self.period
+        if out:
+            out[-1] = t
+        return out
+
 
 @dataclass(frozen=True)
 class GnssModel:
@@ -235,8 +249,9 @@ class Imu:
         self.gyro_bias = float(rng.normal(0.0, self.model.gyro_bias_std))
         self._last_t: float | None = None
 
-    def due(self, t: float) -> bool:
-        return self._schedule.due(t)
+    def slots(self, t: float) -> list[float]:
+        """The sample instants due up to t (`_Schedule.slots`): a control tick slower than the IMU reads each."""
+        return self._schedule.slots(t)
 
     def measure(self, t: float, accel: float, yaw_rate: float) -> ImuSample:
         m = self.model

@@ -115,7 +115,9 @@ class Localization(Protocol):
 
 
 class LocalizationStack:
-    """GNSS, LiDAR locator and IMU models feeding one MSF; `step` is called at the control rate."""
+    """GNSS, LiDAR locator and IMU models feeding one MSF; `step` is called at the control rate. The IMU
+    samples at its own rate: a slower control tick hands the MSF every IMU sample due since the last tick, with
+    the motion the tick read (GNSS and LiDAR fixes are due no faster than the control rate: `[rates]`)."""
 
     def __init__(
         self,
@@ -142,8 +144,8 @@ class LocalizationStack:
                 "LocalizationStack simulates its sensors from the true pose; ChassisState has none"
             )
         pose = truth.true_pose
-        if self.imu.due(t):
-            self.msf.predict(self.imu.measure(t, truth.accel, truth.yaw_rate))
+        for ts in self.imu.slots(t):  # the motion read at this tick held since the last (zero-order hold)
+            self.msf.predict(self.imu.measure(ts, truth.accel, truth.yaw_rate))
         self.last_gnss = None
         if self.gnss.due(t):
             fix = self.gnss.measure(t, pose)
