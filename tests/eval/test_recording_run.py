@@ -10,6 +10,7 @@ from mcap.reader import make_reader
 from testbed.defense.config import DefenseConfig
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
+from testbed.loop import CONTROL_HZ
 
 
 def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):
@@ -22,12 +23,13 @@ def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):
     with open(tmp_path / "run.mcap", "rb") as f:
         messages = [(c.topic, json.loads(m.data)) for _, c, m in make_reader(f).iter_messages()]
     counts = Counter(topic for topic, _ in messages)
-    assert counts == {"/camera/image": 40, "/ld3/input": 40, "/pose/true": 200, "/pose/msf": 200, "/signals": 200,
-                      "/map/lanes": 1}
+    ticks = round(2.0 * CONTROL_HZ)
+    assert counts == {"/camera/image": 40, "/ld3/input": 40, "/pose/true": ticks, "/pose/msf": ticks,
+                      "/signals": ticks, "/map/lanes": 1}
     signals = [m for topic, m in messages if topic == "/signals"]
     assert all(m["tau"] == DefenseConfig().tau and m["mode"] == "normal" for m in signals)
     assert signals[-1]["cusum"] is not None and signals[-1]["ld_dev"] is not None
-    assert len(result.rows) == 200
+    assert len(result.rows) == ticks
 
 
 def test_attack_response_records_the_pose_control_used_and_recording_changes_nothing(tmp_path):

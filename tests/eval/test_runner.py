@@ -12,6 +12,7 @@ from testbed.eval.outputs import TRAJECTORY_COLUMNS
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import ScenarioError, load_scenario
 from testbed.eval.summary import RunSummary
+from testbed.loop import CONTROL_HZ
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -28,7 +29,7 @@ def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
     with (tmp_path / "trajectory.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == TRAJECTORY_COLUMNS
-    assert len(rows) == len(result.rows) == 600
+    assert len(rows) == len(result.rows) == round(6.0 * CONTROL_HZ)
     speeds = [float(r["speed"]) for r in rows]
     assert speeds[-1] > 2.0, "the car drives off under physics"
     assert (tmp_path / "birdseye.png").stat().st_size > 10_000

@@ -64,3 +64,18 @@ def test_ground_truth_localization_returns_the_true_pose():
     assert est.pose == Pose(1, 2, 0.5) and est.cov[0, 0] < 1e-3 and loc.last_gnss is None
     with pytest.raises(ValueError):
         loc.step(0.0, ChassisState(t=0.0, speed=0.0, steer=0.0, accel=0.0))
+
+
+@pytest.mark.parametrize("control_hz", [100.0, 40.0, 20.0])
+def test_the_imu_feeds_the_msf_at_its_own_rate_whatever_the_control_rate(control_hz):
+    stack = LocalizationStack(LocalizationConfig(), np.random.default_rng(3), lambda x, y: 0.9, Pose(0, 0, 0), 10.0)
+    predicted: list[float] = []
+    predict = stack.msf.predict
+    stack.msf.predict = lambda sample: (predicted.append(sample.t), predict(sample))
+    ticks = [round(i / control_hz, 9) for i in range(round(control_hz) + 1)]  # one second, both ends
+    for t in ticks:
+        stack.step(t, ChassisState(t=t, speed=10.0, steer=0.0, accel=0.0, true_pose=Pose(10.0 * t, 0.0, 0.0)))
+    assert len(predicted) == 101  # 100 Hz
+    assert set(ticks) <= set(predicted)  # a tick's last sample is taken at the tick itself
+    assert all(0.0 < d < 0.015 + 1e-9 for d in np.diff(predicted))
+
