@@ -42,15 +42,12 @@ from hil.timing import ClockMode
 from testbed.errors import UserError
 from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
-from testbed.eval.scenario import Scenario, apply_settings
+from testbed.eval.scenario import Scenario
 from testbed.eval.summary import HilSummary
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
 ECU_PLANT = "hil.plants:pybullet_plant"
-CAN_CONTROL_HZ = 100.0
-"""The control rate over a CAN chassis where the scenario names none: two ticks a 20 ms bus cycle, so a latched
-fault's brake command leaves within 10 ms (a simulated chassis runs at `testbed.loop.CONTROL_HZ`)."""
 
 
 @dataclass(frozen=True)
@@ -172,13 +169,6 @@ def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
     return sim.result()
 
 
-def over_can(sc: Scenario) -> Scenario:
-    """`sc` at CAN_CONTROL_HZ unless its `[rates]` set the control rate."""
-    if "control_hz" in sc.rates.model_fields_set:
-        return sc
-    return apply_settings(sc, [f"rates.control_hz={CAN_CONTROL_HZ:g}"])
-
-
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
@@ -189,11 +179,9 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
     before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
     through the real readers (`hil.sensor_io`; the link's `sensor_io` then). A finished run in `out_dir` is
-    replaced only with `force`, and only once the run has started (`claimed_out_dir`). The control rate is
-    CAN_CONTROL_HZ unless the scenario sets one."""
+    replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
-    sc = over_can(sc)
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind

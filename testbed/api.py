@@ -71,7 +71,7 @@ class Simulation:
         return self._sim.attack
 
     def step(self) -> TickRecord:
-        """One control tick (40 Hz by default): the record trajectory.csv gets for it."""
+        """One control tick (100 Hz by default): the record trajectory.csv gets for it."""
         return self._sim.step()
 
     def run(self, progress: bool = False) -> Result:

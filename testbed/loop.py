@@ -35,9 +35,9 @@ PHYSICS_HZ = 100.0
 results match 240 Hz (docs/decisions.md)."""
 
 
-CONTROL_HZ = 40.0
-"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise: the lowest rate tried that
-keeps the camera's 20 Hz an exact number of ticks and whose results match 100 Hz (docs/decisions.md)."""
+CONTROL_HZ = 100.0
+"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise; 40 Hz, the next rate that
+keeps the camera's 20 Hz a whole number of ticks, did not hold lane keeping on the MSF (docs/decisions.md)."""
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ def test_docs_worked_scripts_run(script, tmp_path):
 
 
 def test_gym_environment_follows_the_api_and_ends_with_the_run():
-    env = gymnasium.make("ld3/Lateral-v0", scenario_name="urban-straight", duration=3.0, ticks_per_step=8)
+    env = gymnasium.make("ld3/Lateral-v0", scenario_name="urban-straight", duration=3.0, ticks_per_step=20)
     check_env(env.unwrapped, skip_render_check=True)
     obs, _ = env.reset(seed=4)
     assert env.observation_space.contains(obs) and obs[3] == 0.0
@@ -58,6 +58,6 @@ def test_gym_environment_follows_the_api_and_ends_with_the_run():
         obs, reward, done, truncated, info = env.step(np.array([0.5], dtype=np.float32))
         steps += 1
         assert reward >= 0.0 and not truncated and obs[3] == pytest.approx(0.5)
-    assert steps == 15  # 3 s of 40 Hz ticks, 8 per step (the first tick ran in reset)
+    assert steps == 15  # 3 s of 100 Hz ticks, 20 per step (the first tick ran in reset)
     assert info["summary"]["attack"] == {"kind": "policy"} and info["summary"]["sim_time_s"] == pytest.approx(3.0)
     env.close()

@@ -21,8 +21,7 @@ class Rates(BaseModel):
     model_config = STRICT
 
     physics_hz: float = Field(PHYSICS_HZ, gt=0, le=10_000, description="physics steps per second (Hz)")
-    control_hz: float = Field(LoopRates.control_hz, gt=0, description="control loop rate (Hz), at most physics_hz "
-                                                                      "(over a CAN chassis default 100)")
+    control_hz: float = Field(LoopRates.control_hz, gt=0, description="control loop rate (Hz), at most physics_hz")
     camera_hz: float = Field(LoopRates.camera_hz, gt=0,
                              description="camera and lane detector rate (Hz), at most control_hz")
     command_hold_s: float = Field(0.0, ge=0, le=1.0, description="sample-and-hold period of chassis commands (s), "

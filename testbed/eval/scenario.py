@@ -202,7 +202,7 @@ def _toml_value(raw: str) -> Any:
 def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
     name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table),
-    `rates.control_hz=100` or `rates.localization.gnss_hz=5` (the [rates] table), `traffic.vehicles=6` (the
+    `rates.control_hz=40` or `rates.localization.gnss_hz=5` (the [rates] table), `traffic.vehicles=6` (the
     [traffic] table), or a top-level key such as `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)

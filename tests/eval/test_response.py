@@ -39,7 +39,7 @@ def test_attack_response_internals_are_written(fr_runs):
     internals = ("fused_dev", "r_msf", "r_ld", "k_msf", "k_ld", "heading_used")
     for row in rows:
         assert all((row[c] != "") == (row["mode"] == "ar") for c in internals), row
-    assert [r["ld_fresh"] for r in rows[:5]] == ["1", "0", "1", "0", "1"]  # camera at 20 Hz, control 40 Hz
+    assert [r["ld_fresh"] for r in rows[:6]] == ["1", "0", "0", "0", "0", "1"]  # camera at 20 Hz, control 100 Hz
     ar = [r for r in rows if r["mode"] == "ar"]
     assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])
     assert all(0.0 < float(r["k_msf"]) < 1.0 and 0.0 < float(r["k_ld"]) < 1.0 for r in ar)

@@ -8,10 +8,10 @@ import can
 import pytest
 
 from hil.plants import plant_args_for, pybullet_plant, scenario_plant
-from hil.scenario_run import CAN_CONTROL_HZ, LinkConfig, over_can, run_hil_scenario
+from hil.scenario_run import LinkConfig, run_hil_scenario
 from testbed.eval.runner import SimRun
-from testbed.eval.scenario import apply_settings, load_scenario
-from testbed.loop import CONTROL_HZ, PHYSICS_HZ
+from testbed.eval.scenario import load_scenario
+from testbed.loop import PHYSICS_HZ
 
 TOLERANCE_M = 0.05
 
@@ -166,10 +166,3 @@ def test_recorded_hil_run_carries_every_can_frame_decoded_by_the_profile(tmp_pat
     times = [m["t"] for m in can_msgs]
     # stamped with chassis (plant) time: the run's frames, then the hand-back at standstill after it
     assert min(times) == 0.0 and s["sim_time_s"] < max(times) < s["sim_time_s"] + 1.0
-
-
-def test_a_can_chassis_is_controlled_at_100_hz_unless_the_scenario_sets_a_rate():
-    sc = load_scenario("parking-lot")
-    assert sc.rates.control_hz == CONTROL_HZ and over_can(sc).rates.control_hz == CAN_CONTROL_HZ == 100.0
-    for hz in (40, 20):
-        assert over_can(apply_settings(sc, [f"rates.control_hz={hz}"])).rates.control_hz == hz
