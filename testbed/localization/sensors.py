@@ -249,17 +249,24 @@ class Imu:
         self.gyro_bias = float(rng.normal(0.0, self.model.gyro_bias_std))
         self._last_t: float | None = None
 
-    def slots(self, t: float) -> list[float]:
-        """The sample instants due up to t (`_Schedule.slots`): a control tick slower than the IMU reads each."""
-        return self._schedule.slots(t)
-
     def measure(self, t: float, accel: float, yaw_rate: float) -> ImuSample:
+        """One sample at t of the motion (longitudinal acceleration, yaw rate)."""
+        return self._sample(t, accel, yaw_rate, self.rng.normal(size=4).tolist())
+
+    def samples(self, t: float, accel: float, yaw_rate: float) -> list[ImuSample]:
+        """Every sample due up to t (`_Schedule.slots`: a control tick slower than the IMU reads each), all of
+        the motion the tick read; the draws are those of one `measure` per sample, taken in one call."""
+        times = self._schedule.slots(t)
+        draws = self.rng.normal(size=4 * len(times)).tolist() if times else []
+        return [self._sample(ts, accel, yaw_rate, draws[4 * k:4 * k + 4]) for k, ts in enumerate(times)]
+
+    def _sample(self, t: float, accel: float, yaw_rate: float, draws: list[float]) -> ImuSample:
         m = self.model
         self._schedule.consume(t)
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
         sq = math.sqrt(dt)
-        walk_a, walk_g, noise_a, noise_g = self.rng.normal(size=4).tolist()  # the same draws as four scalar ones
+        walk_a, walk_g, noise_a, noise_g = draws  # the same draws as four scalar ones
         self.accel_bias += m.accel_bias_walk * sq * walk_a
         self.gyro_bias += m.gyro_bias_walk * sq * walk_g
         a = accel + self.accel_bias + m.accel_std * noise_a

@@ -144,8 +144,8 @@ class LocalizationStack:
                 "LocalizationStack simulates its sensors from the true pose; ChassisState has none"
             )
         pose = truth.true_pose
-        for ts in self.imu.slots(t):  # the motion read at this tick held since the last (zero-order hold)
-            self.msf.predict(self.imu.measure(ts, truth.accel, truth.yaw_rate))
+        for sample in self.imu.samples(t, truth.accel, truth.yaw_rate):  # the tick's motion held since the last
+            self.msf.predict(sample)
         self.last_gnss = None
         if self.gnss.due(t):
             fix = self.gnss.measure(t, pose)
