@@ -249,10 +249,6 @@ class Imu:
         self.gyro_bias = float(rng.normal(0.0, self.model.gyro_bias_std))
         self._last_t: float | None = None
 
-    def measure(self, t: float, accel: float, yaw_rate: float) -> ImuSample:
-        """One sample at t of the motion (longitudinal acceleration, yaw rate)."""
-        return self._sample(t, accel, yaw_rate, self.rng.normal(size=4).tolist())
-
     def samples(self, t: float, accel: float, yaw_rate: float) -> list[ImuSample]:
         """Every sample due up to t (`_Schedule.slots`: a control tick slower than the IMU reads each), all of
         the motion the tick read; the draws are those of one `measure` per sample, taken in one call."""

@@ -90,9 +90,18 @@ def test_occlusion_episodes_lower_the_effective_quality():
 
 def test_imu_measures_truth_plus_bias_and_noise():
     imu = Imu(np.random.default_rng(7))
-    samples = [imu.measure(i * 0.01, 0.5, 0.1) for i in range(2000)]
+    samples = [imu.samples(i * 0.01, 0.5, 0.1)[0] for i in range(2000)]
     w = np.array([s.yaw_rate for s in samples])
     a = np.array([s.accel_long for s in samples])
     assert abs(w.mean() - 0.1) < 0.005
     assert abs(a.mean() - 0.5) < 0.2
     assert w.std() > 0.001
+
+
+def test_a_slow_tick_takes_the_samples_due_since_the_last_with_the_draws_of_one_call_each():
+    slow, each = Imu(np.random.default_rng(9)), Imu(np.random.default_rng(9))
+    batched = [s for i in range(5) for s in slow.samples(i * 0.025, 0.3, 0.02)]  # 40 Hz ticks over 0.1 s
+    assert [s.t for s in batched] == pytest.approx([0.0, 0.01, 0.025, 0.03, 0.04, 0.05, 0.06, 0.075, 0.08, 0.09, 0.1])
+    one_by_one = [each.samples(s.t, 0.3, 0.02) for s in batched]
+    assert all(len(one) == 1 for one in one_by_one)
+    assert [one[0] for one in one_by_one] == batched  # the same instants, biases and noise, bit for bit
