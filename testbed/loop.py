@@ -3,7 +3,7 @@
 Per control tick: read the chassis and hand its odometry to the defense, step localization (the attacker
 may spoof GNSS or the MSF output), on camera ticks run the lane detector and feed the defense, take the pose
 the defense wants control to use, plan (lane follow, or the in-lane stop once the defense responds),
-control, command the chassis.
+control (the acceleration capped behind a car ahead where the run follows cars), command the chassis.
 """
 
 from __future__ import annotations
@@ -117,7 +117,8 @@ class PerceptionPorts:
 @dataclass(frozen=True)
 class DrivingPorts:
     """Planning and control: the map and the lane driven, the planner, the lateral and longitudinal
-    controllers, and an in-lane stop that is part of the plan ((time, deceleration), not a response)."""
+    controllers, an in-lane stop that is part of the plan ((time, deceleration), not a response), and car
+    following: the acceleration cap behind a car ahead at this tick's chassis state (None: no car ahead)."""
 
     smap: SemanticMap
     lane: int
@@ -125,6 +126,7 @@ class DrivingPorts:
     lateral: LqrLateralController
     longitudinal: SpeedController
     planned_stop: tuple[float, float] | None = None
+    follow: Callable[[ChassisState], float | None] | None = None
 
 
 class ControlLoop:
@@ -193,6 +195,9 @@ class ControlLoop:
         plan = driving.planner.plan(pose, state.speed, t)
         steer = driving.lateral.update(plan, state.speed, yaw_rate=state.yaw_rate)
         accel = driving.longitudinal.update(plan, state.speed, self.dt)
+        cap = driving.follow(state) if driving.follow is not None else None
+        if cap is not None and cap < accel:
+            accel = cap
         self.chassis.send(ChassisCommand(steer=steer, accel=accel))
         self.defense.on_command(t, steer, accel, state.speed)
         self.chassis.advance(self.dt)

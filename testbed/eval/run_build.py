@@ -17,8 +17,9 @@ from testbed.attacks.base import Attack, WhiteBox
 from testbed.attacks.compose import AttackChain
 from testbed.attacks.spec import build_attack
 from testbed.camera import FrontCamera
-from testbed.chassis import ChassisPort
+from testbed.chassis import ChassisPort, ChassisState
 from testbed.conditions import Condition, get_condition
+from testbed.control.car_following import CarFollowing
 from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
@@ -40,6 +41,8 @@ from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
 from testbed.traffic.fleet import Fleet, PlacementError
+from testbed.traffic.idm import IdmParams
+from testbed.traffic.lead import LeadSensor
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
 from tracks.road import Track
@@ -197,6 +200,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
             streamer.update(pose)
             return camera.capture(t, pose)
     sensors = SensorPorts(localization, capture)
+    traffic = _traffic(sc, track, params, lane, world, streamer, np.random.default_rng(root_seed.spawn(1)[0]))
     loop = ControlLoop(
         chassis,
         o.sensor_ports(sensors) if o.sensor_ports is not None else sensors,
@@ -206,17 +210,27 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         DrivingPorts(smap, lane, LanePlanner(smap, lane, sc.speed),
                      LqrLateralController.from_vehicle(params, 1.0 / rates.control_hz),
                      SpeedController(max_accel=params.max_accel, max_decel=params.max_decel),
-                     planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None),
+                     planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
+                     follow=_car_following(sc, traffic, smap, lane, params)),
         attack=attack, rates=rates,
     )
     if attack is not None:
         attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
-    traffic = _traffic(sc, track, params, lane, world, streamer, np.random.default_rng(root_seed.spawn(1)[0]))
     return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,
                     Recording(rig) if o.record else None, localization, detector, detector_name, settings, tracker,
                     defense, loop, smap.lane_width(start, lane), traffic)
+
+
+def _car_following(sc: Scenario, fleet: Fleet | None, smap: TrackMap, lane: int, params: VehicleParams
+                   ) -> Callable[[ChassisState], float | None] | None:
+    """The ego's acceleration cap behind the car ahead in its lane where `[traffic] ego_follows` asks for it."""
+    if fleet is None or not sc.traffic.ego_follows:
+        return None
+    sensor = LeadSensor(fleet, smap, lane, params.length)
+    following = CarFollowing(IdmParams(brake_limit=params.max_decel))
+    return lambda state: following.cap(state.speed, sensor(state))
 
 
 def _traffic(sc: Scenario, track: Track, params: VehicleParams, lane: int, world: PhysicsWorld | None,

@@ -41,6 +41,9 @@ class TrafficConfig(BaseModel):
     decel: float = Field(IdmParams.decel, gt=0, le=10, description="IDM comfortable deceleration b (m/s²)")
     headway: float = Field(IdmParams.headway, ge=0, le=10, description="IDM time headway T (s)")
     min_gap: float = Field(IdmParams.min_gap, ge=0, le=50, description="IDM jam distance s0 (m)")
+    ego_follows: bool = Field(False, description="the ego car brakes for the nearest car ahead in its lane (IDM's "
+                                                 "braking term on the true gap, as adaptive cruise on a range "
+                                                 "sensor); false: it keeps its cruise speed and can run into it")
 
     @model_validator(mode="after")
     def _can_act(self) -> TrafficConfig:

@@ -29,6 +29,8 @@ def _scenario(**traffic: object) -> Scenario:
     ({"vehicles": 2, "vehicle": "bus"}, "traffic.vehicle 'bus' unknown"),
     ({"vehicles": 2, "colour": "red"}, "unknown scenario key 'traffic.colour'; known in [traffic]: accel"),
     ({"gap": 10.0, "speed": 5.0}, "traffic.vehicles = 0, so traffic.gap, traffic.speed would change nothing"),
+    ({"ego_follows": True}, "traffic.vehicles = 0, so traffic.ego_follows would change nothing"),
+    ({"vehicles": 2, "ego_follows": "yes"}, "traffic.ego_follows"),
 ])
 def test_bad_traffic_tables_are_refused_in_one_line(table: dict, message: str) -> None:
     with pytest.raises(ScenarioError) as info:
