@@ -176,13 +176,13 @@ def cmd_patch_figure(args: argparse.Namespace) -> int:
     return 0
 
 
-LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector", "seconds", "traffic")
+LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector", "seconds", "traffic", "settings")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from testbed.eval import bench
 
-    given = [f"--{name}" for name in LOOP_ONLY if getattr(args, name) is not None]
+    given = ["--set" if name == "settings" else f"--{name}" for name in LOOP_ONLY if getattr(args, name) is not None]
     if args.what != "loop" and given:
         raise UserError(f"{', '.join(given)} only apply to `ld3 bench loop`; drop them for `{args.what}`")
     loop = {name: getattr(args, name) for name in LOOP_ONLY if getattr(args, name) is not None}
@@ -454,6 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
                       "even for a detector that does not read it)")
     loop.add_argument("--ground", choices=["canvas", "mesh"],
                       help="how the camera draws the road surface: ground canvas (default) or TinyRenderer meshes")
+    loop.add_argument("--set", dest="settings", action="append", metavar="KEY=VALUE",
+                      help="override the scenario as `ld3 run --set` does (repeatable), e.g. rates.control_hz=40")
     p.set_defaults(func=cmd_bench)
 
     from testbed.perception.commands import add_ld_parser

@@ -154,9 +154,10 @@ def _bare_physics(sc, steps: int) -> dict[str, float]:
 
 def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector: str = "neural",
                ground: str = "canvas", camera: bool = True, speed: float | None = None,
-               localization: str | None = None, traffic: int | None = None) -> dict[str, Any]:
-    """The closed loop on one core, with the camera rendered at its rate or without a camera, and `traffic` cars
-    of the scenario's `[traffic]` (default: its own count): its real-time
+               localization: str | None = None, traffic: int | None = None,
+               settings: list[str] | None = None) -> dict[str, Any]:
+    """The closed loop on one core, with the camera rendered at its rate or without a camera, `traffic` cars
+    of the scenario's `[traffic]` (default: its own count) and the scenario `settings` (`--set`): its real-time
     factor (wall clock, and process CPU time, which a busy machine disturbs less), the bare-physics
     real-time factor of the same world and car (`stepSimulation` alone, as many steps), their ratio, and
     the split of wall time between the loop's parts (LOOP_SECTIONS) from a second, instrumented run. That run
@@ -171,8 +172,9 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     one_core()
     sc = load_scenario(scenario).with_overrides(duration=seconds, detector=detector, speed=speed,
                                                 localization=localization)
-    if traffic is not None:
-        sc = apply_settings(sc, [f"traffic.vehicles={traffic}"])
+    if traffic is not None or settings:
+        sc = apply_settings(sc, [*([f"traffic.vehicles={traffic}"] if traffic is not None else []),
+                                 *(settings or [])])
     if not camera and Capability.CAMERA_IMAGE in DETECTORS.get(sc.detector).provides:
         raise ScenarioError(f"detector {sc.detector!r} reads the camera: use --camera on, or a detector that "
                             f"does not (--detector oracle or none)")
@@ -308,10 +310,10 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
 
 def run(what: str, seconds: float = 20.0, detector: str = "neural", ground: str = "canvas", camera: bool = True,
         scenario: str = "urban-straight", speed: float | None = None, localization: str | None = None,
-        traffic: int | None = None) -> dict[str, Any]:
+        traffic: int | None = None, settings: list[str] | None = None) -> dict[str, Any]:
     """Run benchmark `what`; the other arguments are `loop`'s."""
     if what == "loop":
-        return bench_loop(seconds, scenario, detector, ground, camera, speed, localization, traffic)
+        return bench_loop(seconds, scenario, detector, ground, camera, speed, localization, traffic, settings)
     if what == "render":
         return bench_render()
     if what == "ld":

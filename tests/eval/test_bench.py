@@ -47,6 +47,18 @@ def test_loop_bench_refuses_a_camera_detector_without_camera_and_loop_options_el
     assert "--camera on" in capsys.readouterr().err
     assert main(["bench", "map", "--camera", "off"]) == EXIT_USAGE
     assert "only apply to `ld3 bench loop`" in capsys.readouterr().err
+    assert main(["bench", "map", "--set", "rates.control_hz=40"]) == EXIT_USAGE
+    assert "--set only apply to `ld3 bench loop`" in capsys.readouterr().err
+
+
+def test_loop_bench_runs_the_scenario_with_the_settings_given(capsys):
+    assert main(["bench", "loop", "--camera", "off", "--detector", "none", "--seconds", "0.5", "--set",
+                 "rates.control_hz=40", "--set", "rates.physics_hz=120", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["control_hz"] == 40 and result["physics_hz"] == 120 and result["physics_steps"] == 60
+    assert main(["bench", "loop", "--camera", "off", "--detector", "none", "--set", "rates.control_hz=50"]) \
+        == EXIT_USAGE
+    assert "must divide rates.control_hz" in capsys.readouterr().err
 
 
 def test_step_simulation_clock_times_the_steps_inside_it_and_restores_pybullet():
