@@ -35,7 +35,7 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import make_detector
 from testbed.perception.seeds import Cell, cells
-from testbed.perception.traffic_drive import LEAD_GAP_M, start_at_rest, traffic_drive
+from testbed.perception.traffic_drive import LEAD_GAP_M, traffic_drive
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
@@ -109,7 +109,6 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     tap.pose_now = lambda: sim.loop.last_estimate.pose
     fleet = sim.traffic
     if fleet is not None:
-        start_at_rest(fleet)
         car = get_vehicle(sc.traffic.vehicle)
         tap.occlusion = lambda pose: occluded_fraction(track, pose, rig, fleet.poses(),
                                                        (car.length, car.width, car.height))
