@@ -291,7 +291,8 @@ def _traffic_weights(detector: str) -> dict[str, str]:
 def benign_traffic_runs(detector: str) -> list[CampaignRun]:
     """Benign default LD3 on the MSF in every benign preset and the two-way road × condition × seed with
     `BENIGN_TRAFFIC_CARS` cars
-    (`testbed.perception.traffic_drive`: every car at the ego's speed, a lead car close ahead in the ego lane),
+    (`testbed.perception.traffic_drive`: every car at the ego's speed, started at rest with the ego, a lead car
+    close ahead in the ego lane),
     for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`."""
     from testbed.conditions import CONDITIONS
     from testbed.perception.traffic_drive import traffic_drive

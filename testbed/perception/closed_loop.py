@@ -32,10 +32,11 @@ from testbed.errors import UserError
 from testbed.eval.runner import SimRun
 from testbed.eval.scenario import END_MARGIN_M, Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.params import ParamsError
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
-from testbed.perception.registry import make_detector
+from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.seeds import Cell, cells
-from testbed.perception.traffic_drive import LEAD_GAP_M, start_at_rest, traffic_drive
+from testbed.perception.traffic_drive import LEAD_GAP_M, traffic_drive
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
@@ -78,7 +79,7 @@ def error_stats(err: np.ndarray) -> dict[str, float | None]:
 
 
 def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, traffic: int = 0,
-                   lead_gap: float = LEAD_GAP_M) -> tuple[Scenario, Track]:
+                   lead_gap: float = LEAD_GAP_M, weights: str | None = None) -> tuple[Scenario, Track]:
     """The scenario of a cell's drive and its track; a UserError where its road cannot hold the traffic."""
     base = load_scenario(cell.preset)
     spec = f"{cell.preset}@{cell.track_seed}"
@@ -92,24 +93,25 @@ def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, tr
         speed, table = fitted.speed, fitted.traffic
     sc = base.with_overrides(track=spec, condition=cell.condition, duration=duration, speed=speed, seed=seed,
                              detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}",
-                             traffic=table)
+                             traffic=table, **({} if weights is None else {"detector_params": {"weights": weights}}))
     return sc, track
 
 
 def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
-          existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M) -> dict:
+          existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M,
+          weights: str | None = None) -> dict:
     """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
     (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
-    or before the first frame)."""
-    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap)
+    or before the first frame); `weights` the detector's checkpoint (`detector.weights`, default its own)."""
+    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights)
     spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
-    tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed)))
+    tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed),
+                                params=None if weights is None else {"weights": weights}))
     sim = SimRun(sc, detector=tap, tracking=True)
     tap.pose_now = lambda: sim.loop.last_estimate.pose
     fleet = sim.traffic
     if fleet is not None:
-        start_at_rest(fleet)
         car = get_vehicle(sc.traffic.vehicle)
         tap.occlusion = lambda pose: occluded_fraction(track, pose, rig, fleet.poses(),
                                                        (car.length, car.width, car.height))
@@ -143,10 +145,10 @@ def _one_thread() -> None:
 
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
                     workers: int = 1, progress: bool = False, traffic: int = 0,
-                    lead_gap: float | None = None) -> list[dict]:
+                    lead_gap: float | None = None, weights: str | None = None) -> list[dict]:
     """Drive every cell (one torch thread each; `workers` processes at once; `traffic` cars, the lead
-    `lead_gap` m ahead, default `LEAD_GAP_M`), results in cell order; a bad preset, condition, duration or
-    traffic is a UserError before any drive."""
+    `lead_gap` m ahead, default `LEAD_GAP_M`; the detector's checkpoint `weights`, default its own), results in
+    cell order; a bad preset, condition, duration, traffic or weights is a UserError before any drive."""
     if not (math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a time > 0 s, got {duration}")
     if traffic < 0:
@@ -159,8 +161,13 @@ def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "
         TRACKS.get(preset)
     for condition in conditions:
         get_condition(condition)
+    if weights is not None:
+        try:
+            DETECTORS.get(detector).settings({"weights": weights}, f"detector {detector}")
+        except ParamsError as exc:
+            raise UserError(f"--weights: {exc}") from None
     todo = cells(presets, conditions)
-    options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap}
+    options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap, "weights": weights}
     if traffic:
         for cell in todo:
             drive_scenario(cell, detector, duration, **options)

@@ -76,6 +76,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                         "far part of the ego lines; the tables split the ticks by occlusion (default 0: none)")
     p.add_argument("--lead-gap", type=float, default=None, metavar="M",
                    help=f"ego front to lead car rear with --traffic (m; default {LEAD_GAP_M:g})")
+    p.add_argument("--weights", metavar="CHECKPOINT",
+                   help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
+                        "default: the shipped lanenet.pt)")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
@@ -157,7 +160,7 @@ def _closed_loop(args: argparse.Namespace) -> int:
         raise ValueError("closed-loop needs a lane detector: --detector neural, classical or oracle")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
-                              lead_gap=args.lead_gap)
+                              lead_gap=args.lead_gap, weights=args.weights)
     paths = write_report(results, args.out)
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))

@@ -5,7 +5,7 @@ ahead as the lead car, coming towards the ego).
 
 Every car's desired speed is the ego's, without spread, and the IDM time headway and jam distance are 0: at
 one speed the IDM then has no interaction term, so no car closes on the one ahead. Started at rest with the
-ego (`start_at_rest`), the cars accelerate by the IDM with a = `LEAD_ACCEL`, the least at which the lead car
+ego (`traffic.start_speed = 0`), the cars accelerate by the IDM with a = `LEAD_ACCEL`, the least at which the lead car
 never falls behind the ego's 1 m/s² cruise ramp: its gap opens by at most 3–4 m at 10–12 m/s (22 m at 27 m/s,
 back to 3 m after 60 s), and holds until the road's end comes within `END_ZONE` of the front car's IDM desired
 gap to a standing obstacle, v² / (2 √(a b)). `traffic_drive` fits this to the track: the gap between
@@ -22,7 +22,6 @@ from typing import Any
 
 from testbed.errors import UserError
 from testbed.eval.scenario import END_MARGIN_M
-from testbed.traffic.fleet import Fleet
 from testbed.traffic.idm import IdmParams
 from tracks.road import Track
 from vehicles.params import get_vehicle
@@ -88,14 +87,8 @@ def traffic_drive(track: Track, lane: int, start_s: float, ego_vehicle: str, spe
         raise UserError(f"{vehicles} traffic cars leave the ego {end_s - last[lane]:.0f} m of {track.name} for "
                         f"{duration:g} s: lower --traffic or the duration")
     table = {"vehicles": vehicles, "speed": fitted, "speed_spread": 0.0, "ahead": ahead, "gap": gap,
-             "gap_spread": 0.0, "accel": LEAD_ACCEL, "headway": 0.0, "min_gap": 0.0}
+             "gap_spread": 0.0, "start_speed": 0.0, "accel": LEAD_ACCEL, "headway": 0.0, "min_gap": 0.0}
     if beside:
         table["beside"] = lead_s + OTHERS_AHEAD_M - start_s
     return TrafficDrive(table, fitted)
 
-
-def start_at_rest(fleet: Fleet) -> None:
-    """Stop every car of a fleet before its first step (`Fleet.place` starts them at their desired speed), so
-    that they start with the ego, which starts at rest."""
-    for car in fleet.cars:
-        car.speed = 0.0

@@ -24,6 +24,9 @@ class TrafficConfig(BaseModel):
     vehicles: int = Field(0, ge=0, le=60, description="number of traffic cars (0 = an empty road)")
     speed: float | None = Field(None, ge=0, le=60, description="mean desired speed of the cars (m/s; default: "
                                                                "the scenario's speed; 0 = parked cars)")
+    start_speed: float | None = Field(None, ge=0, le=60, description="speed every car starts at (m/s; default: "
+                                                                     "its desired speed; 0 = at rest, like the "
+                                                                     "ego car)")
     speed_spread: float = Field(1.0, ge=0, le=20, description="each car's desired speed is drawn uniformly "
                                                               "within speed ± this (m/s), never below 0")
     lanes: list[int] | None = Field(None, description="lanes that carry traffic, 0 = rightmost "
@@ -53,6 +56,9 @@ class TrafficConfig(BaseModel):
             raise ValueError("traffic.lanes is empty: name the lanes that carry traffic, or leave it out for all")
         if self.lanes is not None and len(set(self.lanes)) != len(self.lanes):
             raise ValueError(f"traffic.lanes {self.lanes} names a lane twice")
+        if self.start_speed and self.speed == 0:
+            raise ValueError(f"traffic.start_speed = {self.start_speed:g} m/s, but traffic.speed = 0 parks the cars: "
+                             f"drop traffic.start_speed or set traffic.speed")
         changed = sorted(k for k, f in type(self).model_fields.items() if k != "vehicles"
                          and getattr(self, k) != f.get_default(call_default_factory=True))
         if self.vehicles == 0 and changed:

@@ -81,8 +81,9 @@ class Fleet:
     def place(cls, config: TrafficConfig, track: Track, ego_lane: int, ego_s: float, default_speed: float,
               rng: np.random.Generator, size: tuple[float, float], ego_size: tuple[float, float],
               end_s: float) -> Fleet:
-        """The cars of `config` placed (see `TrafficConfig`), desired speeds and gaps drawn from `rng` car by
-        car, in an oncoming lane from `ahead` m in front of the ego car outward like in the ego lane;
+        """The cars of `config` placed (see `TrafficConfig`) at its `start_speed` (default: their desired
+        speed), desired speeds and gaps drawn from `rng` car by car, in an oncoming lane from `ahead` m in front
+        of the ego car outward like in the ego lane;
         PlacementError naming the fix when a lane is not on the track, a car would start past `end_s`, or an
         `ahead` or `beside` given would place no car."""
         n_lanes = len(track.lanes)
@@ -114,7 +115,8 @@ class Fleet:
                 raise PlacementError(f"traffic car {i} would start at s = {s:.0f} m in lane {lane}, off the road "
                                      f"(0..{end_s:.0f} m): lower traffic.vehicles, traffic.gap or traffic.ahead, "
                                      f"or raise traffic.beside")
-            cars.append(TrafficCar(i, lane, s, desired, desired, track.lanes[lane].direction))
+            start = desired if config.start_speed is None else config.start_speed
+            cars.append(TrafficCar(i, lane, s, start, desired, track.lanes[lane].direction))
             next_s[lane] = s + length + gap
         return cls(track, cars, config.idm(), length, width, ego_size[0], ego_size[1], end_s, gaps)
 

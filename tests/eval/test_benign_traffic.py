@@ -18,6 +18,7 @@ def test_benign_traffic_drives_every_preset_and_condition_with_six_cars_at_the_e
         sc = run.scenario
         assert (sc.defense, sc.localization, sc.detector) == ("ld3", "msf", "neural")
         assert sc.traffic.vehicles >= 6 and sc.traffic.speed == sc.speed and sc.traffic.ahead == LEAD_GAP_M
+        assert sc.traffic.start_speed == 0.0  # started at rest with the ego: the lead car stays close
         track, sedan, ego = load_track(sc.track), get_vehicle("sedan"), get_vehicle(sc.vehicle)
         fleet = Fleet.place(sc.traffic, track, track.ego_lane, sc.start_s, sc.speed, np.random.default_rng(sc.seed),
                             (sedan.length, sedan.width), (ego.length, ego.width), track.length - 30.0)

@@ -57,6 +57,20 @@ def test_same_seed_gives_the_same_bytes_with_traffic(tmp_path):
     assert outs[0][1] != outs[2][1]
 
 
+def test_cars_started_at_rest_start_with_the_ego_and_give_the_same_bytes(tmp_path):
+    sc = _highway(speed=20.0, duration=3.0, localization="msf", seed=7)
+    outs = []
+    for k, start in enumerate(({}, {"start_speed": 0.0}, {"start_speed": 0.0})):
+        run_scenario(sc.replace(traffic={"vehicles": 6, "beside": -10.0, **start}), tmp_path / f"r{k}")
+        outs.append((tmp_path / f"r{k}" / "traffic.csv").read_bytes())
+    assert outs[1] == outs[2] and outs[0] != outs[1]
+    with (tmp_path / "r1" / "traffic.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    first_t = rows[0]["t"]
+    assert all(float(r["speed"]) < 0.1 for r in rows if r["t"] == first_t)
+    assert all(float(r["speed"]) > 1.0 for r in rows[-6:])
+
+
 def test_a_traffic_lane_the_track_lacks_is_refused_when_built():
     with pytest.raises(ScenarioError, match=r"^traffic\.lanes names lane 4, which highway lacks \(lanes 0\.\.2\)$"):
         SimRun(_highway(traffic={"vehicles": 2, "lanes": [4]}))

@@ -60,6 +60,21 @@ def test_bad_traffic_options_are_refused_before_any_drive():
         run_closed_loop(["slr"], ["day"], traffic=6, lead_gap=0.0)
 
 
+def test_weights_other_than_a_neural_detectors_checkpoint_are_refused_before_any_drive():
+    with pytest.raises(UserError, match=r"--weights: .*no checkpoint at nowhere\.pt"):
+        run_closed_loop(["slr"], ["day"], weights="nowhere.pt")
+    with pytest.raises(UserError, match="--weights: "):
+        run_closed_loop(["slr"], ["day"], detector="classical", weights="lanenet-traffic.pt")
+
+
+@pytest.mark.slow
+def test_a_drive_with_other_weights_scores_that_checkpoints_detections():
+    cell = Cell("urban-straight", "day", 9010)
+    shipped, tuned = drive(cell, "neural", duration=2.0), drive(cell, "neural", duration=2.0,
+                                                                 weights="lanenet-traffic.pt")
+    assert np.isfinite(tuned["raw"]).sum() > 150 and not np.array_equal(shipped["raw"], tuned["raw"], equal_nan=True)
+
+
 @pytest.mark.slow
 def test_a_drive_in_traffic_records_the_occlusion_of_every_tick():
     r = drive(Cell("urban-straight", "day", 9010), "neural", duration=3.0, traffic=6)

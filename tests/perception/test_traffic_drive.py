@@ -29,7 +29,7 @@ def test_every_preset_holds_six_cars_with_a_lead_car_close_ahead(preset):
         assert len(fleet.cars) == 6 and 0.1 <= fitted.speed <= base.speed
         lead = min((c for c in fleet.cars if c.lane == track.ego_lane), key=lambda c: c.s)
         assert lead.s - base.start_s == pytest.approx(0.5 * ego.length + td.LEAD_GAP_M + 0.5 * sedan.length)
-        assert {c.speed for c in fleet.cars} == {fitted.speed}
+        assert {c.desired for c in fleet.cars} == {fitted.speed} and {c.speed for c in fleet.cars} == {0.0}
         front = max(c.s for c in fleet.cars if c.lane == track.ego_lane)
         assert front + fitted.speed * 30.0 <= track.length - td.END_MARGIN_M  # still short of the road's end
 

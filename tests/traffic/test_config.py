@@ -31,6 +31,12 @@ def _scenario(**traffic: object) -> Scenario:
     ({"gap": 10.0, "speed": 5.0}, "traffic.vehicles = 0, so traffic.gap, traffic.speed would change nothing"),
     ({"ego_follows": True}, "traffic.vehicles = 0, so traffic.ego_follows would change nothing"),
     ({"vehicles": 2, "ego_follows": "yes"}, "traffic.ego_follows"),
+    ({"vehicles": 2, "start_speed": -1.0}, "traffic.start_speed must be >= 0"),
+    ({"vehicles": 2, "start_speed": 61.0}, "traffic.start_speed must be <= 60"),
+    ({"vehicles": 2, "speed": 0.0, "start_speed": 5.0},
+     "traffic.start_speed = 5 m/s, but traffic.speed = 0 parks the cars: drop traffic.start_speed or set "
+     "traffic.speed"),
+    ({"start_speed": 0.0}, "traffic.vehicles = 0, so traffic.start_speed would change nothing"),
 ])
 def test_bad_traffic_tables_are_refused_in_one_line(table: dict, message: str) -> None:
     with pytest.raises(ScenarioError) as info:
@@ -60,6 +66,18 @@ def test_placement_is_round_robin_ahead_in_the_ego_lane_and_beside_in_the_others
     assert [c.s for c in fleet.cars if c.lane == ego_lane] == pytest.approx([first_ahead, first_ahead + 34.8])
     assert [c.s for c in fleet.cars if c.lane == 0] == pytest.approx([20.0, 54.8])
     assert all(c.speed == c.desired == 25.0 for c in fleet.cars)
+
+
+def test_start_speed_sets_the_start_only_and_cars_at_rest_accelerate() -> None:
+    moving = _place(TrafficConfig(vehicles=5), 3)
+    resting = _place(TrafficConfig(vehicles=5, start_speed=0.0), 3)
+    slow = _place(TrafficConfig(vehicles=5, start_speed=5.0), 3)
+    assert all(c.speed == c.desired > 20.0 for c in moving.cars)
+    assert [(c.lane, c.s, c.desired) for c in resting.cars] == [(c.lane, c.s, c.desired) for c in moving.cars]
+    assert all(c.speed == 0.0 for c in resting.cars) and all(c.speed == 5.0 for c in slow.cars)
+    for _ in range(200):
+        resting.advance(0.01, None)
+    assert all(1.0 < c.speed < 4.0 for c in resting.cars)  # 2 s from rest at up to the IDM's 1.5 m/s²
 
 
 def test_placement_draws_from_its_stream_only() -> None:

@@ -11,11 +11,24 @@ conditions only:
     ld3 ld train --data D/train D/train2 D/train3 D/train4 --val D/heldout --out runs/ld-train
 Held-out set: `ld3 ld dataset --out D/heldout --frames 1440 --split heldout --seed 0 --frames-per-episode 20`.
 
-`lanenet-traffic.pt` is those weights fine-tuned on frames with up to 6 cars (a lead car hiding the far lines)
-plus frames without traffic (renders stopped at 2,520 and 1,170 frames), selectable with `detector.weights`:
+`lanenet-traffic.pt` is those weights fine-tuned in two steps on frames with up to 6 cars (a lead car
+hiding the far lines) and frames without traffic, selectable with `detector.weights`. First step (renders
+stopped at 2,520 and 1,170 frames):
     ld3 ld dataset --out D/traffic --split train --seed 11 --frames-per-episode 10 --traffic 6 --frames ...
     ld3 ld dataset --out D/plain --split train --seed 12 --frames ...
-    ld3 ld train --init lanenet.pt --data D/traffic D/plain --epochs 12 --minutes 10 --lr 1e-3
+    ld3 ld train --init lanenet.pt --data D/traffic D/plain --epochs 12 --minutes 10 --lr 1e-3 --out T1
+Second step, from T1/lanenet.pt, on two more sets with traffic in the worn and night conditions, then the
+element-wise mean of two runs' state dicts (a and b differ in learning rate and epochs only):
+    ld3 ld dataset --out D/worn-night --split train --seed 13 --frames-per-episode 10 --traffic 6 \
+        --conditions worn night --frames 2000
+    ld3 ld dataset --out D/worn --split train --seed 14 --frames-per-episode 10 --traffic 6 \
+        --conditions worn --frames 3000
+    ld3 ld train --init T1/lanenet.pt --data D/traffic D/worn-night D/worn D/plain --threads 1 --epochs 20 \
+        --minutes 25 --lr 5e-4 --out a
+    ld3 ld train --init T1/lanenet.pt --data D/traffic D/worn-night D/worn D/plain --threads 1 --epochs 30 \
+        --minutes 25 --lr 1e-3 --out b
+    state_dict = (a's + b's) / 2 for every floating-point tensor (batch-norm running statistics included),
+    a's num_batches_tracked kept
 """
 
 from importlib import resources
