@@ -112,9 +112,11 @@ class Fleet:
             gap = gaps.draw()
             s = next_s[lane]
             if not 0.5 * length <= s <= end_s:
+                start_key = "ahead" if lane == ego_lane or track.lanes[lane].oncoming else "beside"
+                fix = (f"lower traffic.vehicles, traffic.gap or traffic.{start_key}" if s > end_s
+                       else "raise traffic.beside")
                 raise PlacementError(f"traffic car {i} would start at s = {s:.0f} m in lane {lane}, off the road "
-                                     f"(0..{end_s:.0f} m): lower traffic.vehicles, traffic.gap or traffic.ahead, "
-                                     f"or raise traffic.beside")
+                                     f"(0..{end_s:.0f} m): {fix}")
             start = desired if config.start_speed is None else config.start_speed
             cars.append(TrafficCar(i, lane, s, start, desired, track.lanes[lane].direction))
             next_s[lane] = s + length + gap

@@ -90,7 +90,9 @@ def test_placement_draws_from_its_stream_only() -> None:
 @pytest.mark.parametrize(("config", "message"), [
     (TrafficConfig(vehicles=2, lanes=[0, 5]), "traffic.lanes names lane 5, which highway lacks (lanes 0..2)"),
     (TrafficConfig(vehicles=60, gap=400.0), "off the road"),
-    (TrafficConfig(vehicles=2, beside=-100.0), "off the road"),
+    (TrafficConfig(vehicles=2, beside=-100.0), "off the road (0..3359 m): raise traffic.beside"),
+    (TrafficConfig(vehicles=2, lanes=[1], ahead=2000.0, gap=2000.0),
+     "lane 1, off the road (0..3359 m): lower traffic.vehicles, traffic.gap or traffic.ahead"),
     (TrafficConfig(vehicles=2, lanes=[1], beside=10.0),
      "traffic.beside would place no car: no car goes to a lane beside the ego lane (cars go to lanes [1])"),
     (TrafficConfig(vehicles=1, lanes=[0, 1], ahead=12.0),
