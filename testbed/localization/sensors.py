@@ -251,7 +251,7 @@ class Imu:
 
     def samples(self, t: float, accel: float, yaw_rate: float) -> list[ImuSample]:
         """Every sample due up to t (`_Schedule.slots`: a control tick slower than the IMU reads each), all of
-        the motion the tick read; the draws are those of one `measure` per sample, taken in one call."""
+        the motion the tick read; the draws are those of one call per sample, taken in one call."""
         times = self._schedule.slots(t)
         draws = self.rng.normal(size=4 * len(times)).tolist() if times else []
         return [self._sample(ts, accel, yaw_rate, draws[4 * k:4 * k + 4]) for k, ts in enumerate(times)]
