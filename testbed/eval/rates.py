@@ -38,7 +38,7 @@ class Rates(BaseModel):
         if self.camera_hz > self.control_hz:
             raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must not exceed rates.control_hz "
                              f"({self.control_hz:g})")
-        every = round(self.control_hz / self.camera_hz)
+        every = LoopRates(self.control_hz, self.camera_hz).camera_every
         if abs(every * self.camera_hz - self.control_hz) > 1e-6 * self.control_hz:
             raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must divide rates.control_hz "
                              f"({self.control_hz:g}): a frame every {every} ticks would be "

@@ -228,7 +228,7 @@ def _car_following(sc: Scenario, fleet: Fleet | None, smap: TrackMap, lane: int,
     """The ego's acceleration cap behind the car ahead in its lane where `[traffic] ego_follows` asks for it."""
     if fleet is None or not sc.traffic.ego_follows:
         return None
-    sensor = LeadSensor(fleet, smap, lane, params.length)
+    sensor = LeadSensor(fleet, smap, lane)
     following = CarFollowing(IdmParams(brake_limit=params.max_decel))
     return lambda state: following.cap(state.speed, sensor(state))
 

@@ -253,12 +253,12 @@ class Imu:
         """Every sample due up to t (`_Schedule.slots`: a control tick slower than the IMU reads each), all of
         the motion the tick read; the draws are those of one call per sample, taken in one call."""
         times = self._schedule.slots(t)
-        draws = self.rng.normal(size=4 * len(times)).tolist() if times else []
+        self._schedule.consume(t)
+        draws = self.rng.normal(size=4 * len(times)).tolist()
         return [self._sample(ts, accel, yaw_rate, draws[4 * k:4 * k + 4]) for k, ts in enumerate(times)]
 
     def _sample(self, t: float, accel: float, yaw_rate: float, draws: list[float]) -> ImuSample:
         m = self.model
-        self._schedule.consume(t)
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
         sq = math.sqrt(dt)

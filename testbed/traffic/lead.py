@@ -13,9 +13,9 @@ class LeadSensor:
     """`sensor(state)`: the car ahead of the true pose in lane `lane` (which runs along the road), or None (no car
     ahead, or the ego off the map)."""
 
-    def __init__(self, fleet: Fleet, smap: SemanticMap, lane: int, ego_length: float) -> None:
+    def __init__(self, fleet: Fleet, smap: SemanticMap, lane: int) -> None:
         self.fleet, self.smap, self.lane = fleet, smap, lane
-        self._half_lengths = 0.5 * (ego_length + fleet.length)
+        self._half_lengths = 0.5 * (fleet.ego_length + fleet.length)
 
     def __call__(self, state: ChassisState) -> LeadCar | None:
         if state.true_pose is None:
