@@ -162,9 +162,9 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
     `label_draws` > 0 each label's meta also holds `redrawn_exists`, the (left, right) existence labels of that
     many other sensor draws of the same render, drawn from their own stream (images and labels unchanged); with
     `traffic` > 0 up to that many traffic cars in each frame (see the module)."""
-    rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))])
-    traffic_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), traffic,
-                                         TRAFFIC_STREAM])
+    key = [ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))]
+    rng = np.random.default_rng(key)
+    traffic_rng = np.random.default_rng([*key, traffic, TRAFFIC_STREAM])
     track = load_track(f"{ep.preset}@{ep.seed}")
     condition = get_condition(ep.condition)
     erase_stretches(track, rng)
@@ -174,7 +174,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
         MarkingFadePainter(float(rng.uniform(0.55, 1.1))),
         *condition.track_painters(ep.seed),
     ]
-    base_rig = CameraRig(get_vehicle(vehicle).camera)
+    ego = get_vehicle(vehicle)
+    base_rig, ego_length = CameraRig(ego.camera), ego.length
     streamer = TileStreamer(track, condition.lighting, ahead_m=70.0, behind_m=5.0)
     layout = PaintLayout(track)
     car = get_vehicle(TRAFFIC_CAR)
@@ -189,8 +190,8 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
         for i in range(n_frames):
             if s > track.length - 2.0:
                 break
-            redraw_rng = np.random.default_rng([ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition)), i])
-            cars = traffic_poses(track, lane, s, traffic, traffic_rng, get_vehicle(vehicle).length) if traffic else []
+            redraw_rng = np.random.default_rng([*key, i])
+            cars = traffic_poses(track, lane, s, traffic, traffic_rng, ego_length) if traffic else []
             if traffic:
                 streamer.place_traffic(dict(enumerate(cars)))
             image, label = _render_pose(track, lane, s, streamer, layout, base_rig, condition, rng, ep, label_draws,
