@@ -36,8 +36,8 @@ results match 240 Hz (docs/decisions.md)."""
 
 
 CONTROL_HZ = 100.0
-"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise; 40 Hz, the next rate that
-keeps the camera's 20 Hz a whole number of ticks, did not hold lane keeping on the MSF (docs/decisions.md)."""
+"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise (why this rate:
+docs/decisions.md, the control rate)."""
 
 
 @dataclass(frozen=True)
