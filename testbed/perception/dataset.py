@@ -54,6 +54,7 @@ LEAD_PROBABILITY = 0.75
 LEAD_GAP_RANGE_M = (3.0, 25.0)  # ego front to lead car rear
 OTHERS_RANGE_M = (5.0, 60.0)  # centres of the other cars ahead of the camera's pose
 TRAFFIC_LATERAL_M = 0.3  # a car's offset from its lane's centre, each side
+PLACEMENT_DRAWS_PER_CAR = 50  # draws of a free place per car before the frame makes do with the cars placed
 TRAFFIC_CAR = "sedan"
 TRAFFIC_STREAM = 7  # tells the traffic's stream apart from the episode's and the label redraws'
 
@@ -137,13 +138,16 @@ def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None
 
 def traffic_poses(track, lane, s: float, count: int, rng: np.random.Generator, ego_length: float) -> list[Pose]:
     """Up to `count` traffic car poses for a camera at arc length `s` of `lane` (see the module): the lead car
-    first where drawn, no two cars of a lane overlapping, none past the road's end."""
+    first where drawn, no two cars of a lane overlapping, none past the road's end. Places are drawn at most
+    `PLACEMENT_DRAWS_PER_CAR` × `count` times, so a road too short or narrow for `count` cars gets fewer."""
     car = get_vehicle(TRAFFIC_CAR)
     taken: list[tuple[int, float]] = []
     if count and rng.random() < LEAD_PROBABILITY:
         gap = float(rng.uniform(*LEAD_GAP_RANGE_M))
         taken.append((lane.index, s + 0.5 * ego_length + gap + 0.5 * car.length))
-    while len(taken) < count:
+    for _ in range(PLACEMENT_DRAWS_PER_CAR * count):
+        if len(taken) >= count:
+            break
         index, at = int(rng.integers(len(track.lanes))), s + float(rng.uniform(*OTHERS_RANGE_M))
         if all(i != index or abs(at - a) > car.length + 1.0 for i, a in taken):
             taken.append((index, at))

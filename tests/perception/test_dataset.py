@@ -95,3 +95,18 @@ def test_traffic_shows_cars_at_the_same_poses_and_records_what_they_hide():
     assert any(lab["meta"]["occluded"] > 0.0 for _, lab in busy)
     with pytest.raises(ValueError, match="--traffic"):
         build_dataset(Path("unused"), 2, traffic=-1)
+
+
+def test_traffic_on_a_road_too_short_for_every_car_places_what_fits():
+    from testbed.perception.dataset import OTHERS_RANGE_M, TRAFFIC_CAR, traffic_poses
+    from tracks.presets import load_track
+    from vehicles.params import get_vehicle
+
+    track = load_track(f"slr@{TRAIN_SEEDS[0]}")
+    assert len(track.lanes) == 1
+    car = get_vehicle(TRAFFIC_CAR)
+    fits = int((OTHERS_RANGE_M[1] - OTHERS_RANGE_M[0]) / (car.length + 1.0)) + 2
+    poses = traffic_poses(track, track.lanes[0], 100.0, 3 * fits, np.random.default_rng(0), car.length)
+    assert 1 <= len(poses) <= fits
+    gaps = np.diff(sorted(track.lanes[0].reference.project(p.x, p.y)[0] for p in poses))
+    assert (gaps > car.length).all()
