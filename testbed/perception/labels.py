@@ -15,6 +15,7 @@ brightness (RGB distance over the surface's RGB norm): yellow stands out from a 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,7 +130,8 @@ class FrameVisibility:
 @dataclass(frozen=True)
 class LineTruth:
     """One true lane line: cubic y(x) coefficients (ascending powers, vehicle frame), its existence, its
-    marking kind, and the fraction of its judged rows whose paint the frame shows (None where not judged)."""
+    marking kind (the most common in view, the nearest first among equals), and the fraction of its judged
+    rows whose paint the frame shows (None where not judged)."""
 
     coeffs: np.ndarray
     exists: bool
@@ -170,7 +172,7 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     if exists and visibility is not None:
         seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
-    kind = max(set(kinds), key=kinds.count) if kinds else "none"
+    kind = Counter(kinds).most_common(1)[0][0] if kinds else "none"
     return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen)
 
 
