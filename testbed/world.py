@@ -135,12 +135,9 @@ class PhysicsWorld:
 
     def contact_kinds(self) -> set[str]:
         """Kinds of bodies the vehicle touches now (curb, barrier, guardrail, divider, tree, vehicle)."""
-        kinds = set()
-        for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client):
-            kind = self.obstacle_kind.get(c[2])
-            if kind is not None:
-                kinds.add(kind)
-        return kinds
+        known = self.obstacle_kind
+        return {known[c[2]] for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client)
+                if c[2] in known}
 
     def close(self) -> None:
         if pb.isConnected(self.client):

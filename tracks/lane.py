@@ -55,6 +55,12 @@ class Lane:
         """Heading of travel (rad): the reference line's, turned by π for an oncoming lane."""
         return self._travel(self.reference.heading_at(s))
 
+    def centre_at(self, s: float) -> tuple[float, float, float]:
+        """`position(s)` and `heading_at(s)` as (x, y, heading) from one reference-line query, to the bit."""
+        x, y, h = self.reference.frame(s)
+        t = self.offset_at(s) + self.direction * 0.0
+        return x - t * math.sin(h), y + t * math.cos(h), self._travel(h)
+
     def pose_at(self, s: float) -> Pose:
         """The pose on the lane centre at reference arc length s, heading in the direction of travel (one
         reference-line query)."""

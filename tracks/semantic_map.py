@@ -100,8 +100,8 @@ class TrackMap:
 
     def lane_point(self, pose: Pose, lane: int | None = None) -> tuple[np.ndarray, float]:
         c = self.project(pose, lane)
-        ln = self._lanes[c.lane]
-        return np.array(ln.position(c.s, 0.0)), ln.heading_at(c.s)
+        x, y, heading = self._lanes[c.lane].centre_at(c.s)
+        return np.array((x, y)), heading
 
     def lane_curvature(self, pose: Pose, lane: int | None = None) -> float:
         c = self.project(pose, lane)

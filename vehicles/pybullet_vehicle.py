@@ -207,7 +207,8 @@ class PyBulletVehicle:
         """`pose()`, `speed()` and `yaw_rate()` from one read of the base's state."""
         pos, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
         lin, ang = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
-        return self._pose(pos, orn), _longitudinal(lin, orn), ang[2]
+        pose = self._pose(pos, orn)  # `_longitudinal` below, on the yaw read once
+        return pose, lin[0] * math.cos(pose.yaw) + lin[1] * math.sin(pose.yaw), ang[2]
 
     def accel(self) -> float:
         """Measured longitudinal acceleration (m/s²), low-pass filtered with a 50 ms time constant."""
@@ -215,10 +216,8 @@ class PyBulletVehicle:
 
     def steer_angle(self) -> float:
         """Actual road-wheel angle (rad, + left): the bicycle-model equivalent of both front wheels."""
-        left, right = (
-            st[0] for st in p.getJointStates(self.body_id, self.steer_joint_ids, physicsClientId=self._cid)
-        )
-        return bicycle_angle(left, right)
+        left, right = p.getJointStates(self.body_id, self.steer_joint_ids, physicsClientId=self._cid)
+        return bicycle_angle(left[0], right[0])
 
     def wheel_speeds(self) -> tuple[float, ...]:
         """Rim speeds ω·r (m/s) of the wheels in `wheel_link_ids` order: FL, FR, RL, RR."""

@@ -29,6 +29,8 @@ from tracks.compiled import compiled_module
 from tracks.pose import Pose, wrap_angle
 
 _N = 7
+_IDENTITY = {n: np.eye(n) for n in range(1, _N + 1)}
+"""Identity matrices to copy (`np.eye` builds one in Python)."""
 _KERNELS = compiled_module("testbed.localization.msf_kernels")
 
 
@@ -45,7 +47,7 @@ def observed_prefix_update(p: np.ndarray, z: np.ndarray, r: np.ndarray, s: np.nd
     covariance R, S = H P Hᵀ + R given: the correction K z and the Joseph-form covariance (filterpy's `update`)."""
     n = len(z)
     k = p[:, :n] @ np.linalg.inv(s)
-    i_kh = np.eye(len(p))
+    i_kh = _IDENTITY[len(p)].copy() if len(p) in _IDENTITY else np.eye(len(p))
     i_kh[:, :n] -= k
     return k @ z, i_kh @ p @ i_kh.T + k @ r @ k.T
 
@@ -135,8 +137,7 @@ class MultiSensorFusion:
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
         n = len(z)
-        pht = self.P[:, :n]
-        s = pht[:n] + r
+        s = self.P[:n, :n] + r
         d2 = float(z @ np.linalg.solve(s, z))
         if d2 > self._gate[n]:
             self.rejected[source] += 1

@@ -72,16 +72,15 @@ class _Schedule:
         while self._next <= t + 1e-9:
             self._next += self.period
 
-    def slots(self, t: float) -> list[float]:
+    def take(self, t: float) -> list[float]:
         """The sampling instants up to t not yet taken, the last of them t itself (the tick that reads them):
-        one at a tick as often as the sensor, several at a slower tick."""
-        if self._next is None:
-            return [t]
+        one at a tick as often as the sensor, several at a slower tick; consumed (`consume(t)`) as they are."""
+        nxt = t if self._next is None else self._next
         out: list[float] = []
-        nxt = self._next
         while nxt <= t + 1e-9:
             out.append(nxt)
             nxt += self.period
+        self._next = nxt
         if out:
             out[-1] = t
         return out
@@ -104,7 +103,8 @@ class GnssModel:
 
 
 class GnssSensor:
-    """GNSS receiver: biased, noisy, occasionally multipath-corrupted position fixes."""
+    """GNSS receiver: biased, noisy, occasionally multipath-corrupted position fixes (the error's two axes
+    kept as floats: the same arithmetic, element for element, as on 2-vectors)."""
 
     def __init__(
         self, rng: np.random.Generator, rate_hz: float = 10.0, model: GnssModel | None = None
@@ -112,9 +112,10 @@ class GnssSensor:
         self.rng = rng
         self.model = model or GnssModel()
         self._schedule = _Schedule(rate_hz)
-        self.bias = rng.normal(0.0, self.model.bias_std, 2)
+        self._bias: tuple[float, float] = tuple(rng.normal(0.0, self.model.bias_std, 2).tolist())
         self._burst_until = -math.inf
-        self._burst_offset = np.zeros(2)
+        self._burst_offset = (0.0, 0.0)
+        self._burst_norm = 0.0
         self._last_t: float | None = None
 
     def due(self, t: float) -> bool:
@@ -125,13 +126,16 @@ class GnssSensor:
         dt = 0.0 if self._last_t is None else max(0.0, t - self._last_t)
         self._last_t = t
         phi = math.exp(-dt / m.bias_tau)
-        self.bias = phi * self.bias + math.sqrt(1.0 - phi * phi) * m.bias_std * self.rng.normal(size=2)
+        gain = math.sqrt(1.0 - phi * phi) * m.bias_std
+        wx, wy = self.rng.normal(size=2).tolist()
+        bx, by = self._bias
+        self._bias = (phi * bx + gain * wx, phi * by + gain * wy)
         if t >= self._burst_until and self.rng.random() < 1.0 - math.exp(-m.multipath_rate * dt):
             self._burst_until = t + self.rng.uniform(*m.multipath_duration)
             ang = self.rng.uniform(-math.pi, math.pi)
-            self._burst_offset = self.rng.uniform(*m.multipath_offset) * np.array(
-                [math.cos(ang), math.sin(ang)]
-            )
+            offset = self.rng.uniform(*m.multipath_offset) * np.array([math.cos(ang), math.sin(ang)])
+            self._burst_offset = tuple(offset.tolist())
+            self._burst_norm = float(np.linalg.norm(offset))
 
     def in_multipath(self, t: float) -> bool:
         return t < self._burst_until
@@ -140,13 +144,16 @@ class GnssSensor:
         m = self.model
         self._schedule.consume(t)
         self._advance(t)
-        err = self.bias + m.noise_std * self.rng.normal(size=2)
+        nx, ny = self.rng.normal(size=2).tolist()
+        bx, by = self._bias
+        ex, ey = bx + m.noise_std * nx, by + m.noise_std * ny
         std = m.reported_std
         if self.in_multipath(t):
-            err = err + self._burst_offset
-            std = math.hypot(std, m.multipath_reported_gain * float(np.linalg.norm(self._burst_offset)))
-        xy = np.array([true_pose.x, true_pose.y]) + err
-        return GnssFix(t, xy, np.eye(2) * std * std)
+            ox, oy = self._burst_offset
+            ex, ey = ex + ox, ey + oy
+            std = math.hypot(std, m.multipath_reported_gain * self._burst_norm)
+        var = std * std
+        return GnssFix(t, np.array([true_pose.x + ex, true_pose.y + ey]), np.array([[var, 0.0], [0.0, var]]))
 
 
 @dataclass(frozen=True)
@@ -210,17 +217,21 @@ class LidarLocator:
         self._advance(t)
         q = self.quality(t, true_pose.x, true_pose.y)
         poor = 1.0 - q
-        offset = np.array([prior.x - true_pose.x, prior.y - true_pose.y])
-        dist = float(np.linalg.norm(offset))
+        ox, oy = prior.x - true_pose.x, prior.y - true_pose.y
+        offset = np.array([ox, oy])
+        dist = math.sqrt(float(offset.dot(offset)))  # np.linalg.norm's own arithmetic
         captured = math.exp(-0.5 * (dist / m.capture_radius) ** 4)
         pull = (m.pull_poor + (1.0 - m.pull_poor) * q) * captured
         std = m.noise_std_rich + (m.noise_std_poor - m.noise_std_rich) * poor
         yaw_std = m.yaw_std_rich + (m.yaw_std_poor - m.yaw_std_rich) * poor
         rep = m.reported_std_rich + (m.reported_std_poor - m.reported_std_rich) * poor
         rep += m.lost_reported_std * (1.0 - captured)
-        xy = np.array([true_pose.x, true_pose.y]) + (1.0 - pull) * offset + std * self.rng.normal(size=2)
+        nx, ny = self.rng.normal(size=2).tolist()
+        held = 1.0 - pull
+        xy = np.array([true_pose.x + held * ox + std * nx, true_pose.y + held * oy + std * ny])
         yaw = true_pose.yaw + (1.0 - pull) * wrap_angle(prior.yaw - true_pose.yaw) + yaw_std * self.rng.normal()
-        cov = np.diag([rep * rep, rep * rep, (2.0 * yaw_std) ** 2])
+        var, yaw_var = rep * rep, (2.0 * yaw_std) ** 2
+        cov = np.array([[var, 0.0, 0.0], [0.0, var, 0.0], [0.0, 0.0, yaw_var]])
         return LidarFix(t, xy, wrap_angle(yaw), cov)
 
 
@@ -250,10 +261,9 @@ class Imu:
         self._last_t: float | None = None
 
     def samples(self, t: float, accel: float, yaw_rate: float) -> list[ImuSample]:
-        """Every sample due up to t (`_Schedule.slots`: a control tick slower than the IMU reads each), all of
+        """Every sample due up to t (`_Schedule.take`: a control tick slower than the IMU reads each), all of
         the motion the tick read; the draws are those of one call per sample, taken in one call."""
-        times = self._schedule.slots(t)
-        self._schedule.consume(t)
+        times = self._schedule.take(t)
         draws = self.rng.normal(size=4 * len(times)).tolist()
         return [self._sample(ts, accel, yaw_rate, draws[4 * k:4 * k + 4]) for k, ts in enumerate(times)]
 

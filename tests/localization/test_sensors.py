@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from testbed.localization.sensors import GnssModel, GnssSensor, Imu, LidarLocator, LidarModel
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 TRUTH = Pose(10.0, -5.0, 0.3)
 
@@ -105,3 +105,45 @@ def test_a_slow_tick_takes_the_samples_due_since_the_last_with_the_draws_of_one_
     one_by_one = [each.samples(s.t, 0.3, 0.02) for s in batched]
     assert all(len(one) == 1 for one in one_by_one)
     assert [one[0] for one in one_by_one] == batched  # the same instants, biases and noise, bit for bit
+
+
+def test_gnss_fixes_are_the_models_arithmetic_on_2_vectors_to_the_bit():
+    """The receiver keeps its error's axes as floats; the fixes are those of the model written on 2-vectors."""
+    m = GnssModel(multipath_rate=0.5)
+    g, rng = GnssSensor(np.random.default_rng(11), model=m), np.random.default_rng(11)
+    bias, until, offset, last = rng.normal(0.0, m.bias_std, 2), -math.inf, np.zeros(2), None
+    for i in range(400):
+        t = 0.1 * i
+        fix = g.measure(t, TRUTH)
+        dt = 0.0 if last is None else t - last
+        last, phi = t, math.exp(-dt / m.bias_tau)
+        bias = phi * bias + math.sqrt(1.0 - phi * phi) * m.bias_std * rng.normal(size=2)
+        if t >= until and rng.random() < 1.0 - math.exp(-m.multipath_rate * dt):
+            until, ang = t + rng.uniform(*m.multipath_duration), rng.uniform(-math.pi, math.pi)
+            offset = rng.uniform(*m.multipath_offset) * np.array([math.cos(ang), math.sin(ang)])
+        err, std = bias + m.noise_std * rng.normal(size=2), m.reported_std
+        if t < until:
+            err = err + offset
+            std = math.hypot(std, m.multipath_reported_gain * float(np.linalg.norm(offset)))
+        assert np.array_equal(fix.xy, np.array([TRUTH.x, TRUTH.y]) + err)
+        assert np.array_equal(fix.cov, np.eye(2) * std * std)
+
+
+def test_lidar_fixes_are_the_models_arithmetic_on_2_vectors_to_the_bit():
+    m = LidarModel(occlusion_rate=0.0)
+    loc, rng = LidarLocator(np.random.default_rng(12), lambda x, y: 0.6, model=m), np.random.default_rng(12)
+    for i in range(400):
+        prior = Pose(TRUTH.x + 0.3 * math.sin(0.1 * i), TRUTH.y + 0.4 * math.cos(0.07 * i), TRUTH.yaw + 0.01)
+        fix = loc.measure(0.1 * i, TRUTH, prior)
+        rng.random()  # the occlusion draw
+        q, offset = 0.6, np.array([prior.x - TRUTH.x, prior.y - TRUTH.y])
+        captured = math.exp(-0.5 * (float(np.linalg.norm(offset)) / m.capture_radius) ** 4)
+        pull = (m.pull_poor + (1.0 - m.pull_poor) * q) * captured
+        std = m.noise_std_rich + (m.noise_std_poor - m.noise_std_rich) * (1.0 - q)
+        yaw_std = m.yaw_std_rich + (m.yaw_std_poor - m.yaw_std_rich) * (1.0 - q)
+        rep = m.reported_std_rich + (m.reported_std_poor - m.reported_std_rich) * (1.0 - q)
+        rep += m.lost_reported_std * (1.0 - captured)
+        xy = np.array([TRUTH.x, TRUTH.y]) + (1.0 - pull) * offset + std * rng.normal(size=2)
+        yaw = TRUTH.yaw + (1.0 - pull) * wrap_angle(prior.yaw - TRUTH.yaw) + yaw_std * rng.normal()
+        assert np.array_equal(fix.xy, xy) and fix.yaw == wrap_angle(yaw)
+        assert np.array_equal(fix.cov, np.diag([rep * rep, rep * rep, (2.0 * yaw_std) ** 2]))

@@ -123,3 +123,11 @@ def test_repeated_queries_answer_as_a_cold_map_and_errors_are_not_kept(two_lane_
             warm.project(nan)
     with pytest.raises(ValueError):
         warm.project(poses[0], 7)
+
+
+@pytest.mark.parametrize("name", ["urban-curvy", "highway", "local", "parking-lot", "two-way"])
+def test_a_lanes_centre_is_its_position_and_heading_to_the_bit(name):
+    track = load_track(name)
+    for lane in track.lanes:
+        for s in [-3.0, 0.0, *np.linspace(0.0, track.length, 401).tolist(), track.length + 2.5]:
+            assert lane.centre_at(s) == (*lane.position(s, 0.0), lane.heading_at(s))
