@@ -82,6 +82,7 @@ class SimRun:
         self._still_since: float | None = None
         self.wall_time = 0.0
         self.done = False
+        self.ended_by: str | None = None
         self.traffic_log = TrafficLog()
         self.hit: HitVehicle | None = None
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
@@ -146,10 +147,15 @@ class SimRun:
         edge = self._edge_beyond(pose)
         if parts.traffic is not None:
             self._advance_traffic(rec, pose)
-        self.done = (self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off")
-                     or self._stopped(rec)
-                     or parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M
-                     or len(self.rows) >= self.n_ticks)
+        if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
+            self.ended_by = "consequence"
+        elif self._stopped(rec):
+            self.ended_by = "standstill"
+        elif parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M:
+            self.ended_by = "road_end"
+        elif len(self.rows) >= self.n_ticks:
+            self.ended_by = "duration"
+        self.done = self.ended_by is not None
         self.wall_time += time.perf_counter() - wall0
         return rec
 
@@ -225,7 +231,7 @@ class SimRun:
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
             "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
-            "final_dev_m": final_dev, "consequence": consequence,
+            "final_dev_m": final_dev, "consequence": consequence, "ended_by": self.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
             + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
                 "count": f.count} for f in self.defense.fault_records()],

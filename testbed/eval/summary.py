@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 """Version of summary.json's layout; raised when a key is added, changes meaning or goes away."""
 
 
@@ -70,6 +70,9 @@ class RunSummary(BaseModel):
     max_abs_dev_m: float | None
     final_dev_m: float | None
     consequence: str
+    ended_by: Literal["consequence", "standstill", "road_end", "duration"] | None = None
+    """What ended the run: a run-ending consequence, standstill after a stop, the end of the road, or the
+    scenario's duration (a `reach_destination` that ran out of time short of the road's end); None: not over."""
     faults: list[FaultRecord]
     detected: bool
     detection_time_s: float | None

@@ -22,8 +22,8 @@ def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
     sc = load_scenario(preset).with_overrides(duration=6.0)
     result = run_scenario(sc, tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary.keys() == RunSummary.model_fields.keys() and summary["schema_version"] == 5
-    assert summary["consequence"] == "reach_destination"
+    assert summary.keys() == RunSummary.model_fields.keys() and summary["schema_version"] == 6
+    assert summary["consequence"] == "reach_destination" and summary["ended_by"] == "duration"
     assert summary["max_abs_dev_m"] < 0.10
     assert summary["attack"] is None and summary["detected"] is False
     with (tmp_path / "trajectory.csv").open() as fh:
@@ -33,6 +33,12 @@ def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
     speeds = [float(r["speed"]) for r in rows]
     assert speeds[-1] > 2.0, "the car drives off under physics"
     assert (tmp_path / "birdseye.png").stat().st_size > 10_000
+
+
+def test_a_run_that_reaches_the_end_of_the_road_says_so_before_its_duration(tmp_path):
+    summary = run_scenario(load_scenario("parking-lot").with_overrides(duration=120.0), tmp_path).summary
+    assert summary["consequence"] == "reach_destination" and summary["ended_by"] == "road_end"
+    assert summary["sim_time_s"] < 60.0
 
 
 def test_same_seed_gives_identical_trajectory_in_two_processes(tmp_path):
@@ -52,7 +58,8 @@ def test_attacked_run_without_defense_leaves_lane_and_ld3_stops_in_it(tmp_path):
     none = run_scenario(base.with_overrides(defense="none"), tmp_path / "none").summary
     ld3 = run_scenario(base.with_overrides(defense="ld3"), tmp_path / "ld3").summary
     assert none["consequence"] in ("hit_curb", "out_of_lane", "hit_barrier")
-    assert ld3["detected"] and ld3["consequence"] == "stop_in_lane"
+    assert none["ended_by"] == ("duration" if none["consequence"] == "out_of_lane" else "consequence")
+    assert ld3["detected"] and ld3["consequence"] == "stop_in_lane" and ld3["ended_by"] == "standstill"
     assert abs(ld3["ar_stop_dev_m"]) < ld3["lane_straddle_dev_m"]
 
 
