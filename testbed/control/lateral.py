@@ -4,6 +4,10 @@
 δ_ss and e_ψss are the steady-state cornering steer (kinematic + understeer) and sideslip heading error,
 so the loop regulates around the cornering equilibrium and holds e_y → 0 on arcs. K(v) comes from
 the discrete LQR (`dlqr`) on the ZOH-discretised model at speeds 1..40 m/s and is linearly interpolated per tick.
+
+With a steering-rate weight w > 0 the cost is ∫ xᵀQx + r·δ² + w·δ̇² dt: the LQR runs on the model augmented with
+the last command, z = [x, δ_prev − δ_ss], input the step Δδ (weighted w/dt² per tick, so w means the same at any
+rate), and δ = δ_prev − K_z(v)·z. As w → 0 this is the law above.
 """
 
 from __future__ import annotations
@@ -31,12 +35,28 @@ def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     return phi[:n, :n], phi[:n, n:]
 
 
-def dlqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Gain K of u = −K·x minimising Σ xᵀQx + uᵀRu for x⁺ = A·x + B·u (the stabilising solution of the DARE)."""
+def dlqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray, cross: np.ndarray | None = None
+         ) -> np.ndarray:
+    """Gain K of u = −K·x minimising Σ xᵀQx + uᵀRu + 2xᵀNu for x⁺ = A·x + B·u (N = `cross`, default 0; the
+    stabilising solution of the DARE)."""
     a, b = np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float)
-    cross = np.zeros((a.shape[0], b.shape[1]))
+    if cross is None:
+        cross = np.zeros((a.shape[0], b.shape[1]))
     x = solve_discrete_are(a, b, q, r, s=cross)
     return solve(b.T @ x @ b + r, b.T @ x @ a + cross.T)
+
+
+def rate_lqr(ad: np.ndarray, bd: np.ndarray, q: np.ndarray, r: float, step_weight: float) -> np.ndarray:
+    """Gain K_z of Δu = −K_z·[x, u_prev] minimising Σ xᵀQx + r·u² + s·Δu² with u = u_prev + Δu, for the
+    discrete model x⁺ = Ad·x + Bd·u (s = `step_weight` per tick): the DARE of the model augmented with u_prev."""
+    n = ad.shape[0]
+    a_aug = np.block([[ad, bd], [np.zeros((1, n)), np.ones((1, 1))]])
+    b_aug = np.vstack([bd, np.ones((1, 1))])
+    q_aug = np.zeros((n + 1, n + 1))
+    q_aug[:n, :n], q_aug[n, n] = q, r
+    cross = np.zeros((n + 1, 1))
+    cross[n, 0] = r
+    return dlqr(a_aug, b_aug, q_aug, np.array([[r + step_weight]]), cross).ravel()
 
 
 class LqrLateralController:
@@ -50,17 +70,22 @@ class LqrLateralController:
         q: tuple[float, float, float, float] = (0.5, 0.0, 1.0, 0.0),
         r: float = 25.0,
         hold_speed: float = 0.1,
+        steer_rate_weight: float = 0.0,
     ) -> None:
         self.model = model
         self.max_steer = max_steer
         self.dt = dt
         self.hold_speed = hold_speed
         self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
+        self.steer_rate_weight = steer_rate_weight
         q_mat, r_mat = np.diag(q), np.array([[r]])
         gains = []
         for v in self.speeds:
             ad, bd = discretise(*model.error_dynamics(float(v)), dt)
-            gains.append(dlqr(ad, bd, q_mat, r_mat).ravel())
+            if steer_rate_weight > 0.0:
+                gains.append(rate_lqr(ad, bd, q_mat, r, steer_rate_weight / (dt * dt)))
+            else:
+                gains.append(dlqr(ad, bd, q_mat, r_mat).ravel())
         self.gains = np.array(gains)
         self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
         self._kv = model.understeer_gradient
@@ -79,6 +104,13 @@ class LqrLateralController:
         (a1, a2, a3, a4), (b1, b2, b3, b4) = self._gain_rows[i], self._gain_rows[i + 1]
         return a1 + f * (b1 - a1), a2 + f * (b2 - a2), a3 + f * (b3 - a3), a4 + f * (b4 - a4)
 
+    def rate_gain(self, speed: float) -> np.ndarray:
+        """K_z(v) = [k_ey, k_ėy, k_eψ, k_ėψ, k_δ] of the steering-rate design, interpolated like `gain`."""
+        pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
+        i = min(int(pos), len(self.gains) - 2)
+        f = pos - i
+        return self.gains[i] + f * (self.gains[i + 1] - self.gains[i])
+
     def reset(self) -> None:
         self._last = 0.0
 
@@ -93,6 +125,13 @@ class LqrLateralController:
             wheelbase = self.model.wheelbase
             yaw_rate = v * self._last / max(wheelbase + self._kv * v * v, 0.5 * wheelbase)
         steer_ss, heading_ss = self.model.steady_state(v, plan.curvature)
+        if self.steer_rate_weight > 0.0:
+            z = np.array([plan.lateral_error, v * (math.sin(plan.heading_error) - heading_ss),
+                          plan.heading_error - heading_ss, yaw_rate - v * plan.local_curvature,
+                          self._last - steer_ss])
+            steer = self._last - float(self.rate_gain(v) @ z)
+            self._last = min(max(steer, -self.max_steer), self.max_steer)
+            return self._last
         k1, k2, k3, k4 = self.gain(v)
         steer = (
             steer_ss

@@ -13,6 +13,7 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from testbed.attacks.registry import ATTACKS
 from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
+from testbed.control.config import ControlConfig
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
@@ -72,6 +73,8 @@ class Scenario(BaseModel):
     stop_decel: float = Field(4.0, gt=0, le=15, description="deceleration of the planned stop (m/s²)")
     traffic: TrafficConfig = Field(default_factory=TrafficConfig, description="[traffic]: same-direction cars "
                                                                               "on IDM, their lanes, gaps and speeds")
+    control: ControlConfig = Field(default_factory=ControlConfig, description="[control]: the lateral "
+                                                                              "controller's design")
 
     @model_validator(mode="after")
     def _components(self) -> Scenario:
@@ -162,7 +165,7 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
 
 
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
-_SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig}
+_SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig, "control": ControlConfig}
 """The scenario's typed tables, by name."""
 
 
@@ -203,13 +206,15 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
     name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table),
     `rates.control_hz=40` or `rates.localization.gnss_hz=5` (the [rates] table), `traffic.vehicles=6` (the
-    [traffic] table), or a top-level key such as `speed=10`."""
+    [traffic] table), `control.steer_rate_weight=0.1` (the [control] table), or a top-level key such as
+    `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
     detector, detector_params = sc.detector, dict(sc.detector_params)
     attacks = [dict(t) for t in attack_tables(sc.attack)]
     rates = sc.rates.model_dump()
     traffic = sc.traffic.explicit()
+    control = sc.control.explicit()
     for item in settings:
         key, eq, raw = item.partition("=")
         key = key.strip()
@@ -244,11 +249,13 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
             _set_nested(rates, name.split("."), value, item)
         elif section == "traffic":
             traffic[name] = value
+        elif section == "control":
+            control[name] = value
         else:
             raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
-                                f"attack.KEY, rates.KEY, traffic.KEY or KEY")
+                                f"attack.KEY, rates.KEY, traffic.KEY, control.KEY or KEY")
     return sc.replace(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
-                      attack=attack_value(attacks), rates=rates, traffic=traffic, **top)
+                      attack=attack_value(attacks), rates=rates, traffic=traffic, control=control, **top)
 
 
 def _set_nested(table: dict[str, Any], path: list[str], value: Any, item: str) -> None:

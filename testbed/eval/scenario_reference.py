@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
+from testbed.control.config import ControlConfig
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.eval.rates import Rates
@@ -37,7 +38,7 @@ def _table(rows: list[tuple[str, str, str, str]], extra: list[str] | None = None
 
 
 def reference_markdown() -> str:
-    """Every scenario key: the top level, [rates], [traffic], [defense] (and which defenses read each key),
+    """Every scenario key: the top level, [rates], [traffic], [control], [defense] (and which defenses read each key),
     [detector] and [attack] per kind."""
     out = ["## Scenario keys", "", "Top level of the scenario TOML:", ""]
     rows = []
@@ -47,13 +48,14 @@ def reference_markdown() -> str:
         if key in _CHOICES:
             meaning += f"; one of {_choices(_CHOICES[key])}"
         default = {"name": "the file's stem", "track": "required", "rates": "see [rates]",
-                   "traffic": "see [traffic]"}.get(key, default)
+                   "traffic": "see [traffic]", "control": "see [control]"}.get(key, default)
         typ = "table | list of tables | None" if key == "attack" else typ
         rows.append((key, typ, default, meaning))
     out += _table(rows)
     out += ["", "`[rates]`:", "", *_table(reference_rows(Rates))]
     out += ["", "`[traffic]` (same-direction cars; a table that places none, or names a lane the track lacks, is "
                 "refused):", "", *_table(reference_rows(TrafficConfig))]
+    out += ["", "`[control]`:", "", *_table(reference_rows(ControlConfig))]
     readers = [", ".join(f"`{d.name}`" for d in DEFENSES if key in d.reads or key in ALWAYS_READ) or "–"
                for key in DefenseConfig.model_fields]
     out += ["", "`[defense]` (a key no chosen defense reads is refused):", ""]

@@ -27,6 +27,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
         doc["rates"] = sc.rates.explicit()
     if sc.traffic.explicit():
         doc["traffic"] = sc.traffic.explicit()
+    if sc.control.explicit():
+        doc["control"] = sc.control.explicit()
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
     reads = DEFENSES.get(sc.defense).reads
     doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}

@@ -3,6 +3,7 @@
 import pytest
 
 from testbed.eval.scenario import ScenarioError, apply_settings, load_scenario, shipped_scenarios
+from testbed.eval.scenario_toml import write_scenario
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -59,6 +60,18 @@ def test_set_overrides_defense_attack_and_top_level_keys():
                               "speed=10"])
     assert out.defense == "ld3" and out.defense_params == {"b": 0.45, "heading": "msf"}
     assert out.attack == {"kind": "fusionripper", "d": 0.5, "start": 12} and out.speed == 10
+
+
+def test_control_table_is_set_validated_and_written_back(tmp_path):
+    sc = apply_settings(load_scenario("slr"), ["control.steer_rate_weight=0.1"])
+    assert sc.control.steer_rate_weight == 0.1 and load_scenario("slr").control.steer_rate_weight == 0.0
+    write_scenario(tmp_path / "rate.toml", sc)
+    assert load_scenario(str(tmp_path / "rate.toml")).control == sc.control
+    with pytest.raises(ScenarioError, match=r"control.steer_rate_weight must be >= 0"):
+        apply_settings(sc, ["control.steer_rate_weight=-1"])
+    with pytest.raises(ScenarioError, match=r"unknown scenario key 'control.rate'; known in \[control\]: "
+                                            r"steer_rate_weight"):
+        apply_settings(sc, ["control.rate=1"])
 
 
 @pytest.mark.parametrize(("item", "message"), [

@@ -38,6 +38,8 @@ def test_every_shipped_scenario_validates_against_the_schema(validator):
     {"track": "local", "traffic": {"vehicles": 2, "cars": 3}},
     {"track": "local", "traffic": {"vehicles": 2, "vehicle": "bus"}},
     {"track": "local", "traffic": {"vehicles": 2, "gap_spread": 1.0}},
+    {"track": "local", "control": {"steer_rate_weight": -0.1}},
+    {"track": "local", "control": {"rate_weight": 0.1}},
     {"track": "local", "speed": 0},
     {"track": "local", "seed": 1.5},
     {"track": "local", "name": "../escape"},

@@ -1,0 +1,22 @@
+"""The scenario's `[control]`: the lateral controller's design choices, one typed model."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import Field
+
+from testbed.params import Params
+
+
+class ControlConfig(Params):
+    """`steer_rate_weight` w > 0 adds w·δ̇² to the lateral LQR's cost (see `LqrLateralController`); 0 keeps the
+    plain design, the steering applied at once with no cost on its steps."""
+
+    steer_rate_weight: float = Field(0.0, ge=0, le=100, description="weight on the steering rate (rad/s)² in the "
+                                     "lateral LQR's cost, against 25 on the steering angle (rad)² (s²; the same "
+                                     "at any control rate); 0 = no rate cost")
+
+    def explicit(self) -> dict[str, Any]:
+        """The table as TOML would hold it, defaults left out."""
+        return self.model_dump(exclude_defaults=True)
