@@ -119,9 +119,10 @@ class ReferenceLine:
         self._coarse_xy = np.column_stack([self.x, self.y])[:: self._coarse_stride].copy()
         self._kernel = None if _KERNELS is None else _KERNELS.LineKernel(
             np.column_stack([self.x, self.y, self._cos, self._sin, self.curvature]),
-            np.array(self._seg_coeffs, dtype=float), self._coarse_xy, self._coarse_stride, self.ds, self.length)
-        """The compiled point queries and `project` (tracks/reference_kernels.pyx), where built; None: the
-        pure-Python methods below answer, the reference the kernel is tested equal to."""
+            np.array(self._seg_coeffs, dtype=float), self._coarse_xy, self._coarse_stride, self.ds, self.length,
+            _MEMO_SIZE)
+        """The compiled point queries and `project` with its memo (tracks/reference_kernels.pyx), where built;
+        None: the pure-Python methods below answer, the reference the kernel is tested equal to."""
         self._hint: int | None = None
         self._memo: RecentAnswers[tuple[float, float, float], tuple[float, float]] = RecentAnswers(_MEMO_SIZE)
 
@@ -242,14 +243,18 @@ class ReferenceLine:
         s > length means the point lies beyond an end. The answers to the last few queries are kept and
         returned again for the same point.
         """
-        found = self._memo.get((x, y, max_offset))
-        return found if found is not None else self._memo.keep((x, y, max_offset), self._solve(x, y, max_offset))
-
-    def _solve(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         kernel = self._kernel
-        if kernel is None or not (abs(x) < _KERNEL_REACH and abs(y) < _KERNEL_REACH):
-            return self._project(x, y, max_offset)
-        return kernel.project(x, y, max_offset)
+        if kernel is not None:  # the memo is the kernel's; beyond its reach the Python path answers
+            found = kernel.recall_project(x, y, max_offset)
+            return found if found is not None else kernel.keep(x, y, max_offset, self._project(x, y, max_offset))
+        found = self._memo.get((x, y, max_offset))
+        return found if found is not None else self._memo.keep((x, y, max_offset), self._project(x, y, max_offset))
+
+    def forget(self) -> None:
+        """Drop the memo of recent projections (the next one walks from the last answer)."""
+        self._memo.clear()
+        if self._kernel is not None:
+            self._kernel.forget()
 
     def _project(self, x: float, y: float, max_offset: float) -> tuple[float, float]:
         if self._hint is not None:

@@ -1,6 +1,6 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
-"""`ReferenceLine`'s point queries (`heading_at`, `curvature_at`, `frame`) and `project`, compiled, over the
-line's sample arrays.
+"""`ReferenceLine`'s point queries (`heading_at`, `curvature_at`, `frame`) and `project` with its memo of recent
+answers, compiled, over the line's sample arrays.
 
 The same arithmetic as the pure-Python methods in `tracks/geometry.py`, operation for operation and in the
 same order (C evaluates left to right like Python, the build turns off multiply-add contraction, and the
@@ -12,6 +12,9 @@ every `stride`-th sample's x, y. Coordinates must be finite and within 1e9 m (th
 """
 
 from libc.math cimport atan2, cos, fabs, floor, sin, INFINITY
+
+cdef Py_ssize_t MEMO_CAPACITY = 16  # the `memo` array's rows (reference_kernels.pxd)
+cdef double REACH = 1e9  # m: coordinates `_project` answers; beyond (and NaN) the caller's Python path does
 
 
 cdef inline double _max(double a, double b) noexcept nogil:
@@ -28,26 +31,23 @@ cdef inline Py_ssize_t _clamp(Py_ssize_t i, Py_ssize_t last) noexcept nogil:
 
 cdef class LineKernel:
     """A reference line's frame and projection queries; `hint` is the sample the last projection settled on
-    (-1: none yet), the walk's starting point for the next."""
-
-    cdef const double[:, ::1] samples
-    cdef const double[:, ::1] segs
-    cdef const double[:, ::1] coarse
-    cdef Py_ssize_t stride, last
-    cdef double ds, length
-    cdef public Py_ssize_t hint
+    (-1: none yet), the walk's starting point for the next; the last `memo_size` answers are kept."""
 
     def __init__(self, const double[:, ::1] samples, const double[:, ::1] segs, const double[:, ::1] coarse,
-                 Py_ssize_t stride, double ds, double length):
+                 Py_ssize_t stride, double ds, double length, Py_ssize_t memo_size=16):
+        if not 0 < memo_size <= MEMO_CAPACITY:
+            raise ValueError(f"memo size must be within 1..{MEMO_CAPACITY}, got {memo_size}")
         self.samples, self.segs, self.coarse = samples, segs, coarse
         self.stride, self.ds, self.length = stride, ds, length
         self.last = samples.shape[0] - 1
         self.hint = -1
+        self.memo_size, self.memo_count, self.memo_next = memo_size, 0, 0
 
     def __reduce__(self):
-        return LineKernel, (self.samples.base, self.segs.base, self.coarse.base, self.stride, self.ds, self.length)
+        return LineKernel, (self.samples.base, self.segs.base, self.coarse.base, self.stride, self.ds, self.length,
+                            self.memo_size)
 
-    cdef inline Py_ssize_t _segment(self, double s) noexcept nogil:
+    cdef Py_ssize_t _segment(self, double s) noexcept nogil:
         """bisect_right over the segment starts, less one."""
         cdef Py_ssize_t lo = 0, hi = self.segs.shape[0], mid
         while lo < hi:
@@ -162,22 +162,72 @@ cdef class LineKernel:
             self._refine(x, y, k, s, t)
         self.hint = k
 
-    def project(self, double x, double y, double max_offset):
-        """(s, t) of the nearest reference point: `ReferenceLine._project`, from `hint`."""
-        cdef double s, t, ex, ey, d2, best_d2 = INFINITY
+    cdef void _solve(self, double x, double y, double max_offset, double* s, double* t) noexcept nogil:
+        """`ReferenceLine._project`, from `hint`."""
+        cdef double ex, ey, d2, best_d2 = INFINITY
         cdef Py_ssize_t i, n, best = 0
         cdef bint settled
         if self.hint >= 0:
             i = self._walk(x, y, self.hint, &settled)
             if settled:
-                self._canonical_refine(x, y, i, &s, &t)
-                if fabs(t) <= max_offset:
-                    return s, t
+                self._canonical_refine(x, y, i, s, t)
+                if fabs(t[0]) <= max_offset:
+                    return
         for n in range(self.coarse.shape[0]):
             ex, ey = self.coarse[n, 0] - x, self.coarse[n, 1] - y
             d2 = ex * ex + ey * ey
             if d2 < best_d2:
                 best, best_d2 = n, d2
         i = self._walk(x, y, best * self.stride, &settled)
-        self._canonical_refine(x, y, i, &s, &t)
+        self._canonical_refine(x, y, i, s, t)
+
+    cdef bint _recall(self, double x, double y, double max_offset, double* s, double* t) noexcept nogil:
+        """The kept answer for (x, y, max_offset), compared as Python compares the memo's float keys."""
+        cdef Py_ssize_t n
+        for n in range(self.memo_count):
+            if self.memo[n][0] == x and self.memo[n][1] == y and self.memo[n][2] == max_offset:
+                s[0], t[0] = self.memo[n][3], self.memo[n][4]
+                return True
+        return False
+
+    cdef void _keep(self, double x, double y, double max_offset, double s, double t) noexcept nogil:
+        """Keep an answer, replacing the oldest beyond `memo_size` (`tracks.recent.RecentAnswers`)."""
+        cdef Py_ssize_t n = self.memo_next
+        self.memo[n][0], self.memo[n][1], self.memo[n][2], self.memo[n][3], self.memo[n][4] = x, y, max_offset, s, t
+        self.memo_next = (n + 1) % self.memo_size
+        if self.memo_count < self.memo_size:
+            self.memo_count += 1
+
+    cdef bint _project(self, double x, double y, double max_offset, double* s, double* t) noexcept nogil:
+        """`ReferenceLine.project`: the kept answer, or the solved one kept; False (nothing kept or changed)
+        for a point beyond the kernel's reach, which the Python path answers and `keep`s."""
+        if self._recall(x, y, max_offset, s, t):
+            return True
+        if not (fabs(x) < REACH and fabs(y) < REACH):
+            return False
+        self._solve(x, y, max_offset, s, t)
+        self._keep(x, y, max_offset, s[0], t[0])
+        return True
+
+    def project(self, double x, double y, double max_offset):
+        """(s, t) of the nearest reference point: `ReferenceLine._project`, from `hint` (no memo)."""
+        cdef double s, t
+        self._solve(x, y, max_offset, &s, &t)
         return s, t
+
+    def recall_project(self, double x, double y, double max_offset):
+        """`ReferenceLine.project` with its memo: (s, t), or None for a point beyond the kernel's reach that was
+        not asked before (then the Python path answers it and `keep` keeps it)."""
+        cdef double s, t
+        if self._project(x, y, max_offset, &s, &t):
+            return s, t
+        return None
+
+    def keep(self, double x, double y, double max_offset, tuple answer):
+        """Keep `answer` = (s, t) for the point and return it."""
+        self._keep(x, y, max_offset, answer[0], answer[1])
+        return answer
+
+    def forget(self):
+        """Drop the kept answers."""
+        self.memo_count, self.memo_next = 0, 0

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from tracks.compiled import compiled_module
 from tracks.map_api import LaneCoord, OffMapError
 from tracks.pose import Pose
 from tracks.recent import RecentAnswers
@@ -22,6 +23,7 @@ from tracks.road import Track
 
 OFF_MAP_MARGIN = 3.0  # m beyond a lane's half width that still counts as on that lane's map
 _MEMO_SIZE = 8  # recent (pose, lane) answers kept: a control tick asks about the same pose several times
+_KERNELS = compiled_module("tracks.map_kernels")
 
 
 class TrackMap:
@@ -42,6 +44,14 @@ class TrackMap:
         self._reach = (lo - OFF_MAP_MARGIN, hi + OFF_MAP_MARGIN)
         self._length = track.length
         self._memo: RecentAnswers[tuple[Pose, int | None], LaneCoord] = RecentAnswers(_MEMO_SIZE)
+        line = track.reference._kernel
+        self.compiled = None if _KERNELS is None or line is None or self._profiled else _KERNELS.MapKernel(
+            line, track.reference, track.name, self._length, self._reach, self._centres, self._bounds,
+            [ln.direction for ln in self._lanes], self._sides is not None,
+            len(self._sides[0]) if self._sides is not None else len(self._lanes), _MEMO_SIZE)
+        """`project`, `lane_point` and `lane_curvature` with the memo, compiled (tracks/map_kernels.pyx), where
+        built and the lanes' offsets and widths are constant; None: the pure-Python methods answer, the reference
+        the kernel is tested equal to."""
 
     @staticmethod
     def _directions(track: Track) -> tuple[range, range] | None:
@@ -52,6 +62,8 @@ class TrackMap:
     def project(self, pose: Pose, lane: int | None = None) -> LaneCoord:
         """The pose on `lane` (default: the lane containing it); the last few answers are returned again for
         the same pose and lane, errors are not kept."""
+        if self.compiled is not None:
+            return self.compiled.project(pose, lane)
         found = self._memo.get((pose, lane))
         return found if found is not None else self._memo.keep((pose, lane), self._project(pose, lane))
 
@@ -99,11 +111,16 @@ class TrackMap:
         return self._lanes[c.lane].width_at(c.s)
 
     def lane_point(self, pose: Pose, lane: int | None = None) -> tuple[np.ndarray, float]:
+        if self.compiled is not None:
+            x, y, heading = self.compiled.lane_point(pose, lane)
+            return np.array((x, y)), heading
         c = self.project(pose, lane)
         x, y, heading = self._lanes[c.lane].centre_at(c.s)
         return np.array((x, y)), heading
 
     def lane_curvature(self, pose: Pose, lane: int | None = None) -> float:
+        if self.compiled is not None:
+            return self.compiled.lane_curvature(pose, lane)
         c = self.project(pose, lane)
         return self._lanes[c.lane].curvature_at(c.s)
 

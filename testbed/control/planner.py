@@ -12,11 +12,13 @@ import math
 import numpy as np
 
 from testbed.control.plan import Plan
+from tracks.compiled import compiled_module
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose, wrap_angle
 
 AR_DECEL = 4.0  # paper §4.3: Apollo's maximum allowed safe deceleration (m/s²)
 PREVIEW_STEP = 5.0  # m per step when walking the centreline to the preview point
+_KERNELS = compiled_module("testbed.control.planner_kernels")
 
 
 class LanePlanner:
@@ -41,6 +43,11 @@ class LanePlanner:
         self._t_last: float | None = None
         self._stop: tuple[float, float, float] | None = None  # (t0, v0, decel)
         self._last: Plan | None = None
+        compiled = getattr(smap, "compiled", None)
+        self._kernel = None if _KERNELS is None or compiled is None else _KERNELS.PathKernel(compiled, lane,
+                                                                                               PREVIEW_STEP)
+        """The path terms compiled over the map's compiled queries (testbed/control/planner_kernels.pyx), where
+        both are built; None: the pure-Python `_path_terms` answers, the reference the kernel is tested equal to."""
 
     @property
     def stopping(self) -> bool:
@@ -55,13 +62,9 @@ class LanePlanner:
     def plan(self, pose: Pose, speed: float, t: float) -> Plan:
         """The plan for a vehicle at `pose` (the pose control steers on) moving at `speed`, at time `t`."""
         target_speed, target_accel = self._speed_profile(speed, t)
-        try:
-            coord = self.map.project(pose, self.lane)
-            point, heading = self.map.lane_point(pose, self.lane)
-            local_curvature = self.map.lane_curvature(pose, self.lane)
-            distance = max(self.min_preview, self.preview_time * speed)
-            preview = self._preview_curvature(point, heading, distance)
-        except OffMapError:
+        distance = max(self.min_preview, self.preview_time * speed)
+        terms = self._path_terms(pose, distance) if self._kernel is None else self._kernel.terms(pose, distance)
+        if terms is None:
             held = self._last
             return Plan(
                 lateral_error=held.lateral_error if held else 0.0,
@@ -72,9 +75,21 @@ class LanePlanner:
                 local_curvature=held.local_curvature if held else 0.0,
                 off_map=True,
             )
-        heading_error = wrap_angle(pose.yaw - heading)
-        self._last = Plan(coord.l, heading_error, preview, target_speed, target_accel, local_curvature)
+        lateral_error, heading_error, preview, local_curvature = terms
+        self._last = Plan(lateral_error, heading_error, preview, target_speed, target_accel, local_curvature)
         return self._last
+
+    def _path_terms(self, pose: Pose, distance: float) -> tuple[float, float, float, float] | None:
+        """(lateral error, heading error, curvature `distance` ahead, curvature at the projection), or None
+        where the map cannot place the pose."""
+        try:
+            coord = self.map.project(pose, self.lane)
+            point, heading = self.map.lane_point(pose, self.lane)
+            local_curvature = self.map.lane_curvature(pose, self.lane)
+            preview = self._preview_curvature(point, heading, distance)
+        except OffMapError:
+            return None
+        return coord.l, wrap_angle(pose.yaw - heading), preview, local_curvature
 
     def _preview_curvature(self, point: np.ndarray, heading: float, distance: float) -> float:
         """Curvature at `distance` ahead along the centreline, walked in steps of at most PREVIEW_STEP

@@ -39,7 +39,7 @@ def test_projection_does_not_depend_on_the_query_history(circle_line):
         circle_line.point(s, t) for s, t in zip(rng.uniform(90, 280, 50), rng.uniform(-9, 9, 50), strict=True)
     ]
     cold = [ReferenceLine(circle_line.start, circle_line.segments).project(*p) for p in points]
-    circle_line._memo.clear()
+    circle_line.forget()
     circle_line.project(0.0, 0.0)
     warm = [circle_line.project(*p) for p in points]
     assert warm == cold  # bit-identical, so repeated runs in one process give identical outputs

@@ -1,0 +1,71 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
+"""`LanePlanner.plan`'s path terms compiled over the semantic map's kernel: the pose's lane coordinates, the lane
+heading and curvature at its projection, and the curvature at the preview point walked along the centreline.
+
+The same map questions as the pure-Python planner in `testbed/control/planner.py`, asked in the same order
+(so the map's memo and the reference line's walk see the same history), and the same arithmetic operation for
+operation (the build turns off multiply-add contraction; the heading error is wrapped as Python's float `%`
+does), so the plans are the same to the bit; `tests/control/test_planner_kernels.py` holds them to it.
+"""
+
+from libc.math cimport copysign, cos, fmod, sin
+
+from tracks.map_kernels cimport NO_LANE, PLACED, MapKernel
+
+cdef double PI = 3.141592653589793
+
+
+cdef inline double _wrap_angle(double a) noexcept nogil:
+    """`tracks.pose.wrap_angle`: (a + π) % 2π − π with Python's float remainder (the divisor's sign)."""
+    cdef double w = 2.0 * PI
+    cdef double mod = fmod(a + PI, w)
+    if mod != 0.0:
+        if (w < 0.0) != (mod < 0.0):
+            mod += w
+    else:
+        mod = copysign(0.0, w)
+    return mod - PI
+
+
+cdef class PathKernel:
+    """The path terms of lane `lane` on the map kernel `smap`, the preview walked in steps of at most `step` m."""
+
+    cdef MapKernel smap
+    cdef object lane
+    cdef Py_ssize_t lane_key
+    cdef double step
+
+    def __init__(self, MapKernel smap, lane, double step):
+        self.smap, self.lane, self.step = smap, lane, step
+        self.lane_key = smap._lane_arg(lane)
+
+    def __reduce__(self):
+        return PathKernel, (self.smap, self.lane, self.step)
+
+    def terms(self, pose, double distance):
+        """(lateral error, heading error, curvature `distance` ahead, curvature at the projection) of `pose`, or
+        None where the map cannot place it (or the preview's last point)."""
+        cdef MapKernel smap = self.smap
+        cdef Py_ssize_t lane = self.lane_key, on
+        cdef double x, y, yaw, s = 0.0, l, t = 0.0, lateral, px, py, heading, local, remaining, step, h, ahead_x
+        cdef double ahead_y
+        cdef int placed
+        x, y, yaw = pose
+        placed = smap._place(x, y, yaw, lane, &on, &s, &lateral, &t)
+        if placed != PLACED:
+            if placed == NO_LANE:
+                raise smap._error(placed, pose, self.lane, x, y, s, t)
+            return None
+        smap._centre(on, s, &px, &py, &heading)  # lane_point and lane_curvature: the same question, kept
+        local = smap._curvature(on, s)
+        remaining, h = distance, heading
+        while remaining > 1e-9:
+            step = remaining if not (self.step < remaining) else self.step
+            remaining -= step
+            ahead_x, ahead_y = px + step * cos(h), py + step * sin(h)
+            if smap._place(ahead_x, ahead_y, h, lane, &on, &s, &l, &t) != PLACED:
+                break
+            smap._centre(on, s, &px, &py, &h)
+        if smap._place(px, py, h, lane, &on, &s, &l, &t) != PLACED:
+            return None
+        return lateral, _wrap_angle(yaw - heading), smap._curvature(on, s), local
