@@ -2,7 +2,7 @@
 
 The agent is the attacker. Each step it chooses a lateral GNSS spoofing offset (m, + left of the lane,
 within ±max_offset), which every GNSS fix until the next step carries; the simulation then runs
-`ticks_per_step` control ticks (0.1 s by default, one GNSS fix). Its observation is what a tailgating
+`ticks_per_step` control ticks (by default those of 0.1 s, one GNSS fix at 10 Hz). Its observation is what a tailgating
 attacker sees: [t (s), the victim's physical lateral deviation (m, + left), speed (m/s), the offset now in
 force (m)]. The reward is the victim's |physical deviation| after the step; the episode ends with the run
 (a consequence, a stop, the end of the road or the duration), and `info` carries the summary then.
@@ -24,6 +24,9 @@ from testbed.api import Simulation, scenario
 from testbed.attacks.base import Attack, AttackerView, left_normal
 from testbed.errors import UserError
 from testbed.localization.sensors import GnssFix
+
+STEP_S = 0.1
+"""The default step: one fix of the 10 Hz GNSS."""
 
 
 class PolicySpoofer(Attack):
@@ -55,12 +58,13 @@ class LateralAttackEnv(gymnasium.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(self, scenario_name: str = "local", *, defense: str = "ld3", detector: str = "oracle",
-                 max_offset: float = 3.0, ticks_per_step: int = 10, **overrides: Any) -> None:
-        if max_offset <= 0 or ticks_per_step < 1:
+                 max_offset: float = 3.0, ticks_per_step: int | None = None, **overrides: Any) -> None:
+        if max_offset <= 0 or (ticks_per_step is not None and ticks_per_step < 1):
             raise UserError(f"need max_offset > 0 and ticks_per_step >= 1, got {max_offset}, {ticks_per_step}")
         self.base = scenario(scenario_name, defense=defense, detector=detector, localization="msf", **overrides)
         self.max_offset = max_offset
-        self.ticks_per_step = ticks_per_step
+        self.ticks_per_step = (max(1, round(STEP_S * self.base.rates.control_hz)) if ticks_per_step is None
+                               else ticks_per_step)
         self.action_space = spaces.Box(-max_offset, max_offset, shape=(1,), dtype=np.float32)
         high = np.array([self.base.duration + 1.0, 10.0, 100.0, max_offset], dtype=np.float32)
         self.observation_space = spaces.Box(-high, high, dtype=np.float32)

@@ -35,7 +35,7 @@ PHYSICS_HZ = 100.0
 results match 240 Hz (docs/decisions.md)."""
 
 
-CONTROL_HZ = 100.0
+CONTROL_HZ = 40.0
 """Control ticks per second unless a scenario's `[rates] control_hz` says otherwise (why this rate:
 docs/decisions.md, the control rate)."""
 

@@ -1,5 +1,6 @@
 """The Python API and the Gymnasium environment: stepping, custom components, the docs' worked scripts."""
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 import testbed.gym_env  # noqa: F401 - registers ld3/Lateral-v0
 from testbed import api
 from testbed.eval.outputs import TRAJECTORY_COLUMNS
+from testbed.loop import CONTROL_HZ
 
 EXAMPLES = sorted((Path(__file__).parents[1] / "docs" / "examples").glob("*.py"))
 
@@ -58,6 +60,8 @@ def test_gym_environment_follows_the_api_and_ends_with_the_run():
         obs, reward, done, truncated, info = env.step(np.array([0.5], dtype=np.float32))
         steps += 1
         assert reward >= 0.0 and not truncated and obs[3] == pytest.approx(0.5)
-    assert steps == 15  # 3 s of 100 Hz ticks, 20 per step (the first tick ran in reset)
+    assert steps == math.ceil((round(3.0 * CONTROL_HZ) - 1) / 20)  # 20 ticks a step (the first ran in reset)
     assert info["summary"]["attack"] == {"kind": "policy"} and info["summary"]["sim_time_s"] == pytest.approx(3.0)
     env.close()
+    default = gymnasium.make("ld3/Lateral-v0", scenario_name="urban-straight", duration=3.0)
+    assert default.unwrapped.ticks_per_step == round(0.1 * CONTROL_HZ)  # one 10 Hz GNSS fix a step

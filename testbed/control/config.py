@@ -10,10 +10,11 @@ from testbed.params import Params
 
 
 class ControlConfig(Params):
-    """`steer_rate_weight` w > 0 adds w·δ̇² to the lateral LQR's cost (see `LqrLateralController`); 0 keeps the
-    plain design, the steering applied at once with no cost on its steps."""
+    """`steer_rate_weight` w > 0 adds w·δ̇² to the lateral LQR's cost (see `LqrLateralController`; the default
+    0.03 keeps the 40 Hz loop from ringing, docs/decisions.md); 0 is the plain design, the steering applied at
+    once with no cost on its steps."""
 
-    steer_rate_weight: float = Field(0.0, ge=0, le=100, description="weight on the steering rate (rad/s)² in the "
+    steer_rate_weight: float = Field(0.03, ge=0, le=100, description="weight on the steering rate (rad/s)² in the "
                                      "lateral LQR's cost, against 25 on the steering angle (rad)² (s²; the same "
                                      "at any control rate); 0 = no rate cost")
 

@@ -9,6 +9,7 @@ import pytest
 from testbed.defense.config import PAPER_MODE
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
+from testbed.loop import LoopRates
 
 FR = {"kind": "fusionripper", "d": 1.0, "f": 1.5, "start": 15.0}
 
@@ -39,7 +40,8 @@ def test_attack_response_internals_are_written(fr_runs):
     internals = ("fused_dev", "r_msf", "r_ld", "k_msf", "k_ld", "heading_used")
     for row in rows:
         assert all((row[c] != "") == (row["mode"] == "ar") for c in internals), row
-    assert [r["ld_fresh"] for r in rows[:6]] == ["1", "0", "0", "0", "0", "1"]  # camera at 20 Hz, control 100 Hz
+    every = LoopRates().camera_every  # camera at 20 Hz: a fresh detection every `every` control ticks
+    assert every > 1 and [r["ld_fresh"] for r in rows[:2 * every + 1]] == (["1"] + ["0"] * (every - 1)) * 2 + ["1"]
     ar = [r for r in rows if r["mode"] == "ar"]
     assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])
     assert all(0.0 < float(r["k_msf"]) < 1.0 and 0.0 < float(r["k_ld"]) < 1.0 for r in ar)

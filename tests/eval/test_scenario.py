@@ -64,7 +64,7 @@ def test_set_overrides_defense_attack_and_top_level_keys():
 
 def test_control_table_is_set_validated_and_written_back(tmp_path):
     sc = apply_settings(load_scenario("slr"), ["control.steer_rate_weight=0.1"])
-    assert sc.control.steer_rate_weight == 0.1 and load_scenario("slr").control.steer_rate_weight == 0.0
+    assert sc.control.steer_rate_weight == 0.1 and load_scenario("slr").control.steer_rate_weight == 0.03
     write_scenario(tmp_path / "rate.toml", sc)
     assert load_scenario(str(tmp_path / "rate.toml")).control == sc.control
     with pytest.raises(ScenarioError, match=r"control.steer_rate_weight must be >= 0"):

@@ -49,7 +49,10 @@ def test_each_fault_brakes_to_standstill_in_lane_and_ends_the_run_as_chassis_fau
     speed_at_fault = float(np.interp(result.detected_s, track["t"], track["speed"]))
     assert speed_at_fault > 1.0  # the car was moving
     assert result.standstill_s is not None
-    assert 0.0 < result.standstill_s - result.detected_s <= speed_at_fault / FAULT_DECEL + 0.1
+    period = 1.0 / summary["resolved_scenario"]["rates"]["control_hz"]
+    # braking at FAULT_DECEL from the speed at the fault; the loop brakes from the tick after the fault latched and
+    # sees standstill at a tick (a control period each), and the brake ramps in and the speed tails off (0.08 s)
+    assert 0.0 < result.standstill_s - result.detected_s <= speed_at_fault / FAULT_DECEL + 2 * period + 0.08
     assert abs(summary["final_dev_m"]) < 0.1  # stopped in its lane
     assert set(result.outputs) >= OUTPUTS
     with can.LogReader(str(tmp_path / "can.asc")) as reader:
