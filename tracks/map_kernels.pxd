@@ -32,3 +32,4 @@ cdef class MapKernel:
     cdef double _curvature(self, Py_ssize_t lane, double s) noexcept nogil
     cdef Py_ssize_t _lane_arg(self, object lane) except? -3
     cdef object _error(self, int placed, object pose, object lane, double x, double y, double s, double t)
+    cdef Py_ssize_t _placed(self, object pose, object lane, double* s, double* l) except -1

@@ -118,36 +118,33 @@ cdef class MapKernel:
             return OffMapError(f"pose ({x:.2f}, {y:.2f}) is off the map of {self.name} (s={s:.1f}, t={t:.2f})")
         return ValueError(f"lane {lane} not on {self.name} (lanes 0..{self.n_lanes - 1})")
 
-    def project(self, pose, lane=None):
-        """`TrackMap.project`: the pose's `LaneCoord` on `lane` (None: the lane containing it)."""
-        cdef double x, y, yaw, s = 0.0, l, t = 0.0
+    cdef Py_ssize_t _placed(self, object pose, object lane, double* s, double* l) except -1:
+        """The lane a (x, y, yaw) pose is placed on and its (s, l) there; raises as `TrackMap.project` does."""
+        cdef double x, y, yaw, t = 0.0
         cdef Py_ssize_t found
         x, y, yaw = pose
-        cdef int placed = self._place(x, y, yaw, self._lane_arg(lane), &found, &s, &l, &t)
+        s[0] = 0.0
+        cdef int placed = self._place(x, y, yaw, self._lane_arg(lane), &found, s, l, &t)
         if placed != PLACED:
-            raise self._error(placed, pose, lane, x, y, s, t)
+            raise self._error(placed, pose, lane, x, y, s[0], t)
+        return found
+
+    def project(self, pose, lane=None):
+        """`TrackMap.project`: the pose's `LaneCoord` on `lane` (None: the lane containing it)."""
+        cdef double s, l
+        cdef Py_ssize_t found = self._placed(pose, lane, &s, &l)
         return LaneCoord(found, s, l)
 
     def lane_point(self, pose, lane=None):
         """`TrackMap.lane_point` as (x, y, heading) of the lane centre at the pose's projection."""
-        cdef double x, y, yaw, s = 0.0, l, t = 0.0, cx, cy, heading
-        cdef Py_ssize_t found
-        x, y, yaw = pose
-        cdef int placed = self._place(x, y, yaw, self._lane_arg(lane), &found, &s, &l, &t)
-        if placed != PLACED:
-            raise self._error(placed, pose, lane, x, y, s, t)
-        self._centre(found, s, &cx, &cy, &heading)
+        cdef double s, l, cx, cy, heading
+        self._centre(self._placed(pose, lane, &s, &l), s, &cx, &cy, &heading)
         return cx, cy, heading
 
     def lane_curvature(self, pose, lane=None):
         """`TrackMap.lane_curvature`."""
-        cdef double x, y, yaw, s = 0.0, l, t = 0.0
-        cdef Py_ssize_t found
-        x, y, yaw = pose
-        cdef int placed = self._place(x, y, yaw, self._lane_arg(lane), &found, &s, &l, &t)
-        if placed != PLACED:
-            raise self._error(placed, pose, lane, x, y, s, t)
-        return self._curvature(found, s)
+        cdef double s, l
+        return self._curvature(self._placed(pose, lane, &s, &l), s)
 
     def forget(self):
         """Drop the kept answers."""

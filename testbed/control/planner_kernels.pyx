@@ -8,23 +8,10 @@ operation (the build turns off multiply-add contraction; the heading error is wr
 does), so the plans are the same to the bit; `tests/control/test_planner_kernels.py` holds them to it.
 """
 
-from libc.math cimport copysign, cos, fmod, sin
+from libc.math cimport cos, sin
 
+from tracks.angles cimport wrap_angle
 from tracks.map_kernels cimport NO_LANE, PLACED, MapKernel
-
-cdef double PI = 3.141592653589793
-
-
-cdef inline double _wrap_angle(double a) noexcept nogil:
-    """`tracks.pose.wrap_angle`: (a + π) % 2π − π with Python's float remainder (the divisor's sign)."""
-    cdef double w = 2.0 * PI
-    cdef double mod = fmod(a + PI, w)
-    if mod != 0.0:
-        if (w < 0.0) != (mod < 0.0):
-            mod += w
-    else:
-        mod = copysign(0.0, w)
-    return mod - PI
 
 
 cdef class PathKernel:
@@ -68,4 +55,4 @@ cdef class PathKernel:
             smap._centre(on, s, &px, &py, &h)
         if smap._place(px, py, h, lane, &on, &s, &l, &t) != PLACED:
             return None
-        return lateral, _wrap_angle(yaw - heading), smap._curvature(on, s), local
+        return lateral, wrap_angle(yaw - heading), smap._curvature(on, s), local

@@ -7,23 +7,11 @@ matrix products through numpy's own `dot`, so the state and covariance are the s
 `tests/localization/test_msf_kernels.py` holds them to it.
 """
 
-from libc.math cimport copysign, cos, fmod, sin
+from libc.math cimport cos, sin
 
 import numpy as np
 
-cdef double PI = 3.141592653589793
-
-
-cdef inline double _wrap_angle(double a) noexcept nogil:
-    """`tracks.pose.wrap_angle`: (a + π) % 2π − π with Python's float remainder (the divisor's sign)."""
-    cdef double w = 2.0 * PI
-    cdef double mod = fmod(a + PI, w)
-    if mod != 0.0:
-        if (w < 0.0) != (mod < 0.0):
-            mod += w
-    else:
-        mod = copysign(0.0, w)
-    return mod - PI
+from tracks.angles cimport wrap_angle
 
 
 cdef class Predictor:
@@ -52,7 +40,7 @@ cdef class Predictor:
         cdef double vl = self.lever * omega + u
         cdef double nx = x + (v * c - vl * s) * dt
         cdef double ny = y + (v * s + vl * c) * dt
-        cdef double nyaw = _wrap_angle(yaw + omega * dt)
+        cdef double nyaw = wrap_angle(yaw + omega * dt)
         cdef double nv = v + (accel_long - ba) * dt
         n[0], n[1], n[2], n[3] = nx, ny, nyaw, nv
         f[0, 2], f[0, 3], f[0, 4], f[0, 6] = (-v * s - vl * c) * dt, c * dt, self.lever * s * dt, -s * dt
