@@ -30,9 +30,9 @@ from tracks.pose import Pose
 log = logging.getLogger(__name__)
 
 
-PHYSICS_HZ = 100.0
-"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise: the lowest rate whose
-results match 240 Hz (docs/decisions.md)."""
+PHYSICS_HZ = 80.0
+"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise: two steps a 40 Hz control
+tick, a rate whose results match 240 Hz (docs/decisions.md)."""
 
 
 CONTROL_HZ = 40.0

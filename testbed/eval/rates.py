@@ -34,7 +34,8 @@ class Rates(BaseModel):
     def _consistent(self) -> Rates:
         if self.control_hz > self.physics_hz:
             raise ValueError(f"rates.control_hz ({self.control_hz:g}) must not exceed rates.physics_hz "
-                             f"({self.physics_hz:g})")
+                             f"({self.physics_hz:g}): raise rates.physics_hz with it, e.g. rates.physics_hz="
+                             f"{max(self.control_hz, 100.0):g}")
         if self.camera_hz > self.control_hz:
             raise ValueError(f"rates.camera_hz ({self.camera_hz:g}) must not exceed rates.control_hz "
                              f"({self.control_hz:g})")
