@@ -98,18 +98,20 @@ class LqrLateralController:
 
     def gain(self, speed: float) -> tuple[float, ...]:
         """K(v) = [k_ey, k_ėy, k_eψ, k_ėψ] linearly interpolated in the schedule (clamped to its range)."""
-        pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
-        i = min(int(pos), len(self._gain_rows) - 2)
-        f = pos - i
+        i, f = self._schedule_at(speed)
         (a1, a2, a3, a4), (b1, b2, b3, b4) = self._gain_rows[i], self._gain_rows[i + 1]
         return a1 + f * (b1 - a1), a2 + f * (b2 - a2), a3 + f * (b3 - a3), a4 + f * (b4 - a4)
 
     def rate_gain(self, speed: float) -> np.ndarray:
         """K_z(v) = [k_ey, k_ėy, k_eψ, k_ėψ, k_δ] of the steering-rate design, interpolated like `gain`."""
+        i, f = self._schedule_at(speed)
+        return self.gains[i] + f * (self.gains[i + 1] - self.gains[i])
+
+    def _schedule_at(self, speed: float) -> tuple[int, float]:
+        """The schedule row below `speed` (clamped to the schedule's range) and the fraction of the way to the next."""
         pos = (min(max(speed, SCHEDULE_MIN_SPEED), SCHEDULE_MAX_SPEED) - SCHEDULE_MIN_SPEED) / SCHEDULE_STEP
         i = min(int(pos), len(self.gains) - 2)
-        f = pos - i
-        return self.gains[i] + f * (self.gains[i + 1] - self.gains[i])
+        return i, pos - i
 
     def reset(self) -> None:
         self._last = 0.0
