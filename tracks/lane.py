@@ -64,9 +64,7 @@ class Lane:
     def pose_at(self, s: float) -> Pose:
         """The pose on the lane centre at reference arc length s, heading in the direction of travel (one
         reference-line query)."""
-        x, y, h = self.reference.frame(s)
-        t = self.offset_at(s)
-        return Pose(x - t * math.sin(h), y + t * math.cos(h), self._travel(h))
+        return Pose(*self.centre_at(s))
 
     def _travel(self, h: float) -> float:
         return h if self.direction > 0 else h + math.pi

@@ -42,9 +42,8 @@ def _yaw_of(q: tuple[float, float, float, float]) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def _longitudinal(lin: tuple[float, ...], orn: tuple[float, ...]) -> float:
-    """The world-frame velocity `lin` along the heading of orientation `orn`."""
-    yaw = _yaw_of(orn)
+def _longitudinal(lin: tuple[float, ...], yaw: float) -> float:
+    """The world-frame velocity `lin` along the heading `yaw`."""
     return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw)
 
 
@@ -197,7 +196,7 @@ class PyBulletVehicle:
         """Signed longitudinal speed (m/s, + forward)."""
         _, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
         lin, _ = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
-        return _longitudinal(lin, orn)
+        return _longitudinal(lin, _yaw_of(orn))
 
     def yaw_rate(self) -> float:
         """Yaw rate (rad/s, + counter-clockwise)."""
@@ -207,8 +206,8 @@ class PyBulletVehicle:
         """`pose()`, `speed()` and `yaw_rate()` from one read of the base's state."""
         pos, orn = p.getBasePositionAndOrientation(self.body_id, physicsClientId=self._cid)
         lin, ang = p.getBaseVelocity(self.body_id, physicsClientId=self._cid)
-        pose = self._pose(pos, orn)  # `_longitudinal` below, on the yaw read once
-        return pose, lin[0] * math.cos(pose.yaw) + lin[1] * math.sin(pose.yaw), ang[2]
+        pose = self._pose(pos, orn)
+        return pose, _longitudinal(lin, pose.yaw), ang[2]
 
     def accel(self) -> float:
         """Measured longitudinal acceleration (m/s²), low-pass filtered with a 50 ms time constant."""

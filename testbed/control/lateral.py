@@ -127,20 +127,14 @@ class LqrLateralController:
             wheelbase = self.model.wheelbase
             yaw_rate = v * self._last / max(wheelbase + self._kv * v * v, 0.5 * wheelbase)
         steer_ss, heading_ss = self.model.steady_state(v, plan.curvature)
+        e_y, e_psi = plan.lateral_error, plan.heading_error - heading_ss
+        slip = math.sin(plan.heading_error) - heading_ss  # ė_y / v
+        e_psi_rate = yaw_rate - v * plan.local_curvature
         if self.steer_rate_weight > 0.0:
-            z = np.array([plan.lateral_error, v * (math.sin(plan.heading_error) - heading_ss),
-                          plan.heading_error - heading_ss, yaw_rate - v * plan.local_curvature,
-                          self._last - steer_ss])
+            z = np.array([e_y, v * slip, e_psi, e_psi_rate, self._last - steer_ss])
             steer = self._last - float(self.rate_gain(v) @ z)
-            self._last = min(max(steer, -self.max_steer), self.max_steer)
-            return self._last
-        k1, k2, k3, k4 = self.gain(v)
-        steer = (
-            steer_ss
-            - k1 * plan.lateral_error
-            - k2 * v * (math.sin(plan.heading_error) - heading_ss)
-            - k3 * (plan.heading_error - heading_ss)
-            - k4 * (yaw_rate - v * plan.local_curvature)
-        )
+        else:
+            k1, k2, k3, k4 = self.gain(v)
+            steer = steer_ss - k1 * e_y - k2 * v * slip - k3 * e_psi - k4 * e_psi_rate
         self._last = min(max(steer, -self.max_steer), self.max_steer)
         return self._last

@@ -81,7 +81,6 @@ class SimRun:
         self.stop_t: float | None = None
         self._still_since: float | None = None
         self.wall_time = 0.0
-        self.done = False
         self.ended_by: str | None = None
         self.traffic_log = TrafficLog()
         self.hit: HitVehicle | None = None
@@ -90,6 +89,11 @@ class SimRun:
         if self.traffic is not None:
             self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
                                    + self.traffic.length)
+
+    @property
+    def done(self) -> bool:
+        """True once the run is over (`ended_by` says why)."""
+        return self.ended_by is not None
 
     def __getattr__(self, name: str) -> Any:
         if name == "parts":  # not built yet
@@ -155,7 +159,6 @@ class SimRun:
             self.ended_by = "road_end"
         elif len(self.rows) >= self.n_ticks:
             self.ended_by = "duration"
-        self.done = self.ended_by is not None
         self.wall_time += time.perf_counter() - wall0
         return rec
 
