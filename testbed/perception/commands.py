@@ -22,6 +22,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--conditions", nargs="+", metavar="CONDITION",
                    help="render episodes in these camera conditions only (default: all, cycled evenly)")
+    p.add_argument("--presets", nargs="+", metavar="PRESET",
+                   help="render episodes of these track presets only (default: all, cycled evenly)")
     p.add_argument("--label-draws", type=int, default=0, metavar="K",
                    help="also label each frame under K other draws of the sensor's exposure, blur and noise; "
                         "`ld3 ld eval` then reports how repeatable the existence labels are")
@@ -100,7 +102,7 @@ def _dataset(args: argparse.Namespace) -> int:
 
     n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
                       workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws,
-                      traffic=args.traffic)
+                      traffic=args.traffic, presets=args.presets)
     print(f"wrote {n} {args.split} frames to {args.out}")
     return 0
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS, get_condition
+from testbed.errors import UserError
 from testbed.perception.labels import FrameVisibility, PaintLayout, ego_lines
 from testbed.perception.occlusion import occluded_fraction
 from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
@@ -116,24 +117,30 @@ class Episode:
     condition: str
 
 
-def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None) -> list[Episode]:
-    """`count` episodes cycling over every preset and over `conditions` (default: all), each preset × condition
-    pair once in every presets × conditions episodes; track seeds drawn from the split."""
+def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None,
+             presets: Sequence[str] | None = None) -> list[Episode]:
+    """`count` episodes cycling over `presets` and over `conditions` (default: all of each), each preset ×
+    condition pair once in every presets × conditions episodes; track seeds drawn from the split."""
     seeds = TRAIN_SEEDS if split == "train" else HELD_OUT_SEEDS
     if split not in ("train", "heldout"):
         raise ValueError(f"split must be 'train' or 'heldout', got {split!r}")
-    conditions = list(CONDITIONS) if conditions is None else list(conditions)
-    unknown = [c for c in conditions if c not in CONDITIONS]
-    if unknown or not conditions or len(set(conditions)) != len(conditions):
-        raise ValueError(f"conditions must be distinct names among {', '.join(CONDITIONS)}; got {conditions}")
+    conditions = _distinct("conditions", conditions, CONDITIONS)
+    presets = _distinct("presets", presets, PRESETS)
     rng = np.random.default_rng([seed, 0 if split == "train" else 1])
-    presets = list(PRESETS)
     out = []
     for i in range(count):
         preset = presets[i % len(presets)]
         condition = conditions[(i // len(presets) + i % len(presets)) % len(conditions)]  # every pair per round
         out.append(Episode(preset, int(rng.choice(seeds)), condition))
     return out
+
+
+def _distinct(what: str, chosen: Sequence[str] | None, names) -> list[str]:
+    """`chosen` (default: every name) as a list, refused unless its entries are distinct members of `names`."""
+    chosen = list(names) if chosen is None else list(chosen)
+    if not chosen or any(c not in names for c in chosen) or len(set(chosen)) != len(chosen):
+        raise UserError(f"{what} must be distinct names among {', '.join(names)}; got {chosen}")
+    return chosen
 
 
 def traffic_poses(track, lane, s: float, count: int, rng: np.random.Generator, ego_length: float) -> list[Pose]:
@@ -298,10 +305,10 @@ def _render_to_shard(job: tuple[Episode, int, Path, int, int]) -> int:
 
 def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
                   workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None,
-                  label_draws: int = 0, traffic: int = 0) -> int:
-    """Render about `frames` labelled frames into `out` (one shard per episode; episodes in `conditions`, default
-    all; each label also under `label_draws` other sensor draws, each frame with up to `traffic` cars, see
-    `render_episode`); returns the frame count."""
+                  label_draws: int = 0, traffic: int = 0, presets: Sequence[str] | None = None) -> int:
+    """Render about `frames` labelled frames into `out` (one shard per episode; episodes of `presets` in
+    `conditions`, default all of each; each label also under `label_draws` other sensor draws, each frame with up
+    to `traffic` cars, see `render_episode`); returns the frame count."""
     if label_draws < 0:
         raise ValueError(f"label_draws must be >= 0, got {label_draws}")
     if traffic < 0:
@@ -311,11 +318,11 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     from tqdm import tqdm
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     n_eps = max(1, math.ceil(frames / frames_per_episode))
     jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz", label_draws,
              traffic)
-            for i, ep in enumerate(episodes(split, n_eps, seed, conditions))]
+            for i, ep in enumerate(episodes(split, n_eps, seed, conditions, presets))]
+    out.mkdir(parents=True, exist_ok=True)
     bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
     done = 0
     if workers > 1:
@@ -331,6 +338,7 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     bar.close()
     (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
                                                   "episodes": n_eps, "conditions": conditions or list(CONDITIONS),
+                                                  "presets": presets or list(PRESETS),
                                                   "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop],
                                                   "label_draws": label_draws, "traffic": traffic}))
     return done

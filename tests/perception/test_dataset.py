@@ -33,6 +33,16 @@ def test_episodes_can_be_drawn_in_chosen_conditions_only():
             episodes("train", 3, 0, bad)
 
 
+def test_episodes_can_be_drawn_on_chosen_presets_only():
+    chosen = episodes("train", 8, 5, ["worn"], ["slr", "urban-curvy"])
+    assert [ep.preset for ep in chosen] == ["slr", "urban-curvy"] * 4
+    assert {ep.condition for ep in chosen} == {"worn"}
+    assert episodes("train", 8, 5, presets=list(PRESETS)) == episodes("train", 8, 5)
+    for bad in (["mars"], [], ["slr", "slr"]):
+        with pytest.raises(ValueError, match="presets"):
+            episodes("train", 3, 0, presets=bad)
+
+
 def test_erased_stretches_keep_the_runs_tiling_the_road(track):
     before = [b.t for b in track.boundaries]
     erase_stretches(track, np.random.default_rng(4), per_km=20.0)
