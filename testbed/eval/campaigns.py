@@ -282,18 +282,13 @@ BENIGN_TRAFFIC_SEEDS = range(3)
 BENIGN_TRAFFIC_DURATION_S = 15.0
 
 
-def _traffic_weights(detector: str) -> dict[str, str]:
-    """Parameters of `detector` in traffic: a neural one gets the weights fine-tuned on frames with traffic (the
-    default ones false-alarm behind a close lead car: docs/decisions.md)."""
-    return {"weights": "lanenet-traffic.pt"} if detector in ("neural", "neural-onnx") else {}
-
-
 def benign_traffic_runs(detector: str) -> list[CampaignRun]:
     """Benign default LD3 on the MSF in every benign preset and the two-way road × condition × seed with
     `BENIGN_TRAFFIC_CARS` cars
     (`testbed.perception.traffic_drive`: every car at the ego's speed, started at rest with the ego, a lead car
     close ahead in the ego lane),
-    for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`."""
+    for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`; a neural detector reads the traffic weights, as in
+    any run with traffic."""
     from testbed.conditions import CONDITIONS
     from testbed.perception.traffic_drive import traffic_drive
     from tracks.presets import load_track
@@ -306,8 +301,7 @@ def benign_traffic_runs(detector: str) -> list[CampaignRun]:
         fitted = traffic_drive(track, base.lane if base.lane is not None else track.ego_lane, base.start_s,
                                base.vehicle, base.speed, duration, BENIGN_TRAFFIC_CARS)
         runs += [CampaignRun(f"{p}-{cond}-seed{seed}", base.with_overrides(
-            seed=seed, condition=cond, detector=detector, detector_params=_traffic_weights(detector),
-            localization="msf", defense="ld3", duration=duration,
+            seed=seed, condition=cond, detector=detector, localization="msf", defense="ld3", duration=duration,
             speed=fitted.speed, traffic=fitted.traffic, name=f"benign-traffic-{p}"),
             {"track": p, "condition": cond, "seed": seed}) for cond in CONDITIONS for seed in BENIGN_TRAFFIC_SEEDS]
     return runs

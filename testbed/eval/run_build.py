@@ -179,9 +179,10 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         camera = FrontCamera(streamer, rig, condition, rng_camera)
     localization = LOCALIZATIONS.get(sc.localization).factory(_localization_config(sc, params), rng_loc,
                                                                lidar_quality, start)
+    detector_params = sc.run_detector_params
     detector = o.detector if o.detector is not None else make_detector(
-        sc.detector, track=track, rig=rig, rng=rng_detector, params=sc.detector_params)
-    settings = (DETECTORS.get(sc.detector).settings(sc.detector_params, f"detector {sc.detector}")
+        sc.detector, track=track, rig=rig, rng=rng_detector, params=detector_params)
+    settings = (DETECTORS.get(sc.detector).settings(detector_params, f"detector {sc.detector}")
                 if o.detector is None else None)
     tracking = o.tracking
     if tracking is None:

@@ -20,7 +20,7 @@ from testbed.errors import UserError
 from testbed.eval.rates import STRICT, Rates
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import error_key, error_problem
-from testbed.perception.registry import DETECTORS
+from testbed.perception.registry import DETECTORS, params_in_traffic
 from testbed.presets import TRACKS, VEHICLES
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
 from testbed.traffic.config import TrafficConfig
@@ -102,6 +102,14 @@ class Scenario(BaseModel):
             raise ScenarioError(f"stop_at = {self.stop_at:g} s lies after the run's end ({self.duration:g} s): lower "
                                 f"it or raise duration")
         return self
+
+    @property
+    def run_detector_params(self) -> dict[str, Any]:
+        """The `[detector]` parameters the run's detector is built with: as given, but with traffic a neural
+        detector that names no weights reads the traffic weights (`params_in_traffic`)."""
+        if self.traffic.vehicles:
+            return params_in_traffic(self.detector, self.detector_params)
+        return dict(self.detector_params)
 
     @classmethod
     def build(cls, **fields: Any) -> Scenario:

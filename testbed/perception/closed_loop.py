@@ -35,7 +35,7 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.params import ParamsError
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.seeds import Cell, cells
+from testbed.perception.seeds import Cell, cells, check_cells
 from testbed.perception.traffic_drive import LEAD_GAP_M, traffic_drive
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
@@ -107,7 +107,7 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
     tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed),
-                                params=None if weights is None else {"weights": weights}))
+                                params=sc.run_detector_params))
     sim = SimRun(sc, detector=tap, tracking=True)
     tap.pose_now = lambda: sim.loop.last_estimate.pose
     fleet = sim.traffic
@@ -145,10 +145,11 @@ def _one_thread() -> None:
 
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
                     workers: int = 1, progress: bool = False, traffic: int = 0,
-                    lead_gap: float | None = None, weights: str | None = None) -> list[dict]:
+                    lead_gap: float | None = None, weights: str | None = None, check: bool = False) -> list[dict]:
     """Drive every cell (one torch thread each; `workers` processes at once; `traffic` cars, the lead
-    `lead_gap` m ahead, default `LEAD_GAP_M`; the detector's checkpoint `weights`, default its own), results in
-    cell order; a bad preset, condition, duration, traffic or weights is a UserError before any drive."""
+    `lead_gap` m ahead, default `LEAD_GAP_M`; the detector's checkpoint `weights`, default its own; on the check
+    block's layouts with `check`), results in cell order; a bad preset, condition, duration, traffic or weights
+    is a UserError before any drive."""
     if not (math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a time > 0 s, got {duration}")
     if traffic < 0:
@@ -166,7 +167,7 @@ def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "
             DETECTORS.get(detector).settings({"weights": weights}, f"detector {detector}")
         except ParamsError as exc:
             raise UserError(f"--weights: {exc}") from None
-    todo = cells(presets, conditions)
+    todo = (check_cells if check else cells)(presets, conditions)
     options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap, "weights": weights}
     if traffic:
         for cell in todo:

@@ -78,6 +78,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                         "far part of the ego lines; the tables split the ticks by occlusion (default 0: none)")
     p.add_argument("--lead-gap", type=float, default=None, metavar="M",
                    help=f"ego front to lead car rear with --traffic (m; default {LEAD_GAP_M:g})")
+    p.add_argument("--layouts", choices=("cells", "check"), default="cells",
+                   help="held-out track layouts driven: the cells' (default), or the check block's, a second layout "
+                        "per preset × condition for checking what was tuned on the first")
     p.add_argument("--weights", metavar="CHECKPOINT",
                    help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
                         "default: the shipped lanenet.pt)")
@@ -155,14 +158,15 @@ def _export_onnx(args: argparse.Namespace) -> int:
 
 def _closed_loop(args: argparse.Namespace) -> int:
     from testbed.conditions import CONDITIONS
+    from testbed.errors import UserError
     from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 
     if args.detector == "none":
-        raise ValueError("closed-loop needs a lane detector: --detector neural, classical or oracle")
+        raise UserError("closed-loop needs a lane detector: --detector neural, classical or oracle")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
-                              lead_gap=args.lead_gap, weights=args.weights)
+                              lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check")
     paths = write_report(results, args.out)
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))

@@ -8,6 +8,7 @@ lane detections reach the defense and whether it reads rendered camera frames (t
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +35,9 @@ class NeuralParams(CameraDetectorParams):
     """Parameters of the neural detectors (torch and onnxruntime)."""
 
     weights: str | None = Field(None, description="checkpoint path, or a shipped checkpoint by name: lanenet.pt (the "
-                                                  "default), lanenet-traffic.pt (fine-tuned with cars in view); for "
-                                                  "neural-onnx also a detector graph (.onnx) from `ld3 ld export-onnx`")
+                                                  "default without traffic), lanenet-traffic.pt (fine-tuned with cars "
+                                                  "in view; the default with traffic); for neural-onnx also a "
+                                                  "detector graph (.onnx) from `ld3 ld export-onnx`")
 
     @field_validator("weights")
     @classmethod
@@ -92,6 +94,18 @@ DETECTORS.add(Component("classical", _classical, "inverse perspective mapping an
 DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD,
                         params=OracleParams))
 DETECTORS.add(Component("none", lambda track, rig, rng: None, "no lane detector"))
+
+
+TRAFFIC_WEIGHTS = "lanenet-traffic.pt"
+"""The shipped checkpoint a neural detector reads in a run with traffic when it names no weights."""
+
+
+def params_in_traffic(name: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """`[detector]` parameters of detector `name` as run with traffic cars: a neural detector that names no
+    `weights` reads `TRAFFIC_WEIGHTS` (the default weights misread the lines behind a close lead car)."""
+    if issubclass(DETECTORS.get(name).params, NeuralParams) and params.get("weights") is None:
+        return {**params, "weights": TRAFFIC_WEIGHTS}
+    return dict(params)
 
 
 def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = None,

@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from testbed.errors import UserError
+from testbed.perception import closed_loop
 from testbed.perception.closed_loop import drive, error_stats, markdown_table, run_closed_loop, write_report
-from testbed.perception.seeds import Cell, cells
+from testbed.perception.seeds import Cell, cells, check_cells
 
 
 def test_cells_use_distinct_held_out_layouts_and_refuse_unknown_names():
@@ -15,6 +16,14 @@ def test_cells_use_distinct_held_out_layouts_and_refuse_unknown_names():
         cells(["moon"], ["day"])
     with pytest.raises(ValueError, match="unknown condition 'fog'"):
         cells(["local"], ["fog"])
+
+
+def test_the_check_layouts_drive_the_second_held_out_block(monkeypatch):
+    driven = []
+    monkeypatch.setattr(closed_loop, "drive", lambda cell, *args, **kwargs: driven.append(cell) or {"cell": cell})
+    out = run_closed_loop(["slr", "local"], ["day", "worn"], check=True)
+    assert driven == check_cells(["slr", "local"], ["day", "worn"]) and [r["cell"] for r in out] == driven
+    assert not {c.track_seed for c in driven} & {c.track_seed for c in cells(["slr", "local"], ["day", "worn"])}
 
 
 def test_error_stats_ignore_ticks_without_a_deviation():

@@ -1,10 +1,14 @@
-"""`detector.weights` names a shipped checkpoint by its file name, or any checkpoint by path."""
+"""`detector.weights` names a shipped checkpoint by its file name, or any checkpoint by path; with traffic a
+neural detector that names none reads the traffic weights."""
 
+import json
 import re
 
 import pytest
 
-from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.runner import run_scenario
+from testbed.eval.scenario import Scenario, ScenarioError, load_scenario
+from testbed.perception.registry import TRAFFIC_WEIGHTS
 from testbed.perception.weights import SHIPPED, resolve
 
 
@@ -21,3 +25,24 @@ def test_a_scenario_takes_a_shipped_name_and_refuses_a_missing_checkpoint_naming
     with pytest.raises(ScenarioError, match=re.escape("no checkpoint at nope.pt: name a shipped one (lanenet.pt, "
                                                       "lanenet-traffic.pt)")):
         Scenario.build(name="t", track="local", detector="neural", detector_params={"weights": "nope.pt"})
+
+
+def test_with_traffic_a_neural_detector_that_names_no_weights_reads_the_traffic_weights():
+    busy = {"name": "t", "track": "local", "detector": "neural", "traffic": {"vehicles": 6}}
+    assert Scenario.build(**busy).run_detector_params == {"weights": TRAFFIC_WEIGHTS} and TRAFFIC_WEIGHTS in SHIPPED
+    assert Scenario.build(**busy, detector_params={"tracking": False}).run_detector_params == {
+        "tracking": False, "weights": TRAFFIC_WEIGHTS}
+    assert Scenario.build(**{**busy, "detector": "neural-onnx"}).run_detector_params == {"weights": TRAFFIC_WEIGHTS}
+    named = Scenario.build(**busy, detector_params={"weights": "lanenet.pt"})
+    assert named.run_detector_params == {"weights": "lanenet.pt"}  # a named checkpoint is kept
+    assert Scenario.build(**{**busy, "detector": "oracle"}).run_detector_params == {}
+    empty = Scenario.build(name="t", track="local", detector="neural")
+    assert empty.run_detector_params == {} and empty.detector_params == {}
+
+
+def test_a_run_in_traffic_records_the_weights_its_detector_read(tmp_path):
+    sc = load_scenario("highway").replace(detector="neural", duration=0.2, traffic={"vehicles": 2})
+    run_scenario(sc, tmp_path)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["resolved_scenario"]["detector_params"]["weights"] == TRAFFIC_WEIGHTS
+    assert summary["resolved_scenario"]["traffic"]["vehicles"] == 2
