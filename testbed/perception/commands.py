@@ -1,5 +1,5 @@
-"""`ld3 ld dataset|train|eval|export-onnx|closed-loop`: lane-detector tooling subcommands (argparse), registered by
-testbed/cli.py."""
+"""`ld3 ld dataset|train|average|eval|export-onnx|closed-loop`: lane-detector tooling subcommands (argparse),
+registered by testbed/cli.py."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 
 
 def add_ld_parser(subparsers) -> argparse.ArgumentParser:
-    """Register `ld` with its `dataset`, `train`, `eval`, `export-onnx` and `closed-loop` subcommands; each sets
-    `func(args) -> int`."""
+    """Register `ld` with its `dataset`, `train`, `average`, `eval`, `export-onnx` and `closed-loop` subcommands;
+    each sets `func(args) -> int`."""
     ld = subparsers.add_parser("ld", help="lane detector: render datasets, train, evaluate")
     sub = ld.add_subparsers(dest="ld_command", required=True)
 
@@ -45,6 +45,12 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--input-rows", type=int, choices=(56, 112), default=56,
                    help="network input rows: the ground crop's halved (the shipped weights) or all kept")
     p.set_defaults(func=_train)
+
+    p = sub.add_parser("average", help="write the element-wise mean of LaneNet checkpoints of one shape (a weight "
+                                       "average of fine-tunes from one start)")
+    p.add_argument("checkpoints", type=Path, nargs="+", metavar="CHECKPOINT")
+    p.add_argument("--out", type=Path, required=True)
+    p.set_defaults(func=_average)
 
     p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
     p.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
@@ -119,6 +125,13 @@ def _train(args: argparse.Namespace) -> int:
     print(f"checkpoint {res.checkpoint}, curve {res.curve}")
     if res.history:
         print({k: round(v, 4) if isinstance(v, float) else v for k, v in res.history[-1].items()})
+    return 0
+
+
+def _average(args: argparse.Namespace) -> int:
+    from testbed.perception.weight_mean import mean_checkpoint
+
+    print(f"wrote {mean_checkpoint(args.checkpoints, args.out)}")
     return 0
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import pickle
 from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
@@ -29,6 +30,7 @@ from torch import nn
 from torch.nn import functional as F
 from torch.nn.utils.fusion import fuse_conv_bn_eval
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from vehicles.camera_rig import CameraRig
 from vehicles.params import CameraParams
@@ -236,14 +238,29 @@ class FrozenLaneNet:
         return F.linear(F.linear(F.avg_pool2d(f, kernel).flatten(1), w1, b1).relu_(), w2, b2)
 
 
+def read_checkpoint(path: str | Path) -> dict:
+    """The contents of a LaneNet checkpoint (tensors and plain values only: nothing else is unpickled); a file
+    that cannot be read as one is a UserError naming it."""
+    try:
+        ckpt = torch.load(Path(path), map_location="cpu", weights_only=True)
+    except OSError as exc:
+        raise UserError(f"cannot read checkpoint {path}: {exc.strerror or exc}") from None
+    except (RuntimeError, EOFError, ValueError, pickle.UnpicklingError):
+        raise UserError(f"cannot read checkpoint {path}: not a torch file of tensors and plain values; use a "
+                        f"checkpoint `ld3 ld train` wrote") from None
+    if not isinstance(ckpt, dict) or "state_dict" not in ckpt or "width" not in ckpt:
+        raise UserError(f"{path} is not a LaneNet checkpoint (no state_dict and width): use one `ld3 ld train` wrote")
+    return ckpt
+
+
 def load_model(path: str | Path | None = None) -> LaneNet:
     """LaneNet from a checkpoint (default: the shipped weights inside the package), in eval mode."""
     if path is None:
         ref = resources.files("testbed.perception") / "weights" / DEFAULT_WEIGHTS
         with resources.as_file(ref) as p:
-            ckpt = torch.load(p, map_location="cpu", weights_only=True)
+            ckpt = read_checkpoint(p)
     else:
-        ckpt = torch.load(Path(path), map_location="cpu", weights_only=True)
+        ckpt = read_checkpoint(path)
     model = LaneNet(int(ckpt["width"]), int(ckpt.get("input_rows", INPUT_ROWS[0])))  # older checkpoints: 56 rows
     model.load_state_dict(ckpt["state_dict"])
     return model.eval()

@@ -11,9 +11,9 @@ conditions only:
     ld3 ld train --data D/train D/train2 D/train3 D/train4 --val D/heldout --out runs/ld-train
 Held-out set: `ld3 ld dataset --out D/heldout --frames 1440 --split heldout --seed 0 --frames-per-episode 20`.
 
-`lanenet-traffic.pt` is those weights fine-tuned in two steps on frames with up to 6 cars (a lead car
-hiding the far lines) and frames without traffic, selectable with `detector.weights`. First step (renders
-stopped at 2,520 and 1,170 frames):
+`lanenet-traffic.pt` is those weights fine-tuned in three steps on frames with up to 6 cars (a lead car
+hiding the far lines) and frames without traffic; a run with traffic reads it unless `detector.weights` names
+other weights. First step (renders stopped at 2,520 and 1,170 frames):
     ld3 ld dataset --out D/traffic --split train --seed 11 --frames-per-episode 10 --traffic 6 --frames ...
     ld3 ld dataset --out D/plain --split train --seed 12 --frames ...
     ld3 ld train --init lanenet.pt --data D/traffic D/plain --epochs 12 --minutes 10 --lr 1e-3 --out T1
@@ -27,8 +27,18 @@ element-wise mean of two runs' state dicts (a and b differ in learning rate and 
         --minutes 25 --lr 5e-4 --out a
     ld3 ld train --init T1/lanenet.pt --data D/traffic D/worn-night D/worn D/plain --threads 1 --epochs 30 \
         --minutes 25 --lr 1e-3 --out b
-    state_dict = (a's + b's) / 2 for every floating-point tensor (batch-norm running statistics included),
-    a's num_batches_tracked kept
+    ld3 ld average --out T2.pt a/lanenet.pt b/lanenet.pt
+Third step, from T2.pt, on single-lane roads with worn lines (with and without traffic) and urban-curvy in rain
+with traffic, then the mean with T2.pt:
+    ld3 ld dataset --out D/slr-worn-traffic --split train --seed 17 --frames-per-episode 10 --traffic 6 \
+        --presets slr --conditions worn --frames 1500
+    ld3 ld dataset --out D/slr-worn --split train --seed 18 --frames-per-episode 10 --presets slr \
+        --conditions worn --frames 1000
+    ld3 ld dataset --out D/curvy-rain-traffic --split train --seed 19 --frames-per-episode 10 --traffic 6 \
+        --presets urban-curvy --conditions rain --frames 800
+    ld3 ld train --init T2.pt --data D/traffic D/worn-night D/worn D/plain D/slr-worn-traffic D/slr-worn \
+        D/curvy-rain-traffic --threads 1 --epochs 12 --minutes 25 --lr 5e-4 --out d
+    ld3 ld average --out lanenet-traffic.pt d/lanenet.pt T2.pt
 """
 
 from importlib import resources
