@@ -11,7 +11,8 @@ With traffic (`traffic` cars, `testbed.perception.traffic_drive`: a lead car `le
 every car starting at rest with the ego) each frame also gets its occluded fraction
 (`testbed.perception.occlusion`: the share of the ego lines' points in the detector's range that a car hides
 from the camera), held per tick like D_LD, and the tables split the ticks into occluded (fraction > 0) and
-clear.
+clear. A neural detector given no weights then reads the traffic weights, as any run with traffic does
+(`Scenario.run_detector_params`).
 """
 
 from __future__ import annotations

@@ -89,7 +89,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                         "per preset × condition for checking what was tuned on the first")
     p.add_argument("--weights", metavar="CHECKPOINT",
                    help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
-                        "default: the shipped lanenet.pt)")
+                        "default: the shipped lanenet.pt, or lanenet-traffic.pt with --traffic)")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld

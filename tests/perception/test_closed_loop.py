@@ -3,7 +3,15 @@ import pytest
 
 from testbed.errors import UserError
 from testbed.perception import closed_loop
-from testbed.perception.closed_loop import drive, error_stats, markdown_table, run_closed_loop, write_report
+from testbed.perception.closed_loop import (
+    drive,
+    drive_scenario,
+    error_stats,
+    markdown_table,
+    run_closed_loop,
+    write_report,
+)
+from testbed.perception.registry import TRAFFIC_WEIGHTS
 from testbed.perception.seeds import Cell, cells, check_cells
 
 
@@ -24,6 +32,14 @@ def test_the_check_layouts_drive_the_second_held_out_block(monkeypatch):
     out = run_closed_loop(["slr", "local"], ["day", "worn"], check=True)
     assert driven == check_cells(["slr", "local"], ["day", "worn"]) and [r["cell"] for r in out] == driven
     assert not {c.track_seed for c in driven} & {c.track_seed for c in cells(["slr", "local"], ["day", "worn"])}
+
+
+def test_a_drive_in_traffic_reads_the_traffic_weights_unless_told_otherwise():
+    cell = Cell("urban-straight", "day", 9010)
+    assert drive_scenario(cell, "neural", 30.0, traffic=6)[0].run_detector_params == {"weights": TRAFFIC_WEIGHTS}
+    assert drive_scenario(cell, "neural", 30.0)[0].run_detector_params == {}
+    told = drive_scenario(cell, "neural", 30.0, traffic=6, weights="lanenet.pt")[0]
+    assert told.run_detector_params == {"weights": "lanenet.pt"}
 
 
 def test_error_stats_ignore_ticks_without_a_deviation():
