@@ -103,7 +103,8 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
           weights: str | None = None) -> dict:
     """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
     (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
-    or before the first frame); `weights` the detector's checkpoint (`detector.weights`, default its own)."""
+    or before the first frame), and the detector and weights it read (`weights` None: its default); `weights`
+    the detector's checkpoint (`detector.weights`, default its own, the traffic weights with traffic)."""
     sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights)
     spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
@@ -134,7 +135,8 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
         occluded[i] = np.nan if hidden is None else hidden
     return {"preset": cell.preset, "condition": cell.condition, "track": spec, "speed_mps": round(speed, 2),
             "sim_time_s": round(len(rows) / sim.loop.rates.control_hz, 2), "frames": len(tap.frames),
-            "traffic": traffic, "consequence": result.summary["consequence"],
+            "traffic": traffic, "detector": detector, "weights": sc.run_detector_params.get("weights"),
+            "consequence": result.summary["consequence"],
             "raw": np.abs(raw - phys), "tracked": np.abs(tracked - phys), "occluded": occluded}
 
 
@@ -201,10 +203,12 @@ def mean_target(condition: str) -> float:
 
 
 def markdown_table(results: list[dict]) -> str:
-    """Per condition × preset, then per condition (the ticks of its presets pooled), raw against tracked, with
-    the targets."""
-    lines = ["| condition | preset | track | s | raw mean | raw p99 | raw max | tracked mean | tracked p99 "
-             "| tracked max |", "|---|---|---|---|---|---|---|---|---|---|"]
+    """The detector and weights driven, then per condition × preset and per condition (the ticks of its presets
+    pooled), raw against tracked, with the targets."""
+    read = sorted({f"{r['detector']} ({r['weights'] or 'its default weights'})" for r in results if "detector" in r})
+    lines = [f"Detector: {', '.join(read)}.", ""] if read else []
+    lines += ["| condition | preset | track | s | raw mean | raw p99 | raw max | tracked mean | tracked p99 "
+              "| tracked max |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         raw, tracked = error_stats(r["raw"]), error_stats(r["tracked"])
         lines.append(f"| {r['condition']} | {r['preset']} | {r['track']} | {r['sim_time_s']:g} "

@@ -51,7 +51,8 @@ def test_error_stats_ignore_ticks_without_a_deviation():
 
 def _result(cond: str, raw: float, tracked: float) -> dict:
     return {"preset": "local", "condition": cond, "track": "local@9040", "speed_mps": 12.0, "sim_time_s": 30.0,
-            "frames": 600, "raw": np.full(10, raw), "tracked": np.full(10, tracked)}
+            "frames": 600, "detector": "neural", "weights": None, "raw": np.full(10, raw),
+            "tracked": np.full(10, tracked)}
 
 
 def test_tables_judge_the_tracked_errors_against_the_targets(tmp_path):
@@ -59,6 +60,7 @@ def test_tables_judge_the_tracked_errors_against_the_targets(tmp_path):
     table = markdown_table(results)
     assert "| day | 0.200 | 0.200 | 0.200 | 0.040 | 0.040 | 0.040 | yes |" in table
     assert "| rain | 0.100 | 0.100 | 0.100 | 0.090 | 0.090 | 0.090 | no |" in table  # mean over 0.08
+    assert table.startswith("Detector: neural (its default weights).")
     paths = write_report(results, tmp_path)
     csv = paths["csv"].read_text().splitlines()
     assert csv[0].startswith("preset,condition,track") and "tracked_p99_m" in csv[0] and len(csv) == 3
@@ -106,7 +108,8 @@ def test_a_drive_with_other_weights_scores_that_checkpoints_detections():
 @pytest.mark.slow
 def test_a_drive_in_traffic_records_the_occlusion_of_every_tick():
     r = drive(Cell("urban-straight", "day", 9010), "neural", duration=3.0, traffic=6)
-    assert r["consequence"] == "reach_destination" and r["traffic"] == 6
+    assert r["consequence"] == "reach_destination" and r["traffic"] == 6 and r["weights"] == TRAFFIC_WEIGHTS
+    assert f"Detector: neural ({TRAFFIC_WEIGHTS})." in markdown_table([r])
     seen = r["occluded"][np.isfinite(r["occluded"])]
     ticks = 3.0 * CONTROL_HZ
     assert len(seen) > 0.93 * ticks and (seen > 0.0).all()  # the lead car 8 m ahead hides the far lines throughout
