@@ -86,6 +86,7 @@ class SimRun:
         self.hit: HitVehicle | None = None
         self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
         self._traffic_reach = 0.0
+        self._traffic_dt = 1.0 / self.loop.rates.control_hz
         if self.traffic is not None:
             self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
                                    + self.traffic.length)
@@ -166,22 +167,23 @@ class SimRun:
         """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
         move them to the next control instant behind the ego as it is now (off the map, it leads no car), and
         place the bodies (physics, camera) of those within reach of the ego's collision bodies or camera."""
+        parts, fleet = self.parts, self.parts.traffic
         if (len(self.rows) - 1) % self._record_every == 0:
-            every = self.traffic.poses()
-            self.traffic_log.add(rec.t, self.traffic, every)
-            if self.recording is not None:
-                self.recording.add_traffic(rec.t, every)
+            every = fleet.poses()
+            self.traffic_log.add(rec.t, fleet, every)
+            if parts.recording is not None:
+                parts.recording.add_traffic(rec.t, every)
         try:
-            c = self.smap.project(pose, self.lane)
-            ego = EgoOnRoad(c.s, c.l + self.track.lanes[self.lane].offset_at(c.s), rec.speed)
+            c = parts.smap.project(pose, parts.lane)
+            ego = EgoOnRoad(c.s, c.l + parts.track.lanes[parts.lane].offset_at(c.s), rec.speed)
         except OffMapError:
             ego = None
-        self.traffic.advance(1.0 / self.loop.rates.control_hz, ego)
-        near = self.traffic.cars if ego is None else self.traffic.near(ego.s, self._traffic_reach)
-        poses = {car.id: p for car, p in zip(near, self.traffic.poses(near), strict=True)}
-        self.world.place_traffic(poses)
-        if self.streamer is not None:
-            self.streamer.place_traffic(poses)
+        fleet.advance(self._traffic_dt, ego)
+        near = fleet.cars if ego is None else fleet.near(ego.s, self._traffic_reach)
+        poses = {car.id: p for car, p in zip(near, fleet.poses(near), strict=True)}
+        parts.world.place_traffic(poses)
+        if parts.streamer is not None:
+            parts.streamer.place_traffic(poses)
 
     def _stopped(self, rec: TickRecord) -> bool:
         """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""

@@ -139,28 +139,28 @@ class Fleet:
         if self._leaders is None:
             self._leaders = self._leader_of()
         leaders, half_pair, length = self._leaders, 0.5 * (self.length + self.ego_length), self.length
+        road_end, idm, cars = self.end_s + 0.5 * length, self.idm, self.cars
         steps = []
-        for car in self.cars:
+        for car in cars:
+            v, d, s = car.speed, car.direction, car.s
             if car.desired <= 0.0:
                 steps.append((0.0, 0.0))
                 continue
-            d = car.direction
-            gap = self.end_s + 0.5 * length - car.s if d > 0 else math.inf
+            gap = road_end - s if d > 0 else math.inf
             lead_speed = 0.0
             ahead = leaders.get(car.id)
             if ahead is not None:
-                lead_gap = d * (ahead.s - car.s) - length
+                lead_gap = d * (ahead.s - s) - length
                 if lead_gap < -length:
                     self._leaders = None  # the two swapped places: find the leaders again next tick
                 if lead_gap < gap:
                     gap, lead_speed = lead_gap, ahead.speed
-            if ego is not None and car.lane in ego_lanes and d * (ego.s - car.s) > 0.0:
-                ego_gap = d * (ego.s - car.s) - half_pair
+            if ego is not None and car.lane in ego_lanes and d * (ego.s - s) > 0.0:
+                ego_gap = d * (ego.s - s) - half_pair
                 if ego_gap < gap:
                     gap, lead_speed = ego_gap, d * ego.speed
-            steps.append(integrate(car.speed, idm_accel(self.idm, car.speed, car.desired, gap,
-                                                        car.speed - lead_speed), dt))
-        for car, (ds, v) in zip(self.cars, steps, strict=True):
+            steps.append(integrate(v, idm_accel(idm, v, car.desired, gap, v - lead_speed), dt))
+        for car, (ds, v) in zip(cars, steps, strict=True):
             car.s, car.speed = car.s + car.direction * ds, v
         self._recycle(ego)
 
