@@ -29,5 +29,6 @@ def mean_checkpoint(paths: Sequence[Path], out: Path) -> Path:
     state = {k: (torch.stack([c["state_dict"][k] for c in loaded]).mean(dim=0) if v.is_floating_point()
                  else v.clone()) for k, v in first["state_dict"].items()}
     history = json.dumps({"mean_of": [str(p) for p in paths]})
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
     torch.save({**first, "state_dict": state, "history": history}, out)
     return out

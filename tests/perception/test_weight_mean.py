@@ -23,8 +23,8 @@ def _checkpoint(path, seed, width=8):
 
 def test_the_mean_of_two_checkpoints_averages_every_float_tensor_and_keeps_the_firsts_counts(tmp_path):
     a, b = _checkpoint(tmp_path / "a.pt", 1), _checkpoint(tmp_path / "b.pt", 2)
-    mean_checkpoint([tmp_path / "a.pt", tmp_path / "b.pt"], tmp_path / "m.pt")
-    m = load_model(tmp_path / "m.pt").state_dict()
+    mean_checkpoint([tmp_path / "a.pt", tmp_path / "b.pt"], tmp_path / "soups" / "m.pt")
+    m = load_model(tmp_path / "soups" / "m.pt").state_dict()
     assert m.keys() == a.keys() and any(not v.is_floating_point() for v in m.values())
     for k, v in m.items():
         expected = (a[k] + b[k]) / 2 if v.is_floating_point() else a[k]
