@@ -21,10 +21,9 @@ def mean_checkpoint(paths: Sequence[Path], out: Path) -> Path:
         raise UserError(f"averaging needs at least two checkpoints, got {len(paths)}")
     loaded = [read_checkpoint(path) for path in paths]
     first = loaded[0]
+    shape = _shape(first)
     for path, ckpt in zip(paths, loaded, strict=True):
-        shape = {k: tuple(v.shape) for k, v in ckpt["state_dict"].items()}
-        if (ckpt.get("width"), ckpt.get("input_rows")) != (first.get("width"), first.get("input_rows")) or \
-                shape != {k: tuple(v.shape) for k, v in first["state_dict"].items()}:
+        if _shape(ckpt) != shape:
             raise UserError(f"{path} has another network shape than {paths[0]}: average checkpoints of one shape")
     state = {k: (torch.stack([c["state_dict"][k] for c in loaded]).mean(dim=0) if v.is_floating_point()
                  else v.clone()) for k, v in first["state_dict"].items()}
@@ -32,3 +31,9 @@ def mean_checkpoint(paths: Sequence[Path], out: Path) -> Path:
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     torch.save({**first, "state_dict": state, "history": history}, out)
     return out
+
+
+def _shape(ckpt: dict) -> tuple:
+    """A checkpoint's network shape: its width, input rows and every tensor's name and size."""
+    return (ckpt.get("width"), ckpt.get("input_rows"),
+            {name: tuple(tensor.shape) for name, tensor in ckpt["state_dict"].items()})
