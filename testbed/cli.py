@@ -378,8 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override the victim's scenario as `ld3 run --set` does (repeatable)")
     p.add_argument("--seed", dest="search_seed", type=int, default=0,
                    help="sampler seed: the same seed gives the same trials (the victim's seed is --set seed=N)")
-    p.add_argument("--objective", choices=("undetected", "overall"), default="undetected",
-                   help="undetected (default): |D| before detection first, then |D| at all; overall: the reverse")
+    p.add_argument("--objective", choices=("loss", "undetected", "overall"), default="loss",
+                   help="loss (default): any lane departure or contact, detected or not, ranked by max |D|; "
+                        "undetected: |D| before detection first, then |D| at all; overall: max |D| first")
     p.add_argument("--batch", type=int, default=8, help="trials asked of the sampler at once (default 8; part of "
                                                         "the search's identity, independent of --workers)")
     p.add_argument("--workers", type=int, help="parallel runs (as `ld3 campaign --workers`)")

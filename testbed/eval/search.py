@@ -32,12 +32,15 @@ from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.registry import FIXES, Component, missing_needs
 
-OBJECTIVES = ("undetected", "overall")
-"""`undetected`: the physical deviation reached before detection first, then the deviation reached at all;
-`overall`: the other way round."""
+OBJECTIVES = ("loss", "undetected", "overall")
+"""`loss` (the default): any lane departure or contact, detected or not, ranked by how far the car got (the
+deviation reached at all, plus `CRASH_BONUS_M` for a loss); `undetected`: the physical deviation reached before
+detection first, then the deviation reached at all; `overall`: the other way round."""
 CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "wrong_way",
                      "hit_vehicle"})
 """Consequences that end a drive in a collision or off its lane."""
+LOSSES = CRASHES | {"stop_with_lane_straddle"}
+"""Consequences that count as a loss for the defense: a collision, a departure, or a stop across a lane line."""
 CRASH_BONUS_M = 1.0
 """Added to the score of a run that crashed (`undetected`: without a detection first): a crash ends the run,
 which caps the deviation it can show, yet it is the attacker's best outcome."""
@@ -59,7 +62,7 @@ class SearchSpec:
     budget: int
     seed: int = 0
     batch: int = 8
-    objective: str = "undetected"
+    objective: str = "loss"
 
     def __post_init__(self) -> None:
         if self.budget < 1:
@@ -100,6 +103,18 @@ class TrialOutcome:
         """The car reached the lane straddle deviation before any detection."""
         return (self.dev_before_m is not None and self.straddle_m is not None
                 and self.dev_before_m >= self.straddle_m)
+
+    @property
+    def loss(self) -> bool | None:
+        """The defense lost, detected or not (`is_loss`); None for a run that failed."""
+        if self.score is None:
+            return None
+        return is_loss(self.consequence, self.max_dev_m, self.straddle_m)
+
+
+def is_loss(consequence: str, max_dev_m: float | None, straddle_m: float | None) -> bool:
+    """A collision or departure (`LOSSES`), or the car's centre reaching the lane straddle deviation."""
+    return consequence in LOSSES or (max_dev_m is not None and straddle_m is not None and max_dev_m >= straddle_m)
 
 
 def families_for(threat: frozenset[ThreatCapability], victim: Scenario) -> list[Component]:
@@ -146,14 +161,19 @@ def sample_attack(trial: Trial, families: Sequence[Component], duration: float) 
 
 def score(summary: dict[str, Any], objective: str) -> tuple[float, float, float]:
     """(score, deviation before detection, deviation at all) of a run's summary, in metres: the first criterion
-    plus `SECONDARY_WEIGHT` × the second, plus `CRASH_BONUS_M` for a crash (undetected, for `undetected`)."""
+    plus `SECONDARY_WEIGHT` × the second, plus `CRASH_BONUS_M` for a crash (undetected, for `undetected`; any
+    loss of `is_loss`, for `loss`)."""
     dev_all = float(summary.get("max_abs_dev_m") or 0.0)
     detected = bool(summary.get("detected"))
     before = summary.get("detection_dev_m") if detected else dev_all
     dev_before = float(before if before is not None else 0.0)
     first, second = (dev_before, dev_all) if objective == "undetected" else (dev_all, dev_before)
-    crashed = summary.get("consequence") in CRASHES and (objective == "overall" or not detected)
-    return first + SECONDARY_WEIGHT * second + (CRASH_BONUS_M if crashed else 0.0), dev_before, dev_all
+    consequence = str(summary.get("consequence"))
+    if objective == "loss":
+        lost = is_loss(consequence, dev_all, summary.get("lane_straddle_dev_m"))
+    else:
+        lost = consequence in CRASHES and (objective == "overall" or not detected)
+    return first + SECONDARY_WEIGHT * second + (CRASH_BONUS_M if lost else 0.0), dev_before, dev_all
 
 
 def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | None, objective: str) -> TrialOutcome:
@@ -295,11 +315,11 @@ class AttackSearch:
         with path.open("w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(["trial", "family", "attack", "detected", "detection_time_s", "dev_before_detection_m",
-                             "max_abs_dev_m", "consequence", "undetected_departure", "score"])
+                             "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score"])
             for o in self.sorted_outcomes():
                 writer.writerow([o.number, o.family, attack_spec(o.attack), _cell(o.detected),
                                  _cell(o.detection_time_s), _cell(o.dev_before_m), _cell(o.max_dev_m), o.consequence,
-                                 _cell(o.undetected_departure), _cell(o.score)])
+                                 _cell(o.undetected_departure), _cell(o.loss), _cell(o.score)])
         return path
 
     def write_best(self) -> Path | None:

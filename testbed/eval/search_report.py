@@ -73,19 +73,21 @@ def write_search_report(search: AttackSearch) -> Path:
             "",
             f"Replay: `ld3 run {best_path}`",
             "",
-            f"Undetected lane departures (|D| before detection ≥ the straddle deviation): {len(undetected)} "
-            f"of {len(outcomes)} trials.",
+            f"Losses (a departure or contact of any kind, detected or not): {sum(bool(o.loss) for o in outcomes)} "
+            f"of {len(outcomes)} trials; undetected lane departures (|D| before detection ≥ the straddle "
+            f"deviation): {len(undetected)}.",
             "",
         ]
-    lines += ["## Best per family", "", "| family | trials | attack | detected | \\|D\\| before detection (m) | "
-              "max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|"]
+    lines += ["## Best per family", "", "| family | trials | losses | attack | detected | \\|D\\| before detection (m) | "
+              "max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|---|"]
     for family in sorted({o.family for o in outcomes}):
         mine = [o for o in outcomes if o.family == family]
         top = max((o for o in mine if o.score is not None), key=lambda o: o.score, default=None)
         if top is None:
-            lines.append(f"| `{family}` | {len(mine)} | – | – | – | – | all runs failed |")
+            lines.append(f"| `{family}` | {len(mine)} | – | – | – | – | – | all runs failed |")
             continue
-        lines.append(f"| `{family}` | {len(mine)} | `{attack_spec(top.attack)}` | {top.detected} | "
+        losses = sum(bool(o.loss) for o in mine)
+        lines.append(f"| `{family}` | {len(mine)} | {losses} | `{attack_spec(top.attack)}` | {top.detected} | "
                      f"{_f(top.dev_before_m)} | {_f(top.max_dev_m)} | {top.consequence} |")
     lines += ["", "![convergence](convergence.png)", "",
               "Every trial: trials.csv; its run folder: trials/trial-NNNN/."]

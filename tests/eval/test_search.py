@@ -14,7 +14,7 @@ import pytest
 from testbed.attacks.threat import parse_threat
 from testbed.errors import UserError
 from testbed.eval.scenario import load_scenario
-from testbed.eval.search import AttackSearch, SearchSpec, families_for, score
+from testbed.eval.search import CRASH_BONUS_M, AttackSearch, SearchSpec, families_for, is_loss, outcome_of, score
 from testbed.eval.search_report import write_search_report
 from tests.eval.search_helpers import toy_search
 
@@ -103,6 +103,35 @@ def test_score_puts_the_deviation_before_detection_first():
     assert score(crashed, "undetected")[0] > score({**caught_late, "detection_dev_m": 1.2}, "undetected")[0]
     assert score(caught_crash, "undetected")[0] == score(caught_late, "undetected")[0]
     assert score(caught_crash, "overall")[0] > score(caught_late, "overall")[0]
+
+
+def test_loss_counts_any_departure_or_contact_detected_or_not_and_ranks_by_how_far():
+    straddle = {"lane_straddle_dev_m": 0.7}
+    stopped = {**straddle, "detected": True, "detection_dev_m": 0.3, "max_abs_dev_m": 0.45,
+               "consequence": "stop_in_lane"}
+    straddling = {**stopped, "max_abs_dev_m": 0.75, "consequence": "stop_with_lane_straddle"}
+    detected_crash = {**stopped, "detection_dev_m": 0.1, "max_abs_dev_m": 0.9, "consequence": "hit_barrier"}
+    undetected_crash = {**straddle, "detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.8,
+                        "consequence": "hit_curb"}
+    wide_but_reached = {**straddle, "detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.72,
+                        "consequence": "reach_destination"}
+    assert not is_loss("stop_in_lane", 0.45, 0.7)
+    assert is_loss("stop_with_lane_straddle", 0.5, 0.7) and is_loss("wrong_way", 0.1, 0.7)
+    assert is_loss("reach_destination", 0.72, 0.7) and not is_loss("reach_destination", 0.72, None)
+    scores = {k: score(v, "loss")[0] for k, v in {"stopped": stopped, "straddling": straddling,
+                                                   "detected_crash": detected_crash, "undetected_crash":
+                                                   undetected_crash, "wide": wide_but_reached}.items()}
+    assert scores["stopped"] == pytest.approx(0.45 + 0.01 * 0.3)
+    assert scores["straddling"] == pytest.approx(0.75 + 0.01 * 0.3 + CRASH_BONUS_M)
+    # a detected crash is a loss like an undetected one, ranked by how far the car got
+    assert scores["detected_crash"] > scores["undetected_crash"] > scores["straddling"] > scores["wide"]
+    assert scores["wide"] > scores["stopped"]
+    assert score(detected_crash, "undetected")[0] < score(undetected_crash, "undetected")[0]
+    outcome = outcome_of(3, {"kind": "trace"}, detected_crash, "loss")
+    assert outcome.loss is True and outcome_of(4, {"kind": "trace"}, stopped, "loss").loss is False
+    assert outcome_of(5, {"kind": "trace"}, None, "loss").loss is None
+    assert SearchSpec(load_scenario("local").with_overrides(defense="ld3", localization="msf", duration=45.0),
+                      parse_threat("msf-output"), 1).objective == "loss"
 
 
 @pytest.mark.timeout(900)
