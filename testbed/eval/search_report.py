@@ -78,8 +78,8 @@ def write_search_report(search: AttackSearch) -> Path:
             f"deviation): {len(undetected)}.",
             "",
         ]
-    lines += ["## Best per family", "", "| family | trials | losses | attack | detected | \\|D\\| before detection (m) | "
-              "max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|---|"]
+    lines += ["## Best per family", "", "| family | trials | losses | attack | detected | "
+              "\\|D\\| before detection (m) | max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|---|"]
     for family in sorted({o.family for o in outcomes}):
         mine = [o for o in outcomes if o.family == family]
         top = max((o for o in mine if o.score is not None), key=lambda o: o.score, default=None)
