@@ -16,6 +16,7 @@ from typing import Any
 
 from pydantic import Field, create_model
 
+from testbed.attacks.along import AlongShift
 from testbed.attacks.burst import PROFILES, BurstAttack
 from testbed.attacks.coordinated import CoordinatedShift
 from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
@@ -23,9 +24,12 @@ from testbed.attacks.fusionripper import FusionRipper
 from testbed.attacks.gnss_drift import GnssDrift
 from testbed.attacks.heading import HeadingBias
 from testbed.attacks.offmap import OffMapAttack
+from testbed.attacks.response import CUES, POLICIES, ResponsePhaseAttack
 from testbed.attacks.space import SIDE, START, ChoiceDim, Dim, FloatDim, IntDim
 from testbed.attacks.stealthy import CusumKnowledge, StealthyAttack
+from testbed.attacks.strike import StrikeAttack
 from testbed.attacks.trace import Trace, TraceInjection
+from testbed.attacks.unchecked import UncheckedTicks
 from testbed.attacks.zone import ZONES, ZoneAttack
 from testbed.params import Params, params_from_signature
 from testbed.registry import Capability, Component, Registry
@@ -68,7 +72,15 @@ _DESCRIPTIONS = {
     "index": "which occurrence of the zone after start (0 = the first)",
     "lateral": "lateral offset of the MSF pose (m, + left)",
     "hold": "time the offset is held after the zone before it ramps out (s)",
-    "along": "longitudinal shift of the MSF pose (m, + ahead), so that it enters the zone early",
+    "along": "longitudinal shift of the MSF pose along the lane (m, + ahead)",
+    "yaw": "yaw bias added to the MSF pose (rad, + left)",
+    "lead": "time before the alarm is forced, over which the along shift ramps in (s)",
+    "force": "sideways jump of the MSF pose that forces the alarm (m, + left)",
+    "cue": "how the attacker learns of the alarm: observed (the victim brakes) or timed",
+    "delay": "timed cue: time after the jump the response is assumed to run (s)",
+    "policy": "the MSF pose in the response: offmap, centre, opposite or hold",
+    "hspend": "fraction of the heading check's threshold the strike spends",
+    "hsustain": "yaw bias held after the strike, as a fraction of the heading check's weight",
     "kappa": "curvature above which the road counts as a curve (1/m)",
     "distance": "lateral distance the MSF pose is moved (m, + left)",
     "spend": "fraction of the CUSUM threshold τ the burst spends",
@@ -146,3 +158,22 @@ ATTACKS.add(_component(
     lambda p, rng, defense: GnssDrift(**p), needs=_MSF,
     space=(START, FloatDim("rate", 0.05, 2.0), FloatDim("limit", 0.5, 6.0), FloatDim("lidar_below", 0.2, 1.01),
            SIDE)))
+ATTACKS.add(_component(
+    UncheckedTicks, "adaptive: the MSF pose moved only on control ticks that carry no lane detection",
+    lambda p, rng, defense: UncheckedTicks(**p),
+    space=(START, FloatDim("lateral", -3.5, 3.5), FloatDim("yaw", -0.2, 0.2), FloatDim("ramp", 0.01, 3.0, log=True))))
+ATTACKS.add(_component(
+    AlongShift, "adaptive: the MSF pose moved along the lane, its lateral offset and relative heading kept",
+    lambda p, rng, defense: AlongShift(**p),
+    space=(START, FloatDim("along", -30.0, 30.0), FloatDim("ramp", 0.01, 5.0, log=True))))
+ATTACKS.add(_component(
+    ResponsePhaseAttack, "adaptive: forces the alarm, then moves the MSF pose against the response",
+    lambda p, rng, defense: ResponsePhaseAttack(**p),
+    space=(START, FloatDim("along", -30.0, 30.0), FloatDim("lead", 0.05, 5.0, log=True),
+           FloatDim("force", -3.5, 3.5), ChoiceDim("cue", CUES), FloatDim("delay", 0.05, 3.0, log=True),
+           ChoiceDim("policy", POLICIES))))
+ATTACKS.add(_component(
+    StrikeAttack, "adaptive: spends the lateral and the heading CUSUM budgets together at speed",
+    lambda p, rng, defense: StrikeAttack(**p),
+    space=(START, FloatDim("spend", 0.2, 1.2), FloatDim("hspend", 0.2, 1.2), FloatDim("spread", 0.05, 3.0, log=True),
+           FloatDim("sustain", 0.0, 1.2), FloatDim("hsustain", 0.0, 1.2), SIDE)))

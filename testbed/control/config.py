@@ -18,6 +18,10 @@ class ControlConfig(Params):
                                      "lateral LQR's cost, against 25 on the steering angle (rad)² (s²; the same "
                                      "at any control rate); 0 = no rate cost")
 
+    steer_lat_accel: float = Field(6.0, gt=0, description="largest lateral acceleration a steering command may ask "
+                                   "for beyond the road's own curvature (m/s²): a step in the pose cannot throw the "
+                                   "car into a skid")
+
     def explicit(self) -> dict[str, Any]:
         """The table as TOML would hold it, defaults left out."""
         return self.model_dump(exclude_defaults=True)

@@ -71,6 +71,7 @@ class LqrLateralController:
         r: float = 25.0,
         hold_speed: float = 0.1,
         steer_rate_weight: float = 0.0,
+        max_lat_accel: float = math.inf,
     ) -> None:
         self.model = model
         self.max_steer = max_steer
@@ -78,6 +79,7 @@ class LqrLateralController:
         self.hold_speed = hold_speed
         self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
         self.steer_rate_weight = steer_rate_weight
+        self.max_lat_accel = max_lat_accel
         q_mat, r_mat = np.diag(q), np.array([[r]])
         gains = []
         for v in self.speeds:
@@ -136,5 +138,14 @@ class LqrLateralController:
         else:
             k1, k2, k3, k4 = self.gain(v)
             steer = steer_ss - k1 * e_y - k2 * v * slip - k3 * e_psi - k4 * e_psi_rate
-        self._last = min(max(steer, -self.max_steer), self.max_steer)
+        limit = self.steer_limit(v, steer_ss)
+        self._last = min(max(steer, -limit), limit)
         return self._last
+
+    def steer_limit(self, speed: float, steer_ss: float) -> float:
+        """The largest |steer|: the actuator's, and at speed the steady-state steer of the curvature that gives
+        `max_lat_accel` (never below the road's own steady-state steer plus that)."""
+        if math.isinf(self.max_lat_accel):
+            return self.max_steer
+        steer_max, _ = self.model.steady_state(speed, self.max_lat_accel / (speed * speed))
+        return min(self.max_steer, abs(steer_ss) + abs(steer_max))

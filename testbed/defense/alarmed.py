@@ -1,6 +1,13 @@
 """LD3's detection front end as a defense: normal until Alg. 1's CUSUM on the MSF/LD deviations (Alg. 3)
 alarms, attack response for good after that. LD3 and NaiveAR share it and differ only in the response.
-Chassis odometry reaches the monitor's dead-reckoned pose (fail-closed mode)."""
+Chassis odometry reaches the monitor's dead-reckoned pose (fail-closed mode).
+
+Fail-closed mode steers only on checked poses: while normal, the controller gets the MSF pose of the last
+detection update (the one Alg. 1 and the heading check just compared with the lines, or with odometry where
+lines are absent), carried to the current tick by odometry. An MSF pose between detections never reaches the
+controller, whatever the control and camera rates and however late or irregular the frames. An MSF pose the
+map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
+The paper mode steers on every MSF pose."""
 
 from __future__ import annotations
 
@@ -10,9 +17,11 @@ from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
+from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
-from tracks.map_api import SemanticMap
+from tracks.map_api import OffMapError, SemanticMap
+from tracks.pose import Pose
 
 logger = logging.getLogger(__name__)
 
@@ -27,6 +36,8 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               fail_closed=config.fail_closed,
                                               heading=Cusum(config.heading_b, config.heading_tau))
         self.detection_time: float | None = None
+        self.checked = DeadReckoning()
+        """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""
 
     @property
     def alarm_threshold(self) -> float | None:
@@ -34,17 +45,47 @@ class Ld3AlarmedDefense(LatchingDefense):
 
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
         self.monitor.on_odometry(t, speed, yaw_rate)
+        if self.config.fail_closed:
+            self.checked.on_odometry(t, speed, yaw_rate)
 
     def fault_records(self) -> list[FaultRecord]:
         return self.faults.records()
 
     def _detect(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection update while normal; True on the update that raises the alarm."""
-        if self.detection_time is not None or not self.monitor.step(ld, msf, smap):
+        if self.detection_time is not None:
+            return False
+        alarm = self.monitor.step(ld, msf, smap)
+        if self.config.fail_closed:
+            self._take_checked(ld.timestamp, msf.pose, smap)
+        if not alarm:
             return False
         self.detection_time = ld.timestamp
         logger.info("%s: attack detected at t=%.3f (S=%.3f)", self.name, ld.timestamp, self.monitor.detector.statistic)
         return True
+
+    def _take_checked(self, t: float, pose: Pose, smap: SemanticMap) -> None:
+        """The MSF pose just compared becomes the checked pose, if the map can place it (else a fault)."""
+        try:
+            placed = pose.is_finite() and smap.lane_dev(pose, None) is not None
+        except OffMapError:
+            placed = False
+        if placed:
+            self.checked.anchor(pose)
+        else:
+            self.faults.report("unchecked-msf", t, f"MSF pose {pose} cannot be placed; the last checked pose "
+                                                   f"carried on by odometry")
+
+    def checked_pose(self, msf: LocalizationEstimate) -> Pose:
+        """The pose the controller gets while normal: the last checked MSF pose carried by odometry (fail-closed
+        mode), the MSF pose itself in paper mode or before any detection update (a fault)."""
+        if not self.config.fail_closed:
+            return msf.pose
+        pose = self.checked.pose
+        if pose is None:
+            self.faults.report("unchecked-msf", msf.t, "no detection update yet; steering on the MSF pose")
+            return msf.pose
+        return pose
 
     def status(self) -> DefenseStatus:
         return DefenseStatus(

@@ -73,6 +73,9 @@ class DefenseConfig(Params):
     heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
                              "against the lines' (against odometry where lines are absent), rad")
     heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
+    response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
+                                 "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
+                                 "so, for the rest of the response")
     savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
     savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
     savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
@@ -80,11 +83,11 @@ class DefenseConfig(Params):
     savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
 
     @model_validator(mode="after")
-    def _heading_check_needs_fail_closed(self) -> DefenseConfig:
-        given = sorted({"heading_b", "heading_tau"} & self.model_fields_set)
+    def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:
+        given = sorted({"heading_b", "heading_tau", "response_gate"} & self.model_fields_set)
         if given and not self.fail_closed:
-            raise ValueError(f"{', '.join(given)} set the fail-closed heading check, which fail_closed = false "
-                             f"(the paper mode) does not run: drop them or set fail_closed = true")
+            raise ValueError(f"{', '.join(given)} set the fail-closed heading check or response gate, which "
+                             f"fail_closed = false (the paper mode) does not run: drop them or set fail_closed = true")
         return self
 
     @model_validator(mode="after")
@@ -101,7 +104,7 @@ class DefenseConfig(Params):
         if self.heading not in ("ld", "fused"):
             inert.add("heading_clamp")
         if not self.fail_closed:
-            inert |= {"heading_b", "heading_tau"}
+            inert |= {"heading_b", "heading_tau", "response_gate"}
         return {k: v for k, v in self.model_dump().items() if k in reads and k not in inert}
 
     @classmethod

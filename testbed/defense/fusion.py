@@ -2,7 +2,8 @@
 
 Per lane detection: (R_MSF, R_LD) from the deviation histories, then kf.update(D_MSF, R_MSF), predict,
 kf.update(D_LD, R_LD), predict. Without a D_MSF (fail-closed mode, an MSF pose the map cannot place) the
-MSF update is left out: predict, kf.update(D_LD, P^LD), predict, with R_MSF = ∞ and its gain 0.
+MSF update is left out: predict, kf.update(D_LD, P^LD), predict, with R_MSF = ∞ and its gain 0 (and the other
+way round when the response leaves the lines out).
 The fused deviation d is placed on the lane centreline point along the lane normal (`pose_on_lane`) to
 give the pose the controller uses during attack response.
 """
@@ -48,13 +49,28 @@ class SafetyDrivenFusion:
         self.last = FusionStep(d, r_msf, r_ld, k_msf, k_ld)
         return self.last
 
+    def carry(self, d: float) -> None:
+        """Move the state to `d`, where odometry carried the last fused deviation (its variance is kept): the
+        prediction with the car's own lateral motion that the random walk leaves out."""
+        self.kf.x = d
+
     def update_ld(self, d_ld: float, p_ld: float) -> FusionStep:
         """One step on D_LD alone, measured with LD's own uncertainty P^LD (m²); the histories are unchanged."""
-        self.kf.predict()
-        k_ld = self.kf.update(d_ld, p_ld)
-        d = self.kf.predict()
-        self.last = FusionStep(d, math.inf, p_ld, 0.0, k_ld)
+        k_ld = self._update_alone(d_ld, p_ld)
+        self.last = FusionStep(self.kf.x, math.inf, p_ld, 0.0, k_ld)
         return self.last
+
+    def update_msf(self, d_msf: float, p_msf: float) -> FusionStep:
+        """One step on D_MSF alone (the lines left out), with the MSF's own uncertainty P^MSF (m²)."""
+        k_msf = self._update_alone(d_msf, p_msf)
+        self.last = FusionStep(self.kf.x, p_msf, math.inf, k_msf, 0.0)
+        return self.last
+
+    def _update_alone(self, d: float, p: float) -> float:
+        self.kf.predict()
+        gain = self.kf.update(d, p)
+        self.kf.predict()
+        return gain
 
 
 def pose_on_lane(point: np.ndarray, heading: float, d: float, yaw: float) -> Pose:

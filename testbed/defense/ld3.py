@@ -34,6 +34,13 @@ from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
 
+def nearest_lane_image(d_ld: float, d_odo: float, width: float) -> float:
+    """D_LD moved by at most one lane width towards the deviation odometry predicts: a line crossed in the
+    response is a lane change of the car, not a jump of D_LD when Alg. 3 re-references to the next line."""
+    shift = max(-1, min(1, round((d_odo - d_ld) / width)))
+    return d_ld + shift * width
+
+
 class Ld3Defense(Ld3AlarmedDefense):
     """Detection by MSF/LD deviation consistency; response by in-lane stop on the fused pose."""
 
@@ -46,6 +53,7 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._p_ld = config.p_ld
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
+        self._msf_disowned = False
 
     @property
     def response_decel(self) -> float:
@@ -97,19 +105,45 @@ class Ld3Defense(Ld3AlarmedDefense):
             self.faults.report("odometry-off-map", t, f"fused pose: {err}; carried by odometry alone")
             return
         d_ld = mon.fresh_d_ld if alarm else mon.lines_deviation(ld, width)
+        d_odo = float(smap.lane_dev(pose, lane))
+        d_msf = self._gate_msf(t, d_msf, d_odo)
         if d_ld is not None:
+            d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_odo, width), d_odo)
+        if d_ld is not None or d_msf is not None:
+            self.fusion.carry(d_odo)
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
 
-    def _fuse(self, ld: LaneDetection, msf: LocalizationEstimate, d_msf: float | None, d_ld: float,
+    def _gate_msf(self, t: float, d_msf: float | None, d_odo: float) -> float | None:
+        """D_MSF if the MSF has kept within `response_gate` of the odometry-carried fused deviation throughout the
+        response; once it has not (or the map could not place it), the MSF is disowned for the rest of the
+        response (None, a fault)."""
+        if not self._msf_disowned and (d_msf is None or abs(d_msf - d_odo) > self.config.response_gate):
+            self._msf_disowned = True
+            seen = "not placed on the ego lane" if d_msf is None else f"D_MSF={d_msf:.3f}"
+            self.faults.report("msf-disowned", t, f"{seen}, odometry-carried D={d_odo:.3f}; MSF left out of the "
+                                                  f"response")
+        return None if self._msf_disowned else d_msf
+
+    def _gate_ld(self, t: float, d_ld: float, d_odo: float) -> float | None:
+        """D_LD if within `response_gate` of the odometry-carried fused deviation, else None (a fault)."""
+        if abs(d_ld - d_odo) <= self.config.response_gate:
+            return d_ld
+        self.faults.report("ld-gated", t, f"D_LD={d_ld:.3f} is {abs(d_ld - d_odo):.3f} m from the odometry-carried "
+                                          f"D={d_odo:.3f}; this detection left out of the response")
+        return None
+
+    def _fuse(self, ld: LaneDetection, msf: LocalizationEstimate, d_msf: float | None, d_ld: float | None,
               lane_heading: float) -> FusionStep:
-        """Alg. 2 with both deviations, or on D_LD alone when the map could not place the MSF pose."""
+        """Alg. 2 with both deviations, or on the one source the response kept (at least one is given)."""
         if d_msf is None:
             self.faults.report("msf-left-out", ld.timestamp, f"Alg. 2 on D_LD={d_ld:.3f} alone")
             return self.fusion.update_ld(d_ld, self._ld_uncertainty(ld))
         p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
+        if d_ld is None:
+            return self.fusion.update_msf(d_msf, p_msf)
         return self.fusion.update(d_msf, d_ld, p_msf, p_ld)
 
     def _unreckoned_pose(self, t: float, msf: LocalizationEstimate, smap: SemanticMap) -> Pose | None:
@@ -168,9 +202,10 @@ class Ld3Defense(Ld3AlarmedDefense):
         return fused
 
     def _fail_closed_pose(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
-        """The dead-reckoned fused pose in response, with the heading option's yaw (the MSF pose while normal)."""
+        """The dead-reckoned fused pose in response, with the heading option's yaw (the checked pose while
+        normal)."""
         if self.detection_time is None:
-            return msf.pose
+            return self.checked_pose(msf)
         pose = self.monitor.odometry.pose
         if pose is None:
             self.faults.report("no-fused-pose", msf.t, "no fused pose to carry; steering on the MSF pose")

@@ -23,4 +23,5 @@ class NaiveArDefense(Ld3AlarmedDefense):
         self._detect(ld, msf, smap)
 
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
-        return msf.pose
+        """The checked pose while normal; the MSF pose in the response."""
+        return self.checked_pose(msf) if self.detection_time is None else msf.pose

@@ -163,6 +163,8 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
     x, y = c * dx + sn * dy, -sn * dx + c * dy
     fit = (x >= -2.0) & (x <= X_MAX + 2.0)
+    if np.count_nonzero(fit) < 4:  # the car faces away from the line (turned across the road): nothing in view
+        return LineTruth(coeffs=np.full(4, np.nan), exists=False, kind="none")
     coeffs = np.polynomial.polynomial.polyfit(x[fit], y[fit], 3)
     view = (x >= X_VIEW_NEAR) & (x <= X_VIEW_FAR)
     kinds = [boundary.kind_at(float(si)) for si in s[view]]

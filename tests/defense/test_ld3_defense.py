@@ -135,9 +135,10 @@ def test_no_defense_never_reacts():
 
 def test_reported_p_sources_feed_alg4():
     """p_source = reported: P^MSF = the MSF's lateral variance across the lane, P^LD = the c0 variance of the line
-    Alg. 3 used; Alg. 4 then gives R = λ f + (1 − λ) P (hand-computed below, λ = 0.5, w = 3)."""
+    Alg. 3 used; Alg. 4 then gives R = λ f + (1 − λ) P (hand-computed below, λ = 0.5, w = 3). The response gate
+    is opened wide so that the 1 m MSF offset stays in Alg. 2 (the gate has tests of its own)."""
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, p_source="reported", lam=0.5, window=3))
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, p_source="reported", lam=0.5, window=3, response_gate=5.0))
     cov = np.diag([0.04, 0.09, 0.01])  # lane heads +x: the lateral variance is cov[1, 1]
 
     def det(t, phys):
@@ -157,8 +158,8 @@ def test_reported_p_sources_feed_alg4():
 
 
 def test_constant_p_sources_ignore_what_the_sources_report():
-    smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, lam=0.5, p_msf=0.2, p_ld=0.4))
+    smap = FakeStraightMap()  # the gate opened wide as above: the 1 m MSF offset stays in Alg. 2
+    d = Ld3Defense(DefenseConfig(**PAPER_CUSUM, lam=0.5, p_msf=0.2, p_ld=0.4, response_gate=5.0))
     ld = dataclasses.replace(lane_det(0.0, 0.0), left_var=9.0, right_var=9.0)
     d.on_lane_detection(ld, LocalizationEstimate(0.0, Pose(0.0, 1.0, 0.0), np.eye(3) * 5.0), smap)
     g = math.sqrt(1e-3)

@@ -1,0 +1,115 @@
+"""LD3 (fail-closed) steers only on checked poses: the MSF pose of the last detection update carried by odometry.
+An attacker who moves the MSF pose only between detections reaches no control pose, at any control rate and
+with late, dropped or irregular frames; the paper mode steers on every MSF pose and is moved."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from testbed.defense.alarmed import Ld3AlarmedDefense
+from testbed.defense.config import DefenseConfig
+from testbed.defense.ld3 import Ld3Defense
+from testbed.defense.naive_ar import NaiveArDefense
+from testbed.lane_detection import LaneDetection
+from testbed.localization.estimate import LocalizationEstimate
+from tests.defense.fake_map import FakeStraightMap
+from tracks.pose import Pose
+
+HALF = 1.75
+SPEED = 20.0
+
+
+def lines(t: float, dev: float) -> LaneDetection:
+    return LaneDetection(t, np.array([HALF - dev, 0, 0, 0.0]), np.array([-HALF - dev, 0, 0, 0.0]), 0.9, 0.9,
+                         (0.0, 40.0))
+
+
+def frame_times(seconds: float, seed: int) -> list[float]:
+    """Camera frames about every 50 ms, each late by up to 40 ms, one in six dropped, a 0.4 s stall."""
+    rng = np.random.default_rng(seed)
+    times, t = [], 0.0
+    while t < seconds:
+        if rng.random() > 1 / 6 and not 3.0 <= t < 3.4:
+            times.append(t + rng.uniform(0.0, 0.04))
+        t += 0.05
+    return sorted(times)
+
+
+def drive(defense: Ld3AlarmedDefense, control_hz: float, frames: list[float], seconds: float = 6.0,
+          shift: float = 2.0, yaw: float = 0.2) -> tuple[list[Pose], list[float]]:
+    """Control ticks at `control_hz`; a detection on the first tick at or after each frame time (late frames
+    are processed late); between detections the MSF pose is moved `shift` m left and its yaw by `yaw`."""
+    smap = FakeStraightMap()
+    control, errors = [], []
+    pending = list(frames)
+    for k in range(round(seconds * control_hz)):
+        t = round(k / control_hz, 9)
+        x = 50.0 + SPEED * t
+        defense.on_odometry(t, SPEED, 0.0)
+        due = bool(pending) and pending[0] <= t + 1e-9
+        while pending and pending[0] <= t + 1e-9:
+            pending.pop(0)
+        moved = not due and t >= 0.5
+        pose = Pose(x, shift if moved else 0.0, yaw if moved else 0.0)
+        est = LocalizationEstimate(t, pose, np.eye(3) * 0.01)
+        if due:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        p = defense.pose_for_control(est, smap)
+        control.append(p)
+        errors.append(max(abs(p.y), abs(p.yaw), abs(p.x - x)))
+    return control, errors
+
+
+@pytest.mark.parametrize("control_hz", [40.0, 50.0, 100.0])
+@pytest.mark.parametrize("make", [Ld3Defense, NaiveArDefense])
+def test_moves_between_detections_reach_no_control_pose(control_hz, make):
+    defense = make(DefenseConfig())
+    _, errors = drive(defense, control_hz, frame_times(6.0, seed=int(control_hz)))
+    assert max(errors) < 1e-9
+    assert defense.mode == "normal" and defense.status().cusum == 0.0
+
+
+@pytest.mark.parametrize("control_hz", [40.0, 100.0])
+def test_the_paper_mode_steers_on_every_msf_pose_and_is_moved(control_hz):
+    defense = Ld3Defense(DefenseConfig(b=0.6, tau=0.1, heading="msf", window=20, fail_closed=False))
+    _, errors = drive(defense, control_hz, frame_times(6.0, seed=1))
+    assert max(errors) == pytest.approx(2.0)
+    assert defense.mode == "normal"
+
+
+def test_a_shift_on_detection_ticks_is_what_the_check_sees_and_alarms():
+    defense = Ld3Defense(DefenseConfig())
+    smap = FakeStraightMap()
+    for k in range(240):
+        t = k / 40.0
+        defense.on_odometry(t, SPEED, 0.0)
+        est = LocalizationEstimate(t, Pose(50.0 + SPEED * t, 1.0 if t >= 1.0 else 0.0, 0.0), np.eye(3) * 0.01)
+        if k % 2 == 0:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        defense.pose_for_control(est, smap)
+    assert defense.mode == "ar"
+    assert defense.detection_time == pytest.approx(1.0 + 0.05 * 2, abs=0.06)
+
+
+def test_an_unplaceable_msf_pose_is_not_taken_and_the_last_checked_pose_is_carried():
+    defense = Ld3Defense(DefenseConfig(tau=1e9))
+    smap = FakeStraightMap()
+    poses = []
+    for k in range(80):
+        t = k / 40.0
+        x = 50.0 + SPEED * t
+        defense.on_odometry(t, SPEED, 0.0)
+        est = LocalizationEstimate(t, Pose(x, 40.0 if t >= 1.0 else 0.0, 0.0), np.eye(3) * 0.01)
+        if k % 2 == 0:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        poses.append((x, defense.pose_for_control(est, smap)))
+    assert all(abs(p.y) < 1e-9 and abs(p.x - x) < 1e-9 for x, p in poses)
+    assert "unchecked-msf" in {r.kind for r in defense.fault_records()}
+
+
+def test_before_any_detection_the_msf_pose_is_used_and_named_a_fault():
+    defense = Ld3Defense(DefenseConfig())
+    est = LocalizationEstimate(0.0, Pose(1.0, 2.0, 0.1), np.eye(3) * 0.01)
+    assert defense.pose_for_control(est, FakeStraightMap()) == est.pose
+    assert [r.kind for r in defense.fault_records()] == ["unchecked-msf"]
