@@ -4,6 +4,7 @@ lets it move, and the run records the threat model."""
 
 import pytest
 
+from testbed.defense.config import PAPER_MODE
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
 
@@ -14,6 +15,11 @@ CASES = {
     "coordinated": ({"kind": "coordinated", "start": 3.0, "rate": 1.0, "limit": 2.0}, "msf-output,ld-output"),
     "gnss-drift": ({"kind": "gnss-drift", "start": 3.0, "rate": 1.0, "limit": 3.0}, "gnss"),
     "heading": ({"kind": "heading", "start": 3.0, "bias": -0.1, "ramp": 1.0}, "msf-output"),
+    "unchecked": ({"kind": "unchecked", "start": 3.0, "lateral": 3.0, "yaw": 0.1, "ramp": 0.5}, "msf-output"),
+    "along": ({"kind": "along", "start": 3.0, "along": 20.0, "ramp": 1.0}, "msf-output"),
+    "response": ({"kind": "response", "start": 3.0, "along": 15.0, "lead": 1.0, "force": 2.0,
+                  "policy": "centre"}, "msf-output"),
+    "strike": ({"kind": "strike", "start": 3.0, "spend": 0.9, "hspend": 0.9, "spread": 0.5}, "msf-output"),
 }
 
 
@@ -36,3 +42,16 @@ def test_each_family_acts_in_a_short_closed_loop_run(family):
         assert s["detected"] and s["consequence"] == "stop_in_lane"
     if family == "offmap":
         assert max(abs(r.attack_offset) for r in result.rows) == 25.0
+    if family == "unchecked":  # LD3 steers on checked poses only: the moves between detections reach nothing
+        assert not s["detected"] and s["max_abs_dev_m"] < 0.2 and s["consequence"] == "reach_destination"
+    if family == "response":  # the forced alarm, then an MSF held on the centre line: disowned, stop in lane
+        assert s["detected"] and s["consequence"] == "stop_in_lane"
+        assert "msf-disowned" in {f["kind"] for f in s["faults"]}
+
+
+def test_the_paper_mode_steers_on_unchecked_ticks_and_is_moved():
+    attack, _ = CASES["unchecked"]
+    sc = load_scenario("local").replace(defense="ld3", localization="msf", duration=9.0, start_s=310.0,
+                                        attack=attack)
+    paper = run_scenario(sc.replace(defense_params=dict(PAPER_MODE)), None).summary
+    assert paper["max_abs_dev_m"] > 0.5
