@@ -459,9 +459,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="override the scenario as `ld3 run --set` does (repeatable), e.g. rates.control_hz=40")
     p.set_defaults(func=cmd_bench)
 
+    from testbed.eval.control_commands import add_control_parser
     from testbed.perception.commands import add_ld_parser
 
     add_ld_parser(sub)
+    add_control_parser(sub)
     for plugin in entry_points(group=PLUGIN_GROUP):
         plugin.load()(sub)
     return parser

@@ -3,11 +3,16 @@
 δ = δ_ss(v, κ) − K(v)·[e_y, v·sin e_ψ − v·e_ψss, e_ψ − e_ψss, r − v·κ_local], clamped to ±max_steer.
 δ_ss and e_ψss are the steady-state cornering steer (kinematic + understeer) and sideslip heading error,
 so the loop regulates around the cornering equilibrium and holds e_y → 0 on arcs. K(v) comes from
-the discrete LQR (`dlqr`) on the ZOH-discretised model at speeds 1..40 m/s and is linearly interpolated per tick.
+python-control's discrete LQR (`dlqr`) on the model discretised by its `c2d` (zero-order hold) at speeds
+1..40 m/s and is linearly interpolated per tick.
 
 With a steering-rate weight w > 0 the cost is ∫ xᵀQx + r·δ² + w·δ̇² dt: the LQR runs on the model augmented with
 the last command, z = [x, δ_prev − δ_ss], input the step Δδ (weighted w/dt² per tick, so w means the same at any
 rate), and δ = δ_prev − K_z(v)·z. As w → 0 this is the law above.
+
+python-control is imported where the gains are designed, not with this module: it imports matplotlib's pyplot,
+which importing the vehicle side or starting `ld3 --help` should not (tests/test_vehicle_install.py,
+tests/test_figure_backend.py).
 """
 
 from __future__ import annotations
@@ -16,7 +21,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm, solve, solve_discrete_are
 
 from testbed.control.lateral_model import LateralModel
 from testbed.control.plan import Plan
@@ -27,23 +31,25 @@ SCHEDULE_STEP = 1.0
 
 
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold discretisation of (A, B) over `dt`."""
+    """Zero-order-hold discretisation of (A, B) over `dt` (python-control's `c2d`)."""
+    import control
+
     n, m = a.shape[0], b.shape[1]
-    block = np.zeros((n + m, n + m))
-    block[:n, :n], block[:n, n:] = a, b
-    phi = expm(block * dt)
-    return phi[:n, :n], phi[:n, n:]
+    sampled = control.c2d(control.ss(a, b, np.zeros((1, n)), np.zeros((1, m))), dt, method="zoh")
+    return sampled.A, sampled.B
 
 
 def dlqr(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray, cross: np.ndarray | None = None
          ) -> np.ndarray:
     """Gain K of u = −K·x minimising Σ xᵀQx + uᵀRu + 2xᵀNu for x⁺ = A·x + B·u (N = `cross`, default 0; the
-    stabilising solution of the DARE)."""
-    a, b = np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float)
+    stabilising solution of the DARE, by python-control's `dlqr` on scipy's solver whether or not slycot is
+    installed, so the gains do not depend on it)."""
+    import control
+
     if cross is None:
         cross = np.zeros((a.shape[0], b.shape[1]))
-    x = solve_discrete_are(a, b, q, r, s=cross)
-    return solve(b.T @ x @ b + r, b.T @ x @ a + cross.T)
+    gain, _, _ = control.dlqr(a, b, q, r, cross, method="scipy")
+    return gain
 
 
 def rate_lqr(ad: np.ndarray, bd: np.ndarray, q: np.ndarray, r: float, step_weight: float) -> np.ndarray:
