@@ -200,8 +200,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                 prepare(link)
             sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
                          sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
-            if sim.recording is not None:
-                link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
+            if sim.parts.recording is not None:
+                link.bridge.add_listener(CanToRecording(sim.parts.recording, link.profile.db, link.bridge.time))
         with interruptible(link.bridge.interrupt):
             link.engage()  # last before the run: a realtime bridge starts its clock here
             result = _drive(sim, link.bridge, progress)
