@@ -39,6 +39,7 @@ from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
 from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
+from hil.yaw_rate import YawRateChassis, yaw_rate_source
 from testbed.errors import UserError
 from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
@@ -198,7 +199,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                 link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
             if prepare is not None:
                 prepare(link)
-            sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
+            chassis = YawRateChassis(link.bridge, link.profile, vehicle(sc.vehicle).wheelbase)
+            sim = SimRun(sc, chassis=chassis, world=link.world, record=record,
                          sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
             if sim.parts.recording is not None:
                 link.bridge.add_listener(CanToRecording(sim.parts.recording, link.profile.db, link.bridge.time))
@@ -218,7 +220,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     bridge = link.bridge
     result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
-        "profile": link.profile.name, "pose_source": "odometry",
+        "profile": link.profile.name, "pose_source": "odometry", "yaw_rate_source": yaw_rate_source(link.profile),
         "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
         "can_log": str(log_path) if log_path is not None else None,
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
