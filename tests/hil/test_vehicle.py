@@ -114,3 +114,14 @@ def test_vehicle_refuses_what_cannot_run_on_a_vehicle(tmp_path, capsys):
                            (["--detector", "none"], "defense ld3 needs a lane detector")):
         assert main(["vehicle", "--map", "parking-lot", "--gnss", "nmea:/dev/null", *extra]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_vehicle_refuses_bad_arguments_in_one_line(tmp_path, capsys):
+    for extra, message in ((["--origin", "91,0"], "--origin takes LAT,LON"),
+                           (["--origin", "nan,nan"], "--origin takes LAT,LON"),
+                           (["--origin", "48.1"], "--origin takes LAT,LON"),
+                           (["--lane", "99", "--defense", "none", "--detector", "none"], "--lane 99: parking-lot"),
+                           (["--scenario", str(tmp_path / "none.toml")], "cannot read scenario")):
+        assert main(["vehicle", "--map", "parking-lot", "--gnss", "nmea:/dev/null", *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
