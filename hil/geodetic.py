@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from testbed.errors import UserError
+
 WGS84_A = 6_378_137.0
 WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
@@ -58,9 +60,10 @@ class LocalTangentPlane:
 
 
 def parse_origin(text: str) -> LocalTangentPlane:
-    """`LAT,LON` in degrees -> the plane at that origin (ValueError naming the format otherwise)."""
+    """`LAT,LON` in degrees -> the plane at that origin (a one-line UserError naming the format otherwise)."""
     try:
         lat, lon = (float(part) for part in text.split(","))
-    except ValueError:
-        raise ValueError(f"origin takes LAT,LON in degrees, e.g. 48.137,11.575; got {text!r}") from None
-    return LocalTangentPlane(lat, lon)
+        return LocalTangentPlane(lat, lon)
+    except ValueError as exc:
+        why = f" ({exc})" if str(exc).startswith("origin must") else ""
+        raise UserError(f"--origin takes LAT,LON in degrees, e.g. 48.137,11.575; got {text!r}{why}") from None

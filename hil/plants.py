@@ -7,8 +7,8 @@ from testbed.direct_chassis import DirectChassis
 from testbed.errors import UserError
 from testbed.eval.run_build import physics_world_for
 from testbed.eval.scenario import Scenario
-from testbed.loop import PHYSICS_HZ
 from testbed.presets import build_track, vehicle
+from testbed.rates import PHYSICS_HZ
 
 
 def scenario_plant(sc: Scenario) -> DirectChassis:

@@ -39,11 +39,13 @@ from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
 from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
+from hil.yaw_rate import YawRateChassis, yaw_rate_source
 from testbed.errors import UserError
 from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
 from testbed.eval.summary import HilSummary
+from testbed.extras import require_modules
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -182,6 +184,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
+    require_modules(("pybullet", "cv2"), "sim", "ld3 hil (its world is the simulator's)")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
@@ -198,10 +201,11 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                 link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
             if prepare is not None:
                 prepare(link)
-            sim = SimRun(sc, chassis=link.bridge, world=link.world, record=record,
+            chassis = YawRateChassis(link.bridge, link.profile, vehicle(sc.vehicle).wheelbase)
+            sim = SimRun(sc, chassis=chassis, world=link.world, record=record,
                          sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
-            if sim.recording is not None:
-                link.bridge.add_listener(CanToRecording(sim.recording, link.profile.db, link.bridge.time))
+            if sim.parts.recording is not None:
+                link.bridge.add_listener(CanToRecording(sim.parts.recording, link.profile.db, link.bridge.time))
         with interruptible(link.bridge.interrupt):
             link.engage()  # last before the run: a realtime bridge starts its clock here
             result = _drive(sim, link.bridge, progress)
@@ -218,7 +222,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     bridge = link.bridge
     result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
         "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
-        "profile": link.profile.name, "pose_source": "odometry",
+        "profile": link.profile.name, "pose_source": "odometry", "yaw_rate_source": yaw_rate_source(link.profile),
         "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
         "can_log": str(log_path) if log_path is not None else None,
         "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,

@@ -36,12 +36,17 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
                    help="lane detector reading the camera (default neural; none without a camera)")
     p.add_argument("--detector-weights", metavar="PATH", help="the detector's weights; for neural-onnx a detector "
                    "graph from `ld3 ld export-onnx` runs without torch or OpenCV")
-    p.add_argument("--defense", default="ld3", choices=DEFENSES.names(), metavar="NAME", help="default ld3")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME",
+                   help="default: the --scenario's [defense] kind, else ld3")
     p.add_argument("--vehicle", default="dev-chassis", help="vehicle parameter set (default dev-chassis)")
     p.add_argument("--speed", type=float, default=2.0, help="target speed, m/s (default 2)")
     p.add_argument("--duration", type=float, default=60.0, help="seconds to drive (default 60)")
     p.add_argument("--lane", type=int, help="lane to drive (default: the one the first fix lies in)")
     p.add_argument("--profile", default=DEFAULT_PROFILE, help="chassis profile: shipped name or folder")
+    p.add_argument("--scenario", type=Path, metavar="FILE", help="a scenario TOML whose [rates], [control] and "
+                   "[defense] tables the loop runs with (its other keys are the simulator's and are not read)")
+    p.add_argument("--record", action="store_true", help="also write run.mcap (what LD3's detection read at each "
+                   "frame) for `ld3 replay`")
     p.add_argument("--out", type=Path, help="output folder (default runs/vehicle-DATE-TIME)")
     p.add_argument("--force", action="store_true", help="replace a finished drive already in --out")
     add_bus_arguments(p, "the chassis's CAN interface (hardware rules unless the virtual bus or a pty)")
@@ -50,12 +55,16 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
 
 def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
     from hil.vehicle_run import VehicleConfig, VehicleRun
+    from hil.vehicle_scenario import loop_tables
 
+    tables = loop_tables(args.scenario) if args.scenario is not None else {}
+    defense = args.defense or tables.pop("defense", None) or "ld3"
+    tables.pop("defense", None)
     config = VehicleConfig(map=args.map, origin=parse_origin(args.origin), gnss=args.gnss, camera=args.camera,
                            calibration=args.calibration, detector=args.detector,
-                           detector_weights=args.detector_weights, defense=args.defense,
+                           detector_weights=args.detector_weights, defense=defense,
                            vehicle=args.vehicle, speed=args.speed, duration=args.duration, lane=args.lane,
-                           profile=args.profile)
+                           profile=args.profile, record=args.record, **tables)
     if args.out is None:
         args.out = Path("runs") / f"vehicle-{time.strftime('%Y%m%d-%H%M%S')}"
     try:

@@ -3,18 +3,23 @@ camera (rectified by its calibration file), speed, steering, acceleration and ya
 over any python-can interface (realtime clock, hardware rules); the map is a track preset placed on the Earth
 at `origin`. The run starts on the first GNSS fix, in the map lane that fix lies in, heading along it.
 
-It ends at `duration` (braking to standstill in lane before control is handed back), or on a fault: a chassis
-or link fault, a stalled GNSS stream or camera, or the operator's SIGINT/SIGTERM (`interrupted`); the car then
-brakes in lane and the run ends as chassis_fault. It writes trajectory.csv (poses are the MSF's: there is no
-true pose on a vehicle), summary.json and the CAN log.
+The loop is the one `testbed.assembly` builds for every run, at the `[rates]`, `[control]` and `[defense]` of
+the settings; the yaw rate is the chassis's where the profile maps one, else derived (`hil.yaw_rate`). It ends
+at `duration` of chassis time (braking to standstill in lane before control is handed back), or on a fault: a
+chassis or link fault, a stalled GNSS stream or camera, a localization that keeps refusing its fixes or loses
+its pose, or the operator's SIGINT/SIGTERM (`interrupted`); the car then brakes in lane and the run ends as
+chassis_fault. It writes trajectory.csv (poses are the MSF's: there is no true pose on a vehicle), summary.json
+(the consequence judged on the estimated pose, and named so), the CAN log, and with `record` run.mcap (what
+LD3's detection read at each frame, for `ld3 replay`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,36 +40,36 @@ from hil.recorder import FrameRecorder
 from hil.secoc_key import link_key
 from hil.timing import ClockMode
 from hil.vehicle_localization import MeasuredLocalization
+from hil.yaw_rate import YawRateChassis
+from testbed.assembly import LanePorts, LoopRun, LoopSettings, assemble
 from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
-from testbed.control.lateral import LqrLateralController
-from testbed.control.longitudinal import SpeedController
-from testbed.control.planner import LanePlanner
+from testbed.control.config import ControlConfig
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.summary import VehicleSummary
-from testbed.lane_detection import CameraFrame
-from testbed.loop import ControlLoop, DrivingPorts, PerceptionPorts, SensorPorts, TickRecord
+from testbed.extras import missing_extra, require_modules
+from testbed.lane_detection import CameraFrame, LaneDetection
+from testbed.loop import SensorPorts
 from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
+from testbed.rates import Rates
 from testbed.registry import Capability
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
 
-STANDSTILL_MPS = 0.05
-CONTROL_HZ = 100.0
-
 
 @dataclass(frozen=True)
 class VehicleConfig:
     """What `ld3 vehicle` runs: map and its origin, sensors (`nmea:PATH`, `v4l2:/dev/videoN` or `video:PATH`,
     a calibration file), the components (the detector's weights file, if not its default), the vehicle's
-    parameters, target speed (m/s) and duration (s)."""
+    parameters, target speed (m/s), duration (s), the loop's rates, control and defense tables, and whether
+    run.mcap is recorded."""
 
     map: str
     origin: LocalTangentPlane
@@ -80,6 +85,10 @@ class VehicleConfig:
     lane: int | None = None
     profile: str = "ld3-dev"
     first_fix_s: float = 10.0
+    rates: Rates = field(default_factory=Rates)
+    control: ControlConfig = field(default_factory=ControlConfig)
+    defense_params: dict[str, Any] = field(default_factory=dict)
+    record: bool = False
 
     def __post_init__(self) -> None:
         for key in ("speed", "duration", "first_fix_s"):
@@ -89,17 +98,22 @@ class VehicleConfig:
         if self.lane is not None and self.lane < 0:
             raise UserError(f"--lane must be >= 0, got {self.lane}")
 
+    def settings(self) -> LoopSettings:
+        """The loop's settings: the speed, the duration and the `[rates]`, `[control]` and `[defense]` tables."""
+        return LoopSettings(self.speed, self.duration, self.rates, self.control,
+                            DefenseConfig.from_dict(self.defense_params))
+
 
 class ReportedChassis(ChassisPort):
-    """The bridge as the loop sees it on a vehicle: what the chassis reports, no pose (its odometry is no truth)."""
+    """The bridge as the loop sees it on a vehicle: what the chassis reports, its yaw rate from `yaw_rate_source`,
+    no pose (the bridge's odometry is no truth)."""
 
-    def __init__(self, bridge: CanChassisBridge) -> None:
+    def __init__(self, bridge: CanChassisBridge, wheelbase: float) -> None:
         self.bridge = bridge
+        self.port = YawRateChassis(bridge, bridge.profile, wheelbase)
 
     def read(self) -> ChassisState:
-        state = self.bridge.read()
-        return ChassisState(state.t, state.speed, state.steer, state.accel, None, state.yaw_rate, state.mode,
-                            state.faults)
+        return dataclasses.replace(self.port.read(), true_pose=None)
 
     def send(self, cmd: ChassisCommand) -> None:
         self.bridge.send(cmd)
@@ -126,6 +140,16 @@ def _check_components(config: VehicleConfig) -> None:
         raise UserError(f"--gnss takes nmea:PATH (a serial device, pty or file), got {config.gnss!r}")
 
 
+def _check_place(config: VehicleConfig, track, max_speed: float) -> None:
+    """The lane exists and is driven along the road; the speed is one the vehicle reaches."""
+    if config.lane is not None:
+        driven = len(track.lanes) - track.oncoming
+        if config.lane >= len(track.lanes) or track.lanes[config.lane].oncoming:
+            raise UserError(f"--lane {config.lane}: {config.map} has lanes 0..{driven - 1} along the road")
+    if config.speed > max_speed:
+        raise UserError(f"--speed {config.speed:g} m/s is beyond what {config.vehicle} can reach ({max_speed:g} m/s)")
+
+
 class VehicleRun:
     """One `ld3 vehicle` run: opens the link and the sensors, waits for the first fix, drives, writes."""
 
@@ -136,10 +160,26 @@ class VehicleRun:
         self.track = build_track(config.map)
         self.smap = TrackMap(self.track)
         self.params = vehicle(config.vehicle)
+        self.settings = config.settings()
+        _check_place(config, self.track, self.params.max_speed)
         self.profile = load_profile(config.profile)
         key = link_key(self.profile, bus.interface, bus.kwargs().get("channel"))
         calibration = CameraCalibration.load(config.calibration) if config.calibration else None
         self.rig = CameraRig(calibration.rig_params(self.params.camera) if calibration else self.params.camera)
+        params = {"weights": config.detector_weights} if config.detector_weights else {}
+        try:
+            self.detector = make_detector(config.detector, track=self.track, rig=self.rig,
+                                          rng=np.random.default_rng(0), params=params)
+        except ModuleNotFoundError as exc:
+            raise missing_extra(exc, f"detector {config.detector}") from None
+        self.recording = None
+        if config.record:
+            require_modules(("mcap",), "record", "--record")
+            try:
+                from testbed.eval.recording import Recording
+            except ModuleNotFoundError as exc:
+                raise missing_extra(exc, "--record") from None
+            self.recording = Recording(self.rig)
         self.bus = bus.open()
         self.interface = bus.interface
         self.readers: list[Any] = []
@@ -185,72 +225,71 @@ class VehicleRun:
 
     def run(self) -> dict[str, Any]:
         """Drive until the duration or a fault; write the outputs and return the summary."""
-        config = self.config
+        config, settings = self.config, self.settings
         start, lane = self._start_pose()
         self.bridge.odometry = KinematicOdometry(start, self.bridge.odometry.geometry)
-        defense_config = DefenseConfig.from_dict({})
-        defense = DEFENSES.get(config.defense).factory(defense_config,
+        defense = DEFENSES.get(config.defense).factory(settings.defense,
                                                        BicycleCoefficients(wheelbase=self.params.wheelbase))
-        params = {"weights": config.detector_weights} if config.detector_weights else {}
-        detector = make_detector(config.detector, track=self.track, rig=self.rig, rng=np.random.default_rng(0),
-                                 params=params)
-        localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
-        dt = 1.0 / CONTROL_HZ
-        loop = ControlLoop(
-            ReportedChassis(self.bridge),
-            SensorPorts(localization, self._capture if self.camera is not None else None),
-            PerceptionPorts(detector, defense_config.existence_threshold, None,
-                            LaneTracker() if detector is not None else None),
-            defense,
-            DrivingPorts(self.smap, lane, LanePlanner(self.smap, lane, config.speed),
-                         LqrLateralController.from_vehicle(self.params, dt),
-                         SpeedController(max_accel=self.params.max_accel, max_decel=self.params.max_decel)),
-        )
-        rows: list[TickRecord] = []
-        still_since: float | None = None
+        self.localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
+        chassis = ReportedChassis(self.bridge, self.params.wheelbase)
+        run = assemble(settings, chassis,
+                       SensorPorts(self.localization, self._capture if self.camera is not None else None),
+                       defense, LanePorts(self.smap, lane, self.params), detector=self.detector,
+                       tracker=LaneTracker() if self.detector is not None else None,
+                       on_frame=self._record_frame if self.recording is not None else None)
+        self._loop = run.loop
         wall0 = time.monotonic()
         with interruptible(self.bridge.interrupt):
             self.bridge.engage(timeout=5.0)
             with contextlib.suppress(KeyboardInterrupt):  # a second signal: stop driving the loop, close brakes
-                while len(rows) < round(config.duration * CONTROL_HZ):
-                    rec = loop.tick()
-                    rows.append(rec)
-                    stopping = loop.stopping or self.bridge.latched_faults()
-                    still_since = (still_since if still_since is not None else rec.t) \
-                        if stopping and abs(rec.speed) < STANDSTILL_MPS else None
-                    if still_since is not None and rec.t - still_since >= 0.5:
-                        break
+                while not run.done:
+                    run.step()
         wall = time.monotonic() - wall0
-        summary = self._summary(rows, defense, lane, still_since, wall)
-        write_trajectory(self.out_dir / "trajectory.csv", rows)
+        summary = self._summary(run, defense, lane, chassis.port.source, wall)
+        write_trajectory(self.out_dir / "trajectory.csv", run.rows)
         summary.write(self.out_dir / "summary.json")
+        if self.recording is not None:
+            self.recording.write(self.out_dir / "run.mcap")
         return summary.as_dict()
 
-    def _summary(self, rows: list[TickRecord], defense, lane: int, stop_t: float | None,
-                 wall: float) -> VehicleSummary:
-        config, status = self.config, defense.status()
+    def _record_frame(self, frame: CameraFrame, ld: LaneDetection) -> None:
+        """What LD3's detection read at this frame: the detection and the tick's localization estimate."""
+        self.recording.add_ld3_input(ld, self._loop.last_estimate)
+
+    def _summary(self, run: LoopRun, defense, lane: int, yaw_source: str, wall: float) -> VehicleSummary:
+        config, status, rows = self.config, defense.status(), run.rows
         faults = self.bridge.latched_faults()
         msf = np.array([np.nan if r.msf_dev is None else r.msf_dev for r in rows])
-        run_time = rows[-1].t - rows[0].t + 1.0 / CONTROL_HZ if rows else 0.0
-        consequence = "chassis_fault" if faults else "stop_in_lane" if stop_t is not None else "reach_destination"
+        run_time = run.elapsed_s
+        width = self.track.lanes[lane].width
+        straddle = 0.5 * (width - self.params.width)
+        worst = float(np.nanmax(np.abs(msf))) if np.isfinite(msf).any() else None
+        final = float(msf[-1]) if len(msf) and np.isfinite(msf[-1]) else None
+        consequence = ("chassis_fault" if faults else "out_of_lane" if worst is None or worst > straddle
+                       else "stop_in_lane" if run.stop_t is not None else "reach_destination")
         return VehicleSummary(**{
-            **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()}},
+            **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()},
+                                                 "rates": self.settings.rates.model_dump(),
+                                                 "control": self.settings.control.model_dump(),
+                                                 "defense_params": self.settings.defense.model_dump()},
             "scenario": "vehicle", "seed": None, "track": config.map, "vehicle": config.vehicle, "attack": None,
             "threat_model": "none",
-            "defense": defense.name, "detector": config.detector,
-            "localization": "msf: chassis reports + NMEA GNSS", "condition": "real", "sim_time_s": run_time,
+            "defense": defense.name, "defense_params": self.settings.defense.model_dump(),
+            "detector": config.detector, "localization": "msf: chassis reports + NMEA GNSS", "condition": "real",
+            "sim_time_s": run_time,
             "wall_time_s": wall, "real_time_factor": run_time / wall if wall > 0 else None,
-            "lane": lane, "lane_width_m": self.track.lanes[lane].width, "lane_straddle_dev_m": None,
-            "max_abs_dev_m": None, "final_dev_m": None,
-            "max_abs_msf_dev_m": float(np.nanmax(np.abs(msf))) if np.isfinite(msf).any() else None,
-            "consequence": consequence,
+            "lane": lane, "lane_width_m": width, "lane_straddle_dev_m": straddle,
+            "max_abs_dev_m": None, "final_dev_m": final,
+            "max_abs_msf_dev_m": worst, "consequence": consequence, "ended_by": run.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults],
             "detected": bool(status.detected), "detection_time_s": status.detection_time, "detection_dev_m": None,
-            "ar_max_dev_m": None, "ar_stop_dev_m": None, "stop_time_s": stop_t,
+            "ar_max_dev_m": None, "ar_stop_dev_m": None, "stop_time_s": run.stop_t,
+            "rates": self.settings.rates.model_dump(), "yaw_rate_source": yaw_source,
             "interface": self.interface, "profile": self.profile.name, "can_log": str(self.out_dir / "can.asc"),
             "can_frames_tx": self.bridge.frames_tx, "can_frames_rx": self.bridge.frames_rx,
             "nmea_fixes": self.gnss.counts.fixes, "nmea_bad": self.gnss.counts.bad,
-            "nmea_no_fix": self.gnss.counts.no_fix, "camera_frames": self.camera.frames if self.camera else 0,
+            "nmea_no_fix": self.gnss.counts.no_fix, "gnss_fixes_refused": self.localization.fixes_refused,
+            "camera_frames": self.camera.frames if self.camera else 0,
         })
 
     def close(self) -> None:

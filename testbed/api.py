@@ -64,11 +64,11 @@ class Simulation:
 
     @property
     def defense(self) -> Defense:
-        return self._sim.defense
+        return self._sim.parts.defense
 
     @property
     def attack(self) -> Attack | None:
-        return self._sim.attack
+        return self._sim.parts.attack
 
     def step(self) -> TickRecord:
         """One control tick (100 Hz by default): the record trajectory.csv gets for it."""

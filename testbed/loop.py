@@ -24,33 +24,11 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.stack import Localization
 from testbed.perception.tracker import LaneTracker
+from testbed.rates import Rates
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
 log = logging.getLogger(__name__)
-
-
-PHYSICS_HZ = 80.0
-"""Physics steps per second unless a scenario's `[rates] physics_hz` says otherwise: two steps a 40 Hz control
-tick, a rate whose results match 240 Hz (docs/decisions.md)."""
-
-
-CONTROL_HZ = 40.0
-"""Control ticks per second unless a scenario's `[rates] control_hz` says otherwise (why this rate:
-docs/decisions.md, the control rate)."""
-
-
-@dataclass(frozen=True)
-class LoopRates:
-    """How often the loop ticks (control) and how often the camera delivers a frame (every `camera_every`-th
-    tick: the scenario model refuses a camera rate that does not divide the control rate)."""
-
-    control_hz: float = CONTROL_HZ
-    camera_hz: float = 20.0
-
-    @property
-    def camera_every(self) -> int:
-        return max(1, round(self.control_hz / self.camera_hz))
 
 
 @dataclass(slots=True)
@@ -133,17 +111,17 @@ class ControlLoop:
     """Wires chassis, sensors, perception, defense and driving at the control rate (DESIGN.md tick order)."""
 
     def __init__(self, chassis: ChassisPort, sensors: SensorPorts, perception: PerceptionPorts, defense: Defense,
-                 driving: DrivingPorts, *, attack: Attack | None = None, rates: LoopRates = LoopRates()) -> None:
+                 driving: DrivingPorts, *, attack: Attack | None = None, rates: Rates | None = None) -> None:
         self.chassis = chassis
         self.sensors = sensors
         self.perception = perception
         self.defense = defense
         self.driving = driving
         self.attack = attack
-        self.rates = rates
+        self.rates = rates = rates if rates is not None else Rates()
         self.smap = driving.smap
         self.lane = driving.lane
-        self.dt = 1.0 / rates.control_hz
+        self.dt = rates.control_dt
         self.ticks = 0
         self.ld_dev = LdDeviation(perception.existence_threshold)
         self.last_ld_dev: float | None = None

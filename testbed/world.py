@@ -19,7 +19,7 @@ import pybullet as pb
 
 from testbed.errors import UserError
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
-from testbed.loop import PHYSICS_HZ
+from testbed.rates import PHYSICS_HZ
 from tracks.obstacles import road_obstacles
 from tracks.pose import Pose
 from tracks.texture import tile_mesh, tile_texture

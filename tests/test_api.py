@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 import testbed.gym_env  # noqa: F401 - registers ld3/Lateral-v0
 from testbed import api
 from testbed.eval.outputs import TRAJECTORY_COLUMNS
-from testbed.loop import CONTROL_HZ
+from testbed.rates import CONTROL_HZ
 
 EXAMPLES = sorted((Path(__file__).parents[1] / "docs" / "examples").glob("*.py"))
 

@@ -21,8 +21,9 @@ from testbed.defense.ld3 import Ld3Defense
 from testbed.lane_detection import CameraFrame
 from testbed.localization.sensors import GnssFix
 from testbed.localization.stack import GroundTruthLocalization
-from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts
+from testbed.loop import ControlLoop, DrivingPorts, PerceptionPorts, SensorPorts
 from testbed.perception.oracle import OracleLaneDetector
+from testbed.rates import Rates
 from tracks.presets import load_track
 from tracks.semantic_map import TrackMap
 from vehicles.params import get_vehicle
@@ -112,7 +113,8 @@ def traced_loop(request):
     )
     loop = ControlLoop(chassis, SensorPorts(localization, camera),
                        PerceptionPorts(detector, 0.5, lambda frame, ld: frames.append(frame.t)),
-                       defense, driving, attack=PassiveAttack(log), rates=LoopRates(100.0, 20.0))
+                       defense, driving, attack=PassiveAttack(log),
+                       rates=Rates(physics_hz=100.0, control_hz=100.0, camera_hz=20.0))
     return loop, log, frames, plant
 
 

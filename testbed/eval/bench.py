@@ -60,41 +60,41 @@ drawn from the canvas) and `image effects` (the condition's sky, exposure and no
 
 def _instrument(sim, timer: SectionTimer) -> None:
     """Wrap every part of a built SimRun in its LOOP_SECTIONS section."""
-    loop, track = sim.loop, sim.track
-    timer.wrap(sim.world, "step", "physics")
-    timer.wrap(sim.world, "update_obstacles", "tile streaming")
-    timer.wrap_all(sim.world.vehicle, ("actuate", "sense", "apply_road_load"), "vehicle actuation")
-    timer.wrap(sim.chassis, "read", "vehicle actuation")
-    timer.wrap(sim.localization, "step", "localization")
-    timer.wrap_all(sim.smap, ("project", "lane_dev", "lane_width", "lane_point", "lane_curvature"), "map")
+    loop, track = sim.loop, sim.parts.track
+    timer.wrap(sim.parts.world, "step", "physics")
+    timer.wrap(sim.parts.world, "update_obstacles", "tile streaming")
+    timer.wrap_all(sim.parts.world.vehicle, ("actuate", "sense", "apply_road_load"), "vehicle actuation")
+    timer.wrap(sim.parts.chassis, "read", "vehicle actuation")
+    timer.wrap(sim.parts.localization, "step", "localization")
+    timer.wrap_all(sim.parts.smap, ("project", "lane_dev", "lane_width", "lane_point", "lane_curvature"), "map")
     timer.wrap_all(track, ("road_surface_contains", "edge_kind_at", "lidar_feature_quality"), "map")
     timer.wrap(track.reference, "project", "map")
     timer.wrap_all(loop.driving.planner, ("plan", "start_stop"), "control")
     timer.wrap(loop.driving.lateral, "update", "control")
     timer.wrap(loop.driving.longitudinal, "update", "control")
-    timer.wrap_all(sim.defense, ("on_gnss", "on_lane_detection", "pose_for_control", "on_command", "status"),
+    timer.wrap_all(sim.parts.defense, ("on_gnss", "on_lane_detection", "pose_for_control", "on_command", "status"),
                    "defense")
     timer.wrap(loop.ld_dev, "update", "defense")
-    if sim.attack is not None:
-        timer.wrap_all(sim.attack, ("spoof_gnss", "tamper_msf", "tamper_ld", "state"), "attack")
+    if sim.parts.attack is not None:
+        timer.wrap_all(sim.parts.attack, ("spoof_gnss", "tamper_msf", "tamper_ld", "state"), "attack")
         timer.wrap(loop, "_attacker_view", "attack")
     timer.wrap(loop, "_record", "logging")
     timer.wrap_all(sim, ("_edge_beyond", "_stopped"), "consequence monitor")
     timer.wrap(sim.monitor, "observe", "consequence monitor")
-    timer.wrap(sim.world, "contact_kinds", "consequence monitor")
-    if sim.camera is not None:
-        timer.wrap(sim.camera, "capture", "render")
-        timer.wrap(sim.camera.effects, "apply", "image effects")
-        timer.wrap(sim.streamer, "update", "tile streaming")
-        if sim.streamer.canvas is not None:
-            timer.wrap(sim.streamer.canvas, "view", "ground canvas")
-    if sim.detector is not None:
-        timer.wrap(sim.detector, "detect", "detector")
-    if sim.tracker is not None:
-        timer.wrap(sim.tracker, "update", "detector")
-    if sim.traffic is not None:
-        timer.wrap(sim.traffic, "advance", "traffic")
-        timer.wrap_all(sim.world, ("place_traffic", "traffic_touching"), "traffic")
+    timer.wrap(sim.parts.world, "contact_kinds", "consequence monitor")
+    if sim.parts.camera is not None:
+        timer.wrap(sim.parts.camera, "capture", "render")
+        timer.wrap(sim.parts.camera.effects, "apply", "image effects")
+        timer.wrap(sim.parts.streamer, "update", "tile streaming")
+        if sim.parts.streamer.canvas is not None:
+            timer.wrap(sim.parts.streamer.canvas, "view", "ground canvas")
+    if sim.parts.detector is not None:
+        timer.wrap(sim.parts.detector, "detect", "detector")
+    if sim.parts.tracker is not None:
+        timer.wrap(sim.parts.tracker, "update", "detector")
+    if sim.parts.traffic is not None:
+        timer.wrap(sim.parts.traffic, "advance", "traffic")
+        timer.wrap_all(sim.parts.world, ("place_traffic", "traffic_touching"), "traffic")
         timer.wrap(sim.traffic_log, "add", "traffic")
 
 
@@ -220,9 +220,9 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
         "instrumented_real_time_factor": round(sim_time / timed_wall, 2), "time_fraction": split,
     }
     if camera:
-        out |= {"ground": ground, "resolution": f"{sim.rig.width}x{sim.rig.height}",
-                "tile_render_resets": sim.streamer.resets,
-                "ground_canvas_recentres": sim.streamer.canvas.rebuilds if sim.streamer.canvas else None}
+        out |= {"ground": ground, "resolution": f"{sim.parts.rig.width}x{sim.parts.rig.height}",
+                "tile_render_resets": sim.parts.streamer.resets,
+                "ground_canvas_recentres": sim.parts.streamer.canvas.rebuilds if sim.parts.streamer.canvas else None}
     return out
 
 
@@ -240,16 +240,16 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
     out: dict[str, Any] = {"scenario": scenario, "frames": frames}
     for ground in ("canvas", "mesh"):
         sim = SimRun(sc, render=True, ground=ground)
-        lane = sim.track.lanes[sim.lane]
+        lane = sim.parts.track.lanes[sim.parts.lane]
         render_ms, stream_ms = [], []
         try:
             for k in range(frames):
                 s = 10.0 + 0.6 * k
                 pose = Pose(*lane.position(s, 0.2), lane.heading_at(s))
                 t0 = time.thread_time()
-                sim.streamer.update(pose)
+                sim.parts.streamer.update(pose)
                 t1 = time.thread_time()
-                sim.camera.render(pose)
+                sim.parts.camera.render(pose)
                 t2 = time.thread_time()
                 stream_ms.append(1e3 * (t1 - t0))
                 render_ms.append(1e3 * (t2 - t1))

@@ -38,13 +38,13 @@ def _view(track: str, detector: str, attack: dict[str, Any] | None, s: float) ->
     sc = sc if attack is None else sc.with_overrides(attack=attack)
     sim = SimRun(sc, render=True)
     try:
-        pose = sim.start
-        sim.streamer.update(pose)
-        frame = sim.camera.capture(0.0, pose)
-        ld = sim.detector.detect(frame)
-        width = sim.smap.lane_width(pose, sim.lane)
-        d = LdDeviation(sim.defense_config.existence_threshold).update(ld, width)
-        return PatchView(draw_detection(frame.image, ld, sim.rig), ld, d)
+        pose = sim.parts.start
+        sim.parts.streamer.update(pose)
+        frame = sim.parts.camera.capture(0.0, pose)
+        ld = sim.parts.detector.detect(frame)
+        width = sim.parts.smap.lane_width(pose, sim.parts.lane)
+        d = LdDeviation(sim.parts.defense_config.existence_threshold).update(ld, width)
+        return PatchView(draw_detection(frame.image, ld, sim.parts.rig), ld, d)
     finally:
         sim.close()
 

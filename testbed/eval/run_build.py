@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from testbed.assembly import LanePorts, LoopRun, LoopSettings, assemble
 from testbed.attacks.base import Attack, WhiteBox
 from testbed.attacks.compose import AttackChain
 from testbed.attacks.spec import build_attack
@@ -20,9 +21,6 @@ from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort, ChassisState
 from testbed.conditions import Condition, get_condition
 from testbed.control.car_following import CarFollowing
-from testbed.control.lateral import LqrLateralController
-from testbed.control.longitudinal import SpeedController
-from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
@@ -34,7 +32,7 @@ from testbed.eval.video import VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
-from testbed.loop import ControlLoop, DrivingPorts, LoopRates, PerceptionPorts, SensorPorts
+from testbed.loop import SensorPorts
 from testbed.params import Params
 from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.tracker import LaneTracker
@@ -104,7 +102,8 @@ class RunParts:
     """The scenario's detector's `[detector]` parameters, defaults filled in (None for an injected detector)."""
     tracker: LaneTracker | None
     defense: Defense
-    loop: ControlLoop
+    run: LoopRun
+    """The assembled loop, stepped to its end (`run.loop` is the ControlLoop)."""
     lane_width: float
     traffic: Fleet | None = None
     """The traffic cars (their bodies are in `world`), or None on an empty road."""
@@ -165,7 +164,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     if chassis is None:
         world = physics_world_for(sc, track, params, start)
         chassis = DirectChassis(world, hold_s=sc.rates.command_hold_s)
-    rates = LoopRates(control_hz=sc.rates.control_hz, camera_hz=sc.rates.camera_hz)
+    rates = sc.rates
     attack = AttackChain(o.attack) if isinstance(o.attack, list) else o.attack
     if o.attack is None:
         attack = build_attack(sc.attack, rng=rng_attack, defense=defense_config)
@@ -202,28 +201,20 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
             return camera.capture(t, pose)
     sensors = SensorPorts(localization, capture)
     traffic = _traffic(sc, track, params, lane, world, streamer, np.random.default_rng(root_seed.spawn(1)[0]))
-    loop = ControlLoop(
-        chassis,
-        o.sensor_ports(sensors) if o.sensor_ports is not None else sensors,
-        PerceptionPorts(detector, defense_config.existence_threshold, keep_frame if (o.video or o.record) else None,
-                        tracker),
-        defense,
-        DrivingPorts(smap, lane, LanePlanner(smap, lane, sc.speed),
-                     LqrLateralController.from_vehicle(params, 1.0 / rates.control_hz,
-                                                       steer_rate_weight=sc.control.steer_rate_weight,
-                                                       max_lat_accel=sc.control.steer_lat_accel),
-                     SpeedController(max_accel=params.max_accel, max_decel=params.max_decel),
-                     planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
-                     follow=_car_following(sc, traffic, smap, lane, params)),
-        attack=attack, rates=rates,
-    )
+    run = assemble(LoopSettings(sc.speed, sc.duration, sc.rates, sc.control, defense_config), chassis,
+                   o.sensor_ports(sensors) if o.sensor_ports is not None else sensors, defense,
+                   LanePorts(smap, lane, params,
+                             planned_stop=(sc.stop_at, sc.stop_decel) if sc.stop_at is not None else None,
+                             follow=_car_following(sc, traffic, smap, lane, params)),
+                   detector=detector, tracker=tracker, on_frame=keep_frame if (o.video or o.record) else None,
+                   attack=attack)
     if attack is not None:
         attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
     return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,
                     Recording(rig) if o.record else None, localization, detector, detector_name, settings, tracker,
-                    defense, loop, smap.lane_width(start, lane), traffic)
+                    defense, run, smap.lane_width(start, lane), traffic)
 
 
 def _car_following(sc: Scenario, fleet: Fleet | None, smap: TrackMap, lane: int, params: VehicleParams

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from testbed.assembly import LoopRun
 from testbed.attacks.base import Attack
 from testbed.attacks.compose import threat_model_of
 from testbed.attacks.threat import threat_label
@@ -39,7 +40,6 @@ from tracks.pose import Pose
 COLLISION_REACH_M = 15.0
 """Traffic cars whose centres lie farther than this plus a car length (reference arc length) from the ego's get no
 physics body this tick: neither can close that gap within one control tick."""
-STOP_SPEED = 0.05
 
 
 @dataclass
@@ -58,8 +58,9 @@ class RunResult:
 
 
 class SimRun:
-    """Steps one simulated run, built from the scenario by `build_run`, to its end and returns its typed result;
-    the run's parts (`RunParts`: the loop, the world, the track, ...) read as its attributes."""
+    """Steps one simulated run to its end and returns its typed result: `parts` is what `build_run` built from
+    the scenario (the loop run, the world, the track, ...); this adds the simulator's hooks (contacts, traffic,
+    video and recording) and end conditions (a consequence before standstill, the end of the road after it)."""
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
@@ -67,39 +68,51 @@ class SimRun:
                  attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
                  sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
         """The keyword options are those of `RunOptions`."""
+        self.sc = sc
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
         options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
                              sensor_ports)
-        self.parts = build_run(sc, options, self._keep_frame)
-        left = self.lane + 1
-        self.monitor = ConsequenceMonitor(self.parts.lane_width, self.params.width, self.params.length,
-                                          left < len(self.track.lanes) and self.track.lanes[left].oncoming)
-        self._half_diagonal = 0.5 * math.hypot(self.params.length, self.params.width)
-        self.n_ticks = round(sc.duration * self.loop.rates.control_hz)
-        self.rows: list[TickRecord] = []
+        self.parts = parts = build_run(sc, options, self._keep_frame)
+        self.run_loop: LoopRun = parts.run
+        self.loop = parts.run.loop
+        params, track, lane = parts.params, parts.track, parts.lane
+        left = lane + 1
+        self.monitor = ConsequenceMonitor(parts.lane_width, params.width, params.length,
+                                          left < len(track.lanes) and track.lanes[left].oncoming)
+        self._half_diagonal = 0.5 * math.hypot(params.length, params.width)
+        self.n_ticks = round(sc.duration * sc.rates.control_hz)
         self.believed: list[tuple[float, float]] = []
-        self.stop_t: float | None = None
-        self._still_since: float | None = None
         self.wall_time = 0.0
-        self.ended_by: str | None = None
         self.traffic_log = TrafficLog()
         self.hit: HitVehicle | None = None
-        self._record_every = max(1, round(self.loop.rates.control_hz / RECORD_HZ))
+        self._record_every = max(1, round(sc.rates.control_hz / RECORD_HZ))
         self._traffic_reach = 0.0
-        self._traffic_dt = 1.0 / self.loop.rates.control_hz
-        if self.traffic is not None:
-            self._traffic_reach = (max(COLLISION_REACH_M, self.streamer.ahead if self.streamer is not None else 0.0)
-                                   + self.traffic.length)
+        self._traffic_dt = sc.rates.control_dt
+        if parts.traffic is not None:
+            self._traffic_reach = (max(COLLISION_REACH_M, parts.streamer.ahead if parts.streamer is not None else 0.0)
+                                   + parts.traffic.length)
+        self._contacts: set[str] = set()
+        self._edge: str | None = None
+        self.run_loop.add_hook(self._observe)
+        self.run_loop.add_end(self._consequence, before_standstill=True)
+        self.run_loop.add_end(self._road_end)
+
+    @property
+    def rows(self) -> list[TickRecord]:
+        return self.run_loop.rows
+
+    @property
+    def stop_t(self) -> float | None:
+        return self.run_loop.stop_t
+
+    @property
+    def ended_by(self) -> str | None:
+        return self.run_loop.ended_by
 
     @property
     def done(self) -> bool:
         """True once the run is over (`ended_by` says why)."""
-        return self.ended_by is not None
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "parts":  # not built yet
-            raise AttributeError(name)
-        return getattr(self.parts, name)
+        return self.run_loop.done
 
     def _keep_frame(self, frame: CameraFrame, ld: LaneDetection) -> None:
         """A camera frame and its detection, held until the tick's record exists (video and recording)."""
@@ -107,24 +120,25 @@ class SimRun:
 
     def _record_tick(self, rec: TickRecord) -> None:
         """Hand the tick and the frames that arrived on it to the video and the recording."""
-        tau = self.defense.alarm_threshold
+        parts = self.parts
+        tau = parts.defense.alarm_threshold
         for frame, ld in self._frames:
-            if self.video is not None:
-                self.video.add(frame, ld, FrameSignals.of(rec, tau))
-            if self.recording is not None:
-                self.recording.add_camera(frame.t, frame.image, ld)
-                self.recording.add_ld3_input(ld, self.loop.last_estimate)
+            if parts.video is not None:
+                parts.video.add(frame, ld, FrameSignals.of(rec, tau))
+            if parts.recording is not None:
+                parts.recording.add_camera(frame.t, frame.image, ld)
+                parts.recording.add_ld3_input(ld, self.loop.last_estimate)
         self._frames.clear()
-        if self.recording is not None:
+        if parts.recording is not None:
             control = self.loop.last_control_pose if rec.mode == "ar" else None
-            self.recording.add_tick(rec, self.loop.last_estimate.pose, control, tau)
+            parts.recording.add_tick(rec, self.loop.last_estimate.pose, control, tau)
 
     def _edge_beyond(self, pose: Pose) -> str | None:
         """Kind of road edge a whole side of the footprint is beyond (two corners off the paved surface)."""
-        track = self.parts.track
+        track, params = self.parts.track, self.parts.params
         if track.surface_holds_disc(pose.x, pose.y, self._half_diagonal):
             return None
-        corners = footprint_corners(pose.x, pose.y, pose.yaw, self.params.length, self.params.width)
+        corners = footprint_corners(pose.x, pose.y, pose.yaw, params.length, params.width)
         kinds = [track.edge_kind_at(x, y) for x, y in corners]
         off = [k for k in kinds if k is not None]
         return off[0] if len(off) >= 2 else None
@@ -136,9 +150,14 @@ class SimRun:
         if self.done:
             raise RuntimeError("the run is over; build a new SimRun to run again")
         wall0 = time.perf_counter()
-        parts, loop = self.parts, self.parts.loop
-        rec = loop.tick()
-        self.rows.append(rec)
+        rec = self.run_loop.step()
+        self.wall_time += time.perf_counter() - wall0
+        return rec
+
+    def _observe(self, rec: TickRecord) -> None:
+        """The tick as the simulator sees it: the believed pose, video and recording, contacts and the road edge
+        under the true footprint, then the traffic's step."""
+        parts, loop = self.parts, self.loop
         est_pose = loop.last_estimate.pose
         self.believed.append((est_pose.x, est_pose.y))
         if parts.video is not None or parts.recording is not None:
@@ -146,22 +165,22 @@ class SimRun:
         state = loop.last_state
         pose = state.true_pose
         world = parts.world
-        contacts = world.contact_kinds() if world is not None else set()
-        if "vehicle" in contacts and self.hit is None:
+        self._contacts = world.contact_kinds() if world is not None else set()
+        if "vehicle" in self._contacts and self.hit is None:
             self.hit = vehicle_hit(parts.traffic, world.traffic_touching()[0], rec.t, state.speed, pose.yaw)
-        edge = self._edge_beyond(pose)
+        self._edge = self._edge_beyond(pose)
         if parts.traffic is not None:
             self._advance_traffic(rec, pose)
-        if self.monitor.observe(rec.phys_dev, contacts, edge is not None, edge == "drop_off"):
-            self.ended_by = "consequence"
-        elif self._stopped(rec):
-            self.ended_by = "standstill"
-        elif parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M:
-            self.ended_by = "road_end"
-        elif len(self.rows) >= self.n_ticks:
-            self.ended_by = "duration"
-        self.wall_time += time.perf_counter() - wall0
-        return rec
+
+    def _consequence(self, rec: TickRecord) -> str | None:
+        if self.monitor.observe(rec.phys_dev, self._contacts, self._edge is not None, self._edge == "drop_off"):
+            return "consequence"
+        return None
+
+    def _road_end(self, rec: TickRecord) -> str | None:
+        parts = self.parts
+        pose = self.loop.last_state.true_pose
+        return "road_end" if parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M else None
 
     def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
         """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
@@ -185,17 +204,6 @@ class SimRun:
         if parts.streamer is not None:
             parts.streamer.place_traffic(poses)
 
-    def _stopped(self, rec: TickRecord) -> bool:
-        """True once the car has stood still for 0.5 s after a stop (response, planned stop or chassis fault)."""
-        if not ((self.parts.loop.stopping or self.parts.chassis.latched_faults()) and abs(rec.speed) < STOP_SPEED):
-            self._still_since = None
-            return False
-        self._still_since = rec.t if self._still_since is None else self._still_since
-        if rec.t - self._still_since < 0.5:
-            return False
-        self.stop_t = self._still_since
-        return True
-
     def run(self, progress: bool = False) -> RunResult:
         """Step to the end and return the result."""
         bar = tqdm(total=self.n_ticks, desc=f"{self.sc.name}", unit="tick", disable=not progress, leave=False)
@@ -211,79 +219,79 @@ class SimRun:
 
     def _summary(self) -> RunSummary:
         sc, rows, wall, stop_t = self.sc, self.rows, self.wall_time, self.stop_t
-        status = self.defense.status()
+        status = self.parts.defense.status()
         det_t = status.detection_time
         phys = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
         t = np.array([r.t for r in rows])
         final_dev = float(phys[-1]) if len(phys) else math.nan
         before = phys[t <= det_t] if det_t is not None else phys
         during = phys[t >= det_t] if det_t is not None else np.array([])
-        sim_time = float(t[-1] + 1.0 / self.loop.rates.control_hz) if len(t) else 0.0
-        faults = self.chassis.latched_faults()
+        sim_time = float(t[-1] + self.loop.dt) if len(t) else 0.0
+        faults = self.parts.chassis.latched_faults()
         consequence = ("chassis_fault" if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
-        defense_params = self.defense_config.model_dump()
+        defense_params = self.parts.defense_config.model_dump()
         return RunSummary(**{
             **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
-                                                 "detector_params": self.detector_settings.model_dump()
-                                                 if self.detector_settings is not None else {}},
+                                                 "detector_params": self.parts.detector_settings.model_dump()
+                                                 if self.parts.detector_settings is not None else {}},
             "scenario": sc.name, "seed": sc.seed, "track": sc.track, "vehicle": sc.vehicle,
-            "attack": self.attack.describe() if self.attack is not None else None,
-            "threat_model": threat_label(threat_model_of(self.attack)),
-            "defense": self.defense.name, "defense_params": defense_params,
-            "condition": sc.condition, "detector": self.detector_name, "tracking": self.tracker is not None,
+            "attack": self.parts.attack.describe() if self.parts.attack is not None else None,
+            "threat_model": threat_label(threat_model_of(self.parts.attack)),
+            "defense": self.parts.defense.name, "defense_params": defense_params,
+            "condition": sc.condition, "detector": self.parts.detector_name, "tracking": self.parts.tracker is not None,
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
-            "lane_width_m": self.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
+            "lane_width_m": self.parts.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
             "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
             "final_dev_m": final_dev, "consequence": consequence, "ended_by": self.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
             + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
-                "count": f.count} for f in self.defense.fault_records()],
+                "count": f.count} for f in self.parts.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
             "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
             "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
-            "attack_state": self.attack.state() if self.attack is not None else None,
-            "traffic_vehicles": len(self.traffic.cars) if self.traffic is not None else None,
+            "attack_state": self.parts.attack.state() if self.parts.attack is not None else None,
+            "traffic_vehicles": len(self.parts.traffic.cars) if self.parts.traffic is not None else None,
             "hit_vehicle": self.hit,
         })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
         """summary.json, trajectory.csv, traffic.csv (with traffic), birdseye.png (and camera.mp4, run.mcap when
         recorded) of a finished run."""
-        sc = self.sc
+        sc, traffic = self.sc, self.parts.traffic
         write_trajectory(out_dir / "trajectory.csv", result.rows)
-        if self.traffic is not None:
+        if self.parts.traffic is not None:
             self.traffic_log.write(out_dir / "traffic.csv")
         result.record.write(out_dir / "summary.json")
-        save_birdseye(out_dir / "birdseye.png", self.track, result.rows, lane_width=self.lane_width,
+        save_birdseye(out_dir / "birdseye.png", self.parts.track, result.rows, lane_width=self.parts.lane_width,
                       straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
                       detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
                       title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}"
                             + title_suffix,
-                      attack_t=self.attack.start_time if self.attack is not None else None,
-                      threshold=self.defense.alarm_threshold,
-                      traffic=self.traffic_log.paths() if self.traffic is not None else None,
-                      traffic_size=(self.traffic.length, self.traffic.width) if self.traffic is not None else (0, 0))
-        if self.attack is not None and has_fusion(result.rows):
+                      attack_t=self.parts.attack.start_time if self.parts.attack is not None else None,
+                      threshold=self.parts.defense.alarm_threshold,
+                      traffic=self.traffic_log.paths() if traffic is not None else None,
+                      traffic_size=(traffic.length, traffic.width) if traffic is not None else (0, 0))
+        if self.parts.attack is not None and has_fusion(result.rows):
             save_fusion_plot(out_dir / "ar_fusion.png", result.rows, straddle_dev=self.monitor.straddle_dev,
-                             title=f"{sc.name} · {sc.track} · {self.attack.name} · attack response")
-        if self.video is not None:
-            self.video.write(out_dir / "camera.mp4")
-        if self.recording is not None:
+                             title=f"{sc.name} · {sc.track} · {self.parts.attack.name} · attack response")
+        if self.parts.video is not None:
+            self.parts.video.write(out_dir / "camera.mp4")
+        if self.parts.recording is not None:
             path = np.array([(r.x, r.y) for r in result.rows]).reshape(-1, 2)
-            self.recording.set_lane_lines(ego_lane_lines(self.track.lanes[self.lane], path))
-            self.recording.write(out_dir / "run.mcap")
+            self.parts.recording.set_lane_lines(ego_lane_lines(self.parts.track.lanes[self.parts.lane], path))
+            self.parts.recording.write(out_dir / "run.mcap")
 
     def close(self) -> None:
-        if self.video is not None:
-            self.video.close()
-        if self.world is not None:
-            self.world.close()
-        if self.streamer is not None:
-            self.streamer.close()
+        if self.parts.video is not None:
+            self.parts.video.close()
+        if self.parts.world is not None:
+            self.parts.world.close()
+        if self.parts.streamer is not None:
+            self.parts.streamer.close()
 
 
 def prepare_out_dir(out_dir: Path) -> None:

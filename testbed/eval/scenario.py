@@ -17,11 +17,11 @@ from testbed.control.config import ControlConfig
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
-from testbed.eval.rates import STRICT, Rates
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import error_key, error_problem
 from testbed.perception.registry import DETECTORS, params_in_traffic
 from testbed.presets import TRACKS, VEHICLES
+from testbed.rates import STRICT, Rates
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
 from testbed.traffic.config import TrafficConfig
 from tracks.presets import parse_track_spec

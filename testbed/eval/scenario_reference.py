@@ -9,12 +9,12 @@ from testbed.attacks.registry import ATTACKS
 from testbed.control.config import ControlConfig
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
-from testbed.eval.rates import Rates
 from testbed.eval.scenario import ALWAYS_READ, Scenario
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import reference_rows
 from testbed.perception.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
+from testbed.rates import Rates
 from testbed.registry import Registry
 from testbed.traffic.config import TrafficConfig
 from tracks.opendrive.load import PREFIX as XODR_PREFIX

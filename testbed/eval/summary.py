@@ -107,6 +107,8 @@ class CanLinkFields(BaseModel):
     can_log: str | None
     can_frames_tx: int
     can_frames_rx: int
+    yaw_rate_source: str
+    """Where the loop's yaw rate came from: the chassis's report, or derived from what the chassis reports."""
 
 
 class HilSummary(RunSummary, CanLinkFields):
@@ -131,9 +133,15 @@ class VehicleSummary(RunSummary, CanLinkFields):
 
     lane: int
     max_abs_msf_dev_m: float | None
+    consequence_basis: Literal["estimated"] = "estimated"
+    """The consequence is judged on the estimated (MSF) pose: a vehicle has no ground truth."""
+    rates: dict[str, Any]
+    """The loop's rates, `[rates]` as run."""
     nmea_fixes: int
     nmea_bad: int
     nmea_no_fix: int
+    gnss_fixes_refused: int
+    """GNSS fixes the localization refused (unusable, or outside the MSF's gate)."""
     camera_frames: int
 
 

@@ -112,7 +112,7 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
                                 params=sc.run_detector_params))
     sim = SimRun(sc, detector=tap, tracking=True)
     tap.pose_now = lambda: sim.loop.last_estimate.pose
-    fleet = sim.traffic
+    fleet = sim.parts.traffic
     if fleet is not None:
         car = get_vehicle(sc.traffic.vehicle)
         tap.occlusion = lambda pose: occluded_fraction(track, pose, rig, fleet.poses(),
@@ -130,7 +130,7 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
         if r.ld_fresh:
             ld, pose, hidden = next(frames)
             with contextlib.suppress(OffMapError):
-                last = alg3.update(ld, sim.smap.lane_width(pose))
+                last = alg3.update(ld, sim.parts.smap.lane_width(pose))
         raw[i] = np.nan if last is None else last
         occluded[i] = np.nan if hidden is None else hidden
     return {"preset": cell.preset, "condition": cell.condition, "track": spec, "speed_mps": round(speed, 2),

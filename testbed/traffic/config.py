@@ -8,8 +8,8 @@ from typing import Any
 
 from pydantic import BaseModel, Field, model_validator
 
-from testbed.eval.rates import STRICT
 from testbed.presets import VEHICLES
+from testbed.rates import STRICT
 from testbed.traffic.idm import IdmParams
 
 

@@ -34,8 +34,8 @@ def test_the_ego_runs_into_a_parked_car_unless_it_follows_cars(follows):
     sim = SimRun(sc, render=False)
     try:
         summary = sim.run().summary
-        gap = sim.traffic.cars[0].s - sim.smap.project(sim.loop.last_state.true_pose, sim.lane).s \
-            - 0.5 * (sim.params.length + sim.traffic.length)
+        gap = sim.parts.traffic.cars[0].s - sim.parts.smap.project(sim.loop.last_state.true_pose, sim.parts.lane).s \
+            - 0.5 * (sim.parts.params.length + sim.parts.traffic.length)
     finally:
         sim.close()
     if follows:

@@ -5,7 +5,7 @@ import json
 
 from testbed.cli import EXIT_USAGE, main
 from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
-from testbed.loop import PHYSICS_HZ
+from testbed.rates import PHYSICS_HZ
 
 
 def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():

@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 from testbed.defense.config import DefenseConfig
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
-from testbed.loop import CONTROL_HZ
+from testbed.rates import CONTROL_HZ
 
 
 def test_a_simulated_run_records_every_camera_frame_and_tick(tmp_path):

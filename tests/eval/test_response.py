@@ -9,7 +9,7 @@ import pytest
 from testbed.defense.config import PAPER_MODE
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import load_scenario
-from testbed.loop import LoopRates
+from testbed.rates import Rates
 
 FR = {"kind": "fusionripper", "d": 1.0, "f": 1.5, "start": 15.0}
 
@@ -40,7 +40,7 @@ def test_attack_response_internals_are_written(fr_runs):
     internals = ("fused_dev", "r_msf", "r_ld", "k_msf", "k_ld", "heading_used")
     for row in rows:
         assert all((row[c] != "") == (row["mode"] == "ar") for c in internals), row
-    every = LoopRates().camera_every  # camera at 20 Hz: a fresh detection every `every` control ticks
+    every = Rates().camera_every  # camera at 20 Hz: a fresh detection every `every` control ticks
     assert every > 1 and [r["ld_fresh"] for r in rows[:2 * every + 1]] == (["1"] + ["0"] * (every - 1)) * 2 + ["1"]
     ar = [r for r in rows if r["mode"] == "ar"]
     assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])

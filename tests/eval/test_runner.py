@@ -12,7 +12,7 @@ from testbed.eval.outputs import TRAJECTORY_COLUMNS
 from testbed.eval.runner import run_scenario
 from testbed.eval.scenario import ScenarioError, load_scenario
 from testbed.eval.summary import RunSummary
-from testbed.loop import CONTROL_HZ
+from testbed.rates import CONTROL_HZ
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -100,7 +100,7 @@ def test_savior_in_the_loop_models_the_scenario_vehicle():
                                                         localization="msf", speed=3.0)
         sim = SimRun(sc)
         try:
-            assert sim.defense.model.c.wheelbase == get_vehicle(vehicle).wheelbase
+            assert sim.parts.defense.model.c.wheelbase == get_vehicle(vehicle).wheelbase
         finally:
             sim.close()
 

@@ -82,8 +82,8 @@ def test_the_camera_sees_a_car_ahead_and_it_hides_the_road_behind_it():
     for traffic in ({}, {"vehicles": 1, "lanes": [1], "speed": 0.0, "speed_spread": 0.0, "ahead": 10.0}):
         sim = SimRun(sc.replace(traffic=traffic), render=True)
         try:
-            sim.streamer.update(sim.start)
-            frames.append(sim.camera.render(sim.start).astype(int))
+            sim.parts.streamer.update(sim.parts.start)
+            frames.append(sim.parts.camera.render(sim.parts.start).astype(int))
         finally:
             sim.close()
     changed = np.abs(frames[0] - frames[1]).sum(axis=2) > 30

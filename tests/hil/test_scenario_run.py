@@ -11,7 +11,7 @@ from hil.plants import plant_args_for, pybullet_plant, scenario_plant
 from hil.scenario_run import LinkConfig, run_hil_scenario
 from testbed.eval.runner import SimRun
 from testbed.eval.scenario import load_scenario
-from testbed.loop import PHYSICS_HZ
+from testbed.rates import PHYSICS_HZ
 
 TOLERANCE_M = 0.05
 

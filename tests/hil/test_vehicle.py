@@ -78,24 +78,6 @@ def _vehicle(ecu, feeder, out, *extra: str) -> int:
                  "--channel", process.tty_path, "--profile", profile, "--speed", "1", "--out", str(out), *extra])
 
 
-def test_vehicle_follows_its_gnss_and_writes_its_outputs(ecu, tmp_path, capsys):
-    feeder = NmeaFeeder()
-    try:
-        code = _vehicle(ecu, feeder, tmp_path / "run", "--defense", "none", "--detector", "none", "--duration", "3")
-        last = feeder.last_xy
-    finally:
-        feeder.close()
-    assert code == 0, capsys.readouterr().err
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["consequence"] == "reach_destination" and summary["faults"] == []
-    assert summary["nmea_fixes"] >= 25 and summary["can_frames_rx"] > 0 and (tmp_path / "run" / "can.asc").exists()
-    rows = (tmp_path / "run" / "trajectory.csv").read_text().splitlines()
-    assert len(rows) == 301
-    x, y = (float(v) for v in rows[-1].split(",")[1:3])
-    assert np.hypot(x - last[0], y - last[1]) < 1.0  # the MSF follows the fixes
-    assert "vehicle on parking-lot: consequence reach_destination" in capsys.readouterr().out
-
-
 def test_a_gnss_stream_that_stops_ends_the_vehicle_run_as_a_fault(ecu, tmp_path, capsys):
     feeder = NmeaFeeder(seconds=1.5)
     try:
@@ -103,7 +85,7 @@ def test_a_gnss_stream_that_stops_ends_the_vehicle_run_as_a_fault(ecu, tmp_path,
     finally:
         feeder.close()
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 3 and err[-1].startswith("ld3: chassis fault: gnss_stalled at")
+    assert code == 3 and err[-1].startswith("ld3: chassis fault: gnss_stalled at"), err
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["consequence"] == "chassis_fault" and summary["sim_time_s"] < 5.0
 
@@ -114,10 +96,10 @@ def test_ld3_on_a_camera_that_ends_stops_as_a_fault(ecu, tmp_path, capsys):
     for _ in range(30):
         writer.write(np.full((160, 320, 3), 90, np.uint8))
     writer.release()
-    feeder = NmeaFeeder()
+    feeder = NmeaFeeder(speed=0.0)  # fixes where the car stands: a feed that disagrees with it is a fault of its own
     try:
         code = _vehicle(ecu, feeder, tmp_path / "run", "--camera", f"video:{video}", "--detector", "classical",
-                        "--duration", "10")
+                        "--duration", "10", "--speed", "0.2")
     finally:
         feeder.close()
     err = capsys.readouterr().err.strip().splitlines()
@@ -132,3 +114,14 @@ def test_vehicle_refuses_what_cannot_run_on_a_vehicle(tmp_path, capsys):
                            (["--detector", "none"], "defense ld3 needs a lane detector")):
         assert main(["vehicle", "--map", "parking-lot", "--gnss", "nmea:/dev/null", *extra]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_vehicle_refuses_bad_arguments_in_one_line(tmp_path, capsys):
+    for extra, message in ((["--origin", "91,0"], "--origin takes LAT,LON"),
+                           (["--origin", "nan,nan"], "--origin takes LAT,LON"),
+                           (["--origin", "48.1"], "--origin takes LAT,LON"),
+                           (["--lane", "99", "--defense", "none", "--detector", "none"], "--lane 99: parking-lot"),
+                           (["--scenario", str(tmp_path / "none.toml")], "cannot read scenario")):
+        assert main(["vehicle", "--map", "parking-lot", "--gnss", "nmea:/dev/null", *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err

@@ -2,7 +2,6 @@ import numpy as np
 import pytest
 
 from testbed.errors import UserError
-from testbed.loop import CONTROL_HZ
 from testbed.perception import closed_loop
 from testbed.perception.closed_loop import (
     drive,
@@ -14,6 +13,7 @@ from testbed.perception.closed_loop import (
 )
 from testbed.perception.registry import TRAFFIC_WEIGHTS
 from testbed.perception.seeds import Cell, cells, check_cells
+from testbed.rates import CONTROL_HZ
 
 
 def test_cells_use_distinct_held_out_layouts_and_refuse_unknown_names():

@@ -11,7 +11,7 @@ def _scenario(**overrides):
 def test_tracking_defaults_to_camera_detectors_and_needs_a_detector():
     sim = SimRun(_scenario())
     try:
-        assert sim.tracker is None  # the oracle reads no camera
+        assert sim.parts.tracker is None  # the oracle reads no camera
     finally:
         sim.close()
     with pytest.raises(ScenarioError, match="tracking needs a lane detector"):
@@ -29,8 +29,8 @@ def test_the_tracker_runs_after_the_ld_side_tamper_and_feeds_the_recorded_d_ld()
     assert result.summary["tracking"] is True
     last = result.rows[-1]
     assert last.ld_dev - last.phys_dev == pytest.approx(shift, abs=0.03)  # D_LD is of the tracked lines
-    tracked_left = sim.tracker.kf.x[0, 0]  # the tracker itself saw the tampered lines
-    assert tracked_left == pytest.approx(sim.lane_width / 2 - last.phys_dev - shift, abs=0.03)
+    tracked_left = sim.parts.tracker.kf.x[0, 0]  # the tracker itself saw the tampered lines
+    assert tracked_left == pytest.approx(sim.parts.lane_width / 2 - last.phys_dev - shift, abs=0.03)
 
 
 def test_the_scenarios_detector_tracking_key_switches_the_tracker():
@@ -39,7 +39,7 @@ def test_the_scenarios_detector_tracking_key_switches_the_tracker():
     on = SimRun(_scenario(detector="classical"))
     off = SimRun(apply_settings(_scenario(detector="classical"), ["detector.tracking=false"]))
     try:
-        assert on.tracker is not None and off.tracker is None
+        assert on.parts.tracker is not None and off.parts.tracker is None
     finally:
         on.close()
         off.close()

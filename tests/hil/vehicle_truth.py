@@ -1,0 +1,94 @@
+"""A vehicle on the bench with its GNSS from where it truly is: an in-process ECU emulator on a virtual bus
+whose plant is a kinematic bicycle placed on a map lane, and a thread writing GGA at 10 Hz from the plant's
+true pose onto a pty (with an HDOP of choice, as a hostile receiver would send)."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import tty
+import uuid
+
+import numpy as np
+from pynmeagps import GET, NMEAMessage
+
+from hil.bus_config import BusConfig
+from hil.ecu import EcuEmulator, EcuLimits
+from hil.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
+from hil.kinematic_plant import KinematicBicyclePlant
+from hil.nmea_gnss import UERE_M
+from hil.profile import load_profile
+from hil.timing import ClockMode
+from testbed.presets import build_track, vehicle
+from tracks.map_api import OffMapError
+from tracks.pose import Pose
+from tracks.semantic_map import TrackMap
+
+PLANE = LocalTangentPlane(*DEFAULT_ORIGIN)
+RTK = 4
+
+
+def gga(x: float, y: float, hdop: float) -> bytes:
+    """One $GPGGA line at world (x, y) with `hdop` as given (RTK fix quality)."""
+    lat, lon = PLANE.to_latlon(x, y)
+    stamp = time.strftime("%H:%M:%S", time.gmtime()) + ".00"
+    return NMEAMessage("GP", "GGA", GET, hpnmeamode=True, time=stamp, lat=abs(lat), NS="N" if lat >= 0 else "S",
+                       lon=abs(lon), EW="E" if lon >= 0 else "W", quality=RTK, numSV=14, HDOP=hdop, alt=0.0,
+                       altUnit="M", sep=0.0, sepUnit="M", diffAge="", diffStation="").serialize()
+
+
+class TruthBench:
+    """The ECU (profile folder `profile`) on virtual channel `channel`, its plant at `start_s` m of the `lane` of
+    `track`; GGA from the plant's rear axle projected to the reference point, σ 0.05 m unless `hdop` is given
+    (from `hostile_after` s of the feed on). `off_lane_m()` is the plant's largest |lane deviation| so far."""
+
+    def __init__(self, profile: str, track: str, start_s: float, lane: int = 0, vehicle_name: str = "dev-chassis",
+                 hdop: float | None = None, hostile_after: float = 0.0) -> None:
+        self.track = build_track(track)
+        self.smap = TrackMap(self.track)
+        self.lane = lane
+        params = vehicle(vehicle_name)
+        self.ref_ahead = -params.rear_axle_x
+        start = self.track.start_pose(lane, start_s)
+        axle = (start.x - self.ref_ahead * np.cos(start.yaw), start.y - self.ref_ahead * np.sin(start.yaw))
+        self.plant = KinematicBicyclePlant(wheelbase=params.wheelbase, pose=Pose(*axle, start.yaw))
+        self.channel = f"ld3-bench-{uuid.uuid4().hex[:10]}"
+        self.bus = BusConfig("virtual", self.channel).open()
+        self.ecu = EcuEmulator(self.bus, self.plant, EcuLimits(), ClockMode.REALTIME, profile=load_profile(profile))
+        self.ecu.start()
+        self.hdop, self.hostile_after = hdop, hostile_after
+        self.max_off = 0.0
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.path = os.ttyname(self.slave)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._feed, daemon=True)
+        self._thread.start()
+
+    def _pose(self) -> Pose:
+        p = self.plant.read().true_pose
+        return Pose(p.x + self.ref_ahead * np.cos(p.yaw), p.y + self.ref_ahead * np.sin(p.yaw), p.yaw)
+
+    def _feed(self) -> None:
+        t0 = time.monotonic()
+        while not self._stop.is_set():
+            pose = self._pose()
+            try:
+                self.max_off = max(self.max_off, abs(self.smap.lane_dev(pose, self.lane)))
+            except OffMapError:
+                self.max_off = float("inf")
+            hostile = self.hdop is not None and time.monotonic() - t0 >= self.hostile_after
+            os.write(self.master, gga(pose.x, pose.y, self.hdop if hostile else 0.05 / UERE_M[RTK]))
+            self._stop.wait(0.1)
+
+    def off_lane_m(self) -> float:
+        return self.max_off
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.ecu.stop()
+        self.bus.shutdown()
+        os.close(self.master)
+        os.close(self.slave)
