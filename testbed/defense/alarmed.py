@@ -34,7 +34,9 @@ class Ld3AlarmedDefense(LatchingDefense):
         self.faults = FaultLog(logger)
         self.monitor = LaneConsistencyMonitor(config.b, config.tau, config.existence_threshold, self.faults,
                                               fail_closed=config.fail_closed,
-                                              heading=Cusum(config.heading_b, config.heading_tau))
+                                              heading=Cusum(config.heading_b, config.heading_tau),
+                                              along=Cusum(config.along_b, config.along_tau),
+                                              along_gain=config.along_gain)
         self.detection_time: float | None = None
         self.checked = DeadReckoning()
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""

@@ -15,7 +15,12 @@ residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is 
 measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
 the lines. Every skipped or degraded update is a fault. A second CUSUM (`heading`) checks the MSF's heading
 relative to the lane against the lines' (against the dead-reckoned yaw where lines are absent): an MSF yaw
-biased with a true position moves no deviation Alg. 1 compares, yet steers the car off the centreline.
+biased with a true position moves no deviation Alg. 1 compares, yet steers the car off the centreline. A third
+CUSUM (`along`) checks the MSF pose's position along the lane against the dead-reckoned pose's: an MSF pose moved
+along the lane with its lateral offset and relative heading kept moves neither deviation, yet hands the controller
+another station's curvature. The dead-reckoned pose takes only the share `along_gain` of the MSF's station at each
+anchor, so odometry, not the MSF, carries the station between anchors; a drift slower than about
+along_b · along_gain · detection rate stays under the check (docs/decisions.md).
 
 `Ld3Detector` and `cusum_alarm_index` run the same test on logged (D_MSF, D_LD) traces, e.g. to sweep b and τ
 for ROC curves.
@@ -106,10 +111,14 @@ class LaneConsistencyMonitor:
     `fail_closed` selects the fail-closed front end (module docstring) over the paper's."""
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
-                 fail_closed: bool, heading: Cusum | None = None) -> None:
+                 fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
+                 along_gain: float = 1.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
+        self.along = along if along is not None else Cusum(0.0, math.inf)
+        """The fail-closed along-lane check's CUSUM on |s_MSF − s_odometry| (m); never alarms when not given."""
+        self.along_gain = along_gain
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -136,7 +145,7 @@ class LaneConsistencyMonitor:
 
     def step(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection step; True at (and after) the alarm of either CUSUM."""
-        if self.detector.alarmed or self.heading.alarmed:
+        if self.detector.alarmed or self.heading.alarmed or self.along.alarmed:
             return True
         self.fresh_d_ld = None
         if self.fail_closed:
@@ -198,6 +207,8 @@ class LaneConsistencyMonitor:
                                         "no valid lane line")
         self.faults.clear()
         self.d_ld = self.fresh_d_ld = d_ld
+        if reckoned is not None and self._check_along(pose, reckoned, smap, lane):
+            return True
         if abs(d_msf - d_ld) <= self.detector.cusum.b:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld)
@@ -210,10 +221,22 @@ class LaneConsistencyMonitor:
         """Feed the heading CUSUM the wrapped heading residual (rad); True (and `ego_lane` fixed) on its alarm."""
         return self.heading.update(math.remainder(residual, math.tau)) and self._latch(lane)
 
+    def _check_along(self, pose: Pose, reckoned: Pose, smap: SemanticMap, lane: int) -> bool:
+        """Feed the along CUSUM the MSF pose's distance along the lane from the dead-reckoned pose (m); True (and
+        `ego_lane` fixed) on its alarm."""
+        heading = smap.lane_point(reckoned, lane)[1]
+        gap = (pose.x - reckoned.x) * math.cos(heading) + (pose.y - reckoned.y) * math.sin(heading)
+        return self.along.update(gap) and self._latch(lane)
+
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
-        """Re-anchor the dead-reckoned pose where MSF and lines agree: the MSF pose's station, D_LD across the
-        lane, the yaw pulled towards the lane heading plus the lines' relative heading (the MSF yaw only for a
-        first anchor without one)."""
+        """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
+        way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
+        towards the lane heading plus the lines' relative heading (the MSF yaw only for a first anchor without
+        one)."""
+        reckoned = self.reckoned
+        if reckoned is not None and self.along_gain < 1.0:
+            g = self.along_gain
+            pose = Pose(reckoned.x + g * (pose.x - reckoned.x), reckoned.y + g * (pose.y - reckoned.y), pose.yaw)
         point, heading = smap.lane_point(pose, lane)
         psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
         yaw = pose.yaw if psi is None else heading + psi

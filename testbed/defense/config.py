@@ -37,6 +37,10 @@ PSource = Literal["constant", "reported"]
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
 
 
+FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "along_b", "along_tau", "along_gain", "response_gate"})
+"""The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
+
+
 class DefenseConfig(Params):
     """LD3 detection (b, tau), safety-driven fusion (window, lam, p_*, kf_*), response decelerations,
     LD line validity, and the SAVIOR baseline's CUSUM and EKF noise. SI units."""
@@ -73,6 +77,11 @@ class DefenseConfig(Params):
     heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
                              "against the lines' (against odometry where lines are absent), rad")
     heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
+    along_b: float = Field(0.5, ge=0.0, description="fail-closed along-lane check: CUSUM weight on the MSF pose's "
+                           "distance along the lane from the dead-reckoned pose (m)")
+    along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")
+    along_gain: float = Field(0.05, gt=0.0, le=1.0, description="fail-closed: share of the way to the MSF pose's "
+                              "station the dead-reckoned pose takes at each anchor (1 = all of it)")
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")
@@ -84,9 +93,9 @@ class DefenseConfig(Params):
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:
-        given = sorted({"heading_b", "heading_tau", "response_gate"} & self.model_fields_set)
+        given = sorted(FAIL_CLOSED_KEYS & self.model_fields_set)
         if given and not self.fail_closed:
-            raise ValueError(f"{', '.join(given)} set the fail-closed heading check or response gate, which "
+            raise ValueError(f"{', '.join(given)} set the fail-closed checks or response gate, which "
                              f"fail_closed = false (the paper mode) does not run: drop them or set fail_closed = true")
         return self
 
@@ -104,7 +113,7 @@ class DefenseConfig(Params):
         if self.heading not in ("ld", "fused"):
             inert.add("heading_clamp")
         if not self.fail_closed:
-            inert |= {"heading_b", "heading_tau", "response_gate"}
+            inert |= FAIL_CLOSED_KEYS
         return {k: v for k, v in self.model_dump().items() if k in reads and k not in inert}
 
     @classmethod

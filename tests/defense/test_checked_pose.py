@@ -113,3 +113,40 @@ def test_before_any_detection_the_msf_pose_is_used_and_named_a_fault():
     est = LocalizationEstimate(0.0, Pose(1.0, 2.0, 0.1), np.eye(3) * 0.01)
     assert defense.pose_for_control(est, FakeStraightMap()) == est.pose
     assert [r.kind for r in defense.fault_records()] == ["unchecked-msf"]
+
+
+def along_drive(shift_rate: float, seconds: float = 12.0) -> Ld3Defense:
+    """A car at SPEED on lane 0; from t = 2 s the MSF pose slides ahead along the lane at `shift_rate` m/s, its
+    lateral offset and heading true; lines every other tick."""
+    defense = Ld3Defense(DefenseConfig())
+    smap = FakeStraightMap()
+    for k in range(round(seconds * 40)):
+        t = k / 40.0
+        defense.on_odometry(t, SPEED, 0.0)
+        along = max(0.0, t - 2.0) * shift_rate
+        est = LocalizationEstimate(t, Pose(50.0 + SPEED * t + along, 0.0, 0.0), np.eye(3) * 0.01)
+        if k % 2 == 0:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        defense.pose_for_control(est, smap)
+    return defense
+
+
+def test_an_msf_pose_sliding_along_the_lane_is_caught_by_the_along_check():
+    fast = along_drive(5.0)
+    assert fast.mode == "ar" and fast.monitor.along.alarmed and not fast.monitor.detector.alarmed
+    # caught within a few metres: weight 0.5 m, threshold 2 m, the dead-reckoned station taking 5 % an anchor
+    assert fast.detection_time < 2.0 + 3.0 / 5.0
+
+
+def test_a_drift_below_the_along_check_s_rate_stays_undetected_and_the_station_lags_it():
+    slow = along_drive(0.2)  # under 0.5 m × 0.05 × 20 Hz = 0.5 m/s
+    assert slow.mode == "normal" and slow.monitor.along.statistic == 0.0
+    reckoned = slow.monitor.reckoned
+    true_x = 50.0 + SPEED * (479 / 40.0)
+    # the dead-reckoned station lags the 2 m the MSF slid by the steady gap rate / (gain × rate) = 0.2 m
+    assert reckoned.x - true_x == pytest.approx(2.0 - 0.2, abs=0.1)
+
+
+def test_the_paper_mode_runs_no_along_check():
+    with pytest.raises(ValueError, match="along_b"):
+        DefenseConfig(fail_closed=False, along_b=1.0)
