@@ -116,8 +116,7 @@ class CanChassisBridge(ChassisPort):
         self._speed_seen_us: int | None = None
         self._speed_seen_wall: float | None = None
         self._window: Counter[int] = Counter()
-        self._report_rate = ReportRateGuard.for_timeout(self._report_ids, self.profile.timing.cycle_s,
-                                                        self.profile.timing.report_timeout_s)
+        self._report_rate = self._rate_guards()
         self._reject_run: Counter[int] = Counter()
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.frames_tx = 0
@@ -127,6 +126,14 @@ class CanChassisBridge(ChassisPort):
         self.odometry_error_max_m: float | None = None
         self.odometry_error_last_m: float | None = None
         self._notifier = can.Notifier(bus, [_Receiver(self.handle, self._receive_failed)], timeout=0.05)
+
+    def _rate_guards(self) -> dict[int, ReportRateGuard]:
+        """One report-rate guard per report period (the DBC's cycle times), by report ID."""
+        cycles = self.profile.report_cycles_by_id()
+        guards = {cycle: ReportRateGuard.for_timeout({i for i, c in cycles.items() if c == cycle}, cycle,
+                                                     self.profile.timing.report_timeout_s)
+                  for cycle in set(cycles.values())}
+        return {frame_id: guards[cycle] for frame_id, cycle in cycles.items()}
 
     # ------------------------------------------------------------------ ChassisPort
     def read(self) -> ChassisState:
@@ -456,9 +463,10 @@ class CanChassisBridge(ChassisPort):
         if self.clock is ClockMode.LOCKSTEP:
             self._window[frame_id] += 1
             return
-        if not self._report_rate.arrive(frame_id, self._wall_clock()):
+        guard = self._report_rate[frame_id]
+        if not guard.arrive(frame_id, self._wall_clock()):
             self._raise("foreign_sender", f"report ID 0x{frame_id:03X} arrives faster than one frame per "
-                        f"{self.profile.timing.cycle_s * 1e3:.0f} ms cycle")
+                        f"{guard.cycle_s * 1e3:.0f} ms cycle")
 
     def _wait_until(self, t_us: int) -> None:
         self._t_us = t_us
