@@ -256,22 +256,17 @@ class _Builder:
                               self.report_cycles(reports, timing))
 
     def report_cycles(self, reports: ReportLayout, timing: Timing) -> dict[str, float]:
-        """Each report message's DBC cycle time (s); it must be a whole number of command cycles, and the speed
-        report must come more often than the report time-out."""
-        cycle_ms = round(timing.cycle_s * 1e3)
+        """Each report message's DBC cycle time (s), rounded up to whole command cycles (the emulator steps at the
+        command cycle); the speed report must come more often than the report time-out."""
         cycles = {}
         for name in reports.messages:
             ms = self.db.get_message_by_name(name).cycle_time
-            if ms is None:
-                continue
-            if ms <= 0 or ms % cycle_ms:
-                raise self.error(f"dbc {name}", f"GenMsgCycleTime {ms} ms is not a multiple of timing.cycle_ms "
-                                 f"({cycle_ms} ms)")
-            cycles[name] = ms / 1e3
-        speed = reports.quantities["speed"].message
-        if cycles.get(speed, timing.cycle_s) >= timing.report_timeout_s:
-            raise self.error("timing.report_timeout_ms", f"not longer than the cycle of {speed} "
-                             f"({cycles.get(speed, timing.cycle_s) * 1e3:.0f} ms)")
+            if ms is not None and ms > 0:
+                cycles[name] = max(math.ceil(ms / 1e3 / timing.cycle_s - 1e-9), 1) * timing.cycle_s
+        speed = cycles.get(reports.quantities["speed"].message, timing.cycle_s)
+        if speed >= timing.report_timeout_s:
+            raise self.error("timing.report_timeout_ms", f"not longer than the cycle of the speed report "
+                             f"({speed * 1e3:.0f} ms)")
         return cycles
 
     def commands(self) -> CommandLayout:

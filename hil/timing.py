@@ -5,8 +5,8 @@ applies the commands received so far, steps its plant by dt and answers with one
 SIM_StepDone. Runs are deterministic and time-outs are measured in plant time. realtime (hardware): both
 sides pace themselves on the wall clock at 50 Hz; time-outs are wall time.
 
-Reports (both modes): each report message goes out at its own period (the DBC's cycle time, a multiple of
-the command cycle): at the first step whose end has reached its next due time, which then moves to the next
+Reports (both modes): each report message goes out at its own period (the DBC's cycle time rounded up to whole
+command cycles): at the first step whose end has reached its next due time, which then moves to the next
 multiple of the period; in realtime a step up to half a cycle early counts as on time (wall-clock jitter).
 
 Command rule (both modes): a command cycle goes out at every multiple of the profile's cycle (20 ms), carrying
