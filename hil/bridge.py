@@ -414,18 +414,14 @@ class CanChassisBridge(ChassisPort):
         self._pacer = None
 
     def _pace(self) -> None:
-        """Realtime: one command cycle at each cycle boundary of chassis time; a boundary missed by more than a
-        cycle is skipped, never sent late as a burst."""
+        """Realtime: one command cycle at each cycle boundary of chassis time; woken late, it sends at once and
+        goes on at the next boundary after now (boundaries it slept through are not sent as a burst)."""
         boundary_us = (self._now_us() // self._cycle_us + 1) * self._cycle_us
         while not self._pacer_stop.wait(max(self._t0 + boundary_us / 1e6 - self._wall_clock(), 0.0)):
-            late_us = self._now_us() - boundary_us
-            if late_us < self._cycle_us:
-                command = self._cycle_command(self._now_us())
-                if command is not None:
-                    self._send_cycle(command)
-                boundary_us += self._cycle_us
-            else:
-                boundary_us = (self._now_us() // self._cycle_us + 1) * self._cycle_us
+            command = self._cycle_command(self._now_us())
+            if command is not None:
+                self._send_cycle(command)
+            boundary_us = max(boundary_us + self._cycle_us, (self._now_us() // self._cycle_us + 1) * self._cycle_us)
 
     def _send_cycle(self, command: ChassisCommand) -> None:
         request = ActuatorRequest.from_command(command, enable=self._enable, steer_rate=self.steer_rate)
