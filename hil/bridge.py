@@ -1,8 +1,10 @@
 """CAN chassis bridge: a ChassisPort whose vehicle (ECU emulator or real chassis) sits behind a CAN bus.
 
-The profile says what goes on the wire. A command cycle goes out only when the loop has given a fresh command
-since the last one and the profile's cycle is due (`hil.timing`): if the loop stalls, sending stops and the
-chassis's own command time-out trips. Commands are checked first: a non-finite value latches bad_command and
+The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle,
+whatever the loop's rate, carrying the loop's latest command while it is younger than one control period
+(`hil.timing`): if the loop stalls, sending stops and the chassis's own command time-out trips. In realtime a
+pacer thread sends the cycles on the wall clock, so a long tick of the loop does not delay them. Commands are
+checked first: a non-finite value latches bad_command and
 brakes; finite values are clamped to the profile's limits. Reports are followed through a can.Notifier and
 verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and steering
 angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only compared
@@ -33,7 +35,7 @@ from hil.odometry import KinematicOdometry
 from hil.profile import ChassisProfile, default_profile
 from hil.report_map import ReportFollower
 from hil.report_rate import ReportRateGuard
-from hil.timing import ClockMode, CommandSchedule
+from hil.timing import ClockMode, CommandCycle
 from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
 
 STANDSTILL_MPS = 0.05
@@ -97,11 +99,13 @@ class CanChassisBridge(ChassisPort):
         self._report_ids = self.profile.report_ids
         self._speed_message = self.profile.reports.quantities["speed"].message
         self._cycle_us = round(self.profile.timing.cycle_s * 1e6)
-        self._schedule = CommandSchedule(self._cycle_us)
+        self._commands = CommandCycle(self._cycle_us)
+        self._pacer: threading.Thread | None = None
+        self._pacer_stop = threading.Event()
+        self._cycle_lock = threading.Lock()
         self._listeners: list[can.Listener] = []
         self._tx_lock = threading.Lock()
         self._state_lock = threading.RLock()
-        self._fresh: ChassisCommand | None = None
         self._last_steer = 0.0
         self._enable = False
         self._engaged = False
@@ -116,8 +120,7 @@ class CanChassisBridge(ChassisPort):
         self._speed_seen_us: int | None = None
         self._speed_seen_wall: float | None = None
         self._window: Counter[int] = Counter()
-        self._report_rate = ReportRateGuard.for_timeout(self._report_ids, self.profile.timing.cycle_s,
-                                                        self.profile.timing.report_timeout_s)
+        self._report_rate = self._rate_guards()
         self._reject_run: Counter[int] = Counter()
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.frames_tx = 0
@@ -127,6 +130,14 @@ class CanChassisBridge(ChassisPort):
         self.odometry_error_max_m: float | None = None
         self.odometry_error_last_m: float | None = None
         self._notifier = can.Notifier(bus, [_Receiver(self.handle, self._receive_failed)], timeout=0.05)
+
+    def _rate_guards(self) -> dict[int, ReportRateGuard]:
+        """One report-rate guard per report period (the DBC's cycle times), by report ID."""
+        cycles = self.profile.report_cycles_by_id()
+        guards = {cycle: ReportRateGuard.for_timeout({i for i, c in cycles.items() if c == cycle}, cycle,
+                                                     self.profile.timing.report_timeout_s)
+                  for cycle in set(cycles.values())}
+        return {frame_id: guards[cycle] for frame_id, cycle in cycles.items()}
 
     # ------------------------------------------------------------------ ChassisPort
     def read(self) -> ChassisState:
@@ -158,13 +169,12 @@ class CanChassisBridge(ChassisPort):
         if self.fault_latch:
             accel = -limits.fault_decel
         self._last_steer = steer
-        self._fresh = ChassisCommand(steer, accel)
+        self._commands.give(ChassisCommand(steer, accel), self._now_us())
 
     def advance(self, dt: float) -> None:
         self._check_bus_state()
+        self._commands.loop_us = max(round(dt * 1e6), 1)
         if self.clock is ClockMode.REALTIME:
-            if self._fresh is not None and self._schedule.due(self._t_us):
-                self._send_cycle(self._fresh)
             with self._state_lock:
                 self._check_realtime()
             if self._feedback_lost:
@@ -174,8 +184,8 @@ class CanChassisBridge(ChassisPort):
         end_us = self._t_us + round(dt * 1e6)
         while self._t_us < end_us:
             step_us = min(end_us - self._t_us, self._cycle_us - self._t_us % self._cycle_us)
-            send = self._fresh is not None and self._schedule.due(self._t_us)
-            self._exchange(step_us, self._fresh if send else None)
+            due = self._commands.is_boundary(self._t_us)
+            self._exchange(step_us, self._cycle_command(self._t_us) if due else None)
             self._t_us += step_us
 
     def latched_faults(self) -> tuple[ChassisFault, ...]:
@@ -202,6 +212,7 @@ class CanChassisBridge(ChassisPort):
             # the run's clock starts here: pacing from construction would replay set-up time as a burst of steps
             self._t0 = self._wall_clock() - self._t_us / 1e6
             self._speed_seen_wall = self._wall_clock()
+            self._start_pacer()
 
     def release(self, timeout: float = 2.0) -> None:
         """Hand control back: release cycles until the VCU reports standby; only at standstill."""
@@ -209,6 +220,7 @@ class CanChassisBridge(ChassisPort):
         if abs(speed) > STANDSTILL_MPS:
             raise BridgeError(f"refusing to hand back control at {speed:.2f} m/s: not at standstill")
         self._engaged = False
+        self._stop_pacer()
         self._handshake(False, timeout, lambda: self.follower.mode == "standby")
 
     def stop_and_release(self, timeout: float = 10.0) -> None:
@@ -232,6 +244,7 @@ class CanChassisBridge(ChassisPort):
         self._raise("interrupted", f"run interrupted by {reason}")
 
     def close(self) -> None:
+        self._stop_pacer()
         self._notifier.stop()
 
     # ------------------------------------------------------------------ faults
@@ -378,14 +391,47 @@ class CanChassisBridge(ChassisPort):
         self.odometry_error_max_m = max(self.odometry_error_max_m or 0.0, error)
         self.odometry_error_last_m = error
 
+    def _now_us(self) -> int:
+        return self._t_us if self.clock is ClockMode.LOCKSTEP else round(self.time() * 1e6)
+
+    def _cycle_command(self, t_us: int) -> ChassisCommand | None:
+        """The command a cycle at chassis time `t_us` carries: none without a command younger than one control
+        period; braking at fault_decel once a fault is latched."""
+        command = self._commands.at(t_us)
+        if command is not None and self.fault_latch:
+            command = ChassisCommand(command.steer, -self.profile.longitudinal.fault_decel)
+        return command
+
+    def _start_pacer(self) -> None:
+        self._pacer_stop.clear()
+        self._pacer = threading.Thread(target=self._pace, name="bridge-command-cycle", daemon=True)
+        self._pacer.start()
+
+    def _stop_pacer(self) -> None:
+        self._pacer_stop.set()
+        if self._pacer is not None and self._pacer is not threading.current_thread():
+            self._pacer.join(timeout=1.0)
+        self._pacer = None
+
+    def _pace(self) -> None:
+        """Realtime: one command cycle at each cycle boundary of chassis time; woken late, it sends at once and
+        goes on at the next boundary after now (boundaries it slept through are not sent as a burst)."""
+        boundary_us = (self._now_us() // self._cycle_us + 1) * self._cycle_us
+        while not self._pacer_stop.wait(max(self._t0 + boundary_us / 1e6 - self._wall_clock(), 0.0)):
+            command = self._cycle_command(self._now_us())
+            if command is not None:
+                self._send_cycle(command)
+            boundary_us = max(boundary_us + self._cycle_us, (self._now_us() // self._cycle_us + 1) * self._cycle_us)
+
     def _send_cycle(self, command: ChassisCommand) -> None:
         request = ActuatorRequest.from_command(command, enable=self._enable, steer_rate=self.steer_rate)
-        for name, signals in request.to_signals(self.profile).items():
-            self._transmit(self.codec.encode(name, signals))
-        self._fresh = None
+        with self._cycle_lock:
+            for name, signals in request.to_signals(self.profile).items():
+                self._transmit(self.codec.encode(name, signals))
 
     def _stamp(self, frame: can.Message) -> None:
-        frame.timestamp = self._rx_t_us / 1e6 if self.clock is ClockMode.LOCKSTEP else time.time()
+        """A sent frame's time: in lockstep the start of the step it opens, in realtime the wall clock."""
+        frame.timestamp = self._t_us / 1e6 if self.clock is ClockMode.LOCKSTEP else time.time()
 
     def _transmit(self, frame: can.Message) -> bool:
         """Send one frame; a refusal by the bus latches send_error, a gone device link_lost (the loop learns of
@@ -456,9 +502,10 @@ class CanChassisBridge(ChassisPort):
         if self.clock is ClockMode.LOCKSTEP:
             self._window[frame_id] += 1
             return
-        if not self._report_rate.arrive(frame_id, self._wall_clock()):
+        guard = self._report_rate[frame_id]
+        if not guard.arrive(frame_id, self._wall_clock()):
             self._raise("foreign_sender", f"report ID 0x{frame_id:03X} arrives faster than one frame per "
-                        f"{self.profile.timing.cycle_s * 1e3:.0f} ms cycle")
+                        f"{guard.cycle_s * 1e3:.0f} ms cycle")
 
     def _wait_until(self, t_us: int) -> None:
         self._t_us = t_us

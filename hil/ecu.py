@@ -7,7 +7,8 @@ Per step of `dt` (lockstep: on SIM_StepRequest; realtime: every 20 ms of wall ti
 3. drives the plant: self-driving applies each new cycle once (sample-and-hold), the steering angle clipped
    to `max_steer` and its change to `min(requested, max_steer_rate) * max(elapsed, 20 ms)`; a latched fault
    brakes at `estop_decel` to standstill holding the steering angle; standby coasts;
-4. advances the plant by dt and publishes one report set (lockstep: closed by SIM_StepDone).
+4. advances the plant by dt and publishes the report messages due at their periods (`hil.timing`; lockstep: a
+   step of 0 s, the enable handshake's poll, publishes them all), closed in lockstep by SIM_StepDone.
 Command frames are verified by a CommandGuard; its bad-frame and foreign-node faults revoke control like a
 command timeout does, and so do a pressed chassis e-stop and an injected subsystem fault (`press_estop`,
 `inject_fault`: the hardware faults a test drives the bridge with). Frame layout, counters, checksums and the
@@ -29,7 +30,7 @@ from hil.codec import ChassisCodec, FrameRejected
 from hil.command_guard import CommandGuard, GuardLimits
 from hil.profile import ChassisProfile
 from hil.report_map import DrivingMode, EStopSource, VcuReport
-from hil.timing import ClockMode
+from hil.timing import ClockMode, ReportSchedule
 from testbed.chassis import ChassisCommand, ChassisPort
 
 STANDSTILL_MPS = 0.01
@@ -98,9 +99,18 @@ class EcuEmulator:
         self.frames_rx = 0
         self.frames_tx = 0
         self.step_requests_rejected = 0
+        self._reports = self._report_schedule()
+        self._t0 = wall_clock()
         self._notifier: can.Notifier | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    def _report_schedule(self) -> ReportSchedule:
+        p = self.profile
+        names = [*p.reports.messages, *(n for n in (p.simulation.truth_position, p.simulation.truth_motion) if n)]
+        periods = {name: round(p.report_cycle_s(name) * 1e6) for name in names}
+        early = round(p.timing.cycle_s * 1e6) // 2 if self.clock is ClockMode.REALTIME else 0
+        return ReportSchedule(periods, early)
 
     # ------------------------------------------------------------------ running
     def start(self) -> None:
@@ -200,7 +210,7 @@ class EcuEmulator:
                 self.plant.advance(dt)
                 if self.clock is ClockMode.LOCKSTEP:
                     self._sim_us += round(dt * 1e6)
-            self._publish()
+            self._publish(poll=dt <= 0)
 
     def _check_timeout(self, now: float) -> None:
         if self.mode is not DrivingMode.SELF_DRIVING or self.faulted:
@@ -291,9 +301,11 @@ class EcuEmulator:
             bad_mac_count=self.guard.rejected["mac"],
         )
 
-    def _publish(self) -> None:
+    def _publish(self, poll: bool) -> None:
+        t_us = self._sim_us if self.clock is ClockMode.LOCKSTEP else round((self._wall_clock() - self._t0) * 1e6)
         for name, signals in self.report().to_signals(self.profile, truth=self.truth).items():
-            self._send(name, signals)
+            if self._reports.due(name, t_us) or poll:
+                self._send(name, signals)
 
     def _send(self, name: str, signals: dict[str, float]) -> None:
         frame = self.codec.encode(name, signals)

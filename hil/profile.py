@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -180,6 +180,7 @@ class ChassisProfile:
     integrity: dict[str, Integrity]
     simulation: SimulationFrames
     secoc: Secoc | None = None
+    report_cycles: dict[str, float] = field(default_factory=dict)
 
     def message(self, name: str) -> DbcMessage:
         return self.db.get_message_by_name(name)
@@ -194,6 +195,13 @@ class ChassisProfile:
     @property
     def report_ids(self) -> frozenset[int]:
         return frozenset(self.frame_id(name) for name in self.reports.messages)
+
+    def report_cycle_s(self, name: str) -> float:
+        """How often report message `name` goes out (s): its DBC GenMsgCycleTime, else the profile's cycle."""
+        return self.report_cycles.get(name, self.timing.cycle_s)
+
+    def report_cycles_by_id(self) -> dict[int, float]:
+        return {self.frame_id(name): self.report_cycle_s(name) for name in self.reports.messages}
 
 
 class _Builder:
@@ -240,10 +248,26 @@ class _Builder:
         steering = Steering(st.ratio, 1 if st.positive == "left" else -1, math.radians(st.max_angle_deg),
                             math.radians(st.max_rate_deg_s))
         integrity = self.integrity()
+        reports = self.reports()
         return ChassisProfile(doc.name or self.name, doc.description, self.root, self.dbc_path, self.db, timing,
                               longitudinal, steering, self.commands(), dict(doc.gears), dict(doc.modes),
-                              self.reports(), integrity, self.simulation(),
-                              self.secoc(integrity) if doc.secoc is not None else None)
+                              reports, integrity, self.simulation(),
+                              self.secoc(integrity) if doc.secoc is not None else None,
+                              self.report_cycles(reports, timing))
+
+    def report_cycles(self, reports: ReportLayout, timing: Timing) -> dict[str, float]:
+        """Each report message's DBC cycle time (s), rounded up to whole command cycles (the emulator steps at the
+        command cycle); the speed report must come more often than the report time-out."""
+        cycles = {}
+        for name in reports.messages:
+            ms = self.db.get_message_by_name(name).cycle_time
+            if ms is not None and ms > 0:
+                cycles[name] = max(math.ceil(ms / 1e3 / timing.cycle_s - 1e-9), 1) * timing.cycle_s
+        speed = cycles.get(reports.quantities["speed"].message, timing.cycle_s)
+        if speed >= timing.report_timeout_s:
+            raise self.error("timing.report_timeout_ms", f"not longer than the cycle of the speed report "
+                             f"({speed * 1e3:.0f} ms)")
+        return cycles
 
     def commands(self) -> CommandLayout:
         c = self.doc.commands

@@ -13,28 +13,30 @@ from hil.bridge import CanChassisBridge
 from hil.codec import ChassisCodec
 from hil.ecu import EcuEmulator, EcuLimits
 from hil.kinematic_plant import KinematicBicyclePlant
-from hil.timing import CommandSchedule
+from hil.timing import CommandCycle
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 
 
 class SampleAndHoldPort(ChassisPort):
-    """The direct-run reference: the 50 Hz rule of hil.timing applied to a plant with no bus in between."""
+    """The direct-run reference: the 50 Hz rule of hil.timing applied to a plant with no bus in between (ticks
+    that divide the cycle)."""
 
     def __init__(self, plant: ChassisPort) -> None:
         self.plant = plant
-        self._schedule = CommandSchedule()
-        self._pending: ChassisCommand | None = None
+        self._cycle = CommandCycle()
         self._t_us = 0
 
     def read(self) -> ChassisState:
         return self.plant.read()
 
     def send(self, cmd: ChassisCommand) -> None:
-        self._pending = cmd
+        self._cycle.give(cmd, self._t_us)
 
     def advance(self, dt: float) -> None:
-        if self._schedule.due(self._t_us) and self._pending is not None:
-            self.plant.send(self._pending)
+        self._cycle.loop_us = round(dt * 1e6)
+        command = self._cycle.at(self._t_us) if self._cycle.is_boundary(self._t_us) else None
+        if command is not None:
+            self.plant.send(command)
         self.plant.advance(dt)
         self._t_us += round(dt * 1e6)
 

@@ -146,7 +146,7 @@ def test_every_frame_is_recorded_and_replays_onto_a_bus(link, tmp_path, suffix):
     recorder = FrameRecorder(tmp_path / f"run{suffix}")
     bridge.add_listener(recorder)
     bridge.engage()
-    for _ in range(50):
+    for _ in range(100):  # 1 s: commands and reports every 20 ms, step requests every 10 ms
         bridge.send(ChassisCommand(0.01, 1.0))
         bridge.advance(0.01)
     bridge.close()

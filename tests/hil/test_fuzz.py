@@ -73,11 +73,11 @@ def ld3_dev_in_range(frame_id: int, data: bytes) -> bool:
 
 
 def pix_hooke_in_range(frame_id: int, data: bytes) -> bool:
-    steer_ok = data[0] >> 4 <= 4 and abs(_s16(data, 1)) <= 500 and abs(_s16(data, 3)) <= 500 and data[5] <= 250
+    steer_ok = abs(_s16(data, 1)) <= 500 and abs(_s16(data, 3)) <= 500 and data[5] <= 250
     if frame_id == 0x130:
-        return data[0] >> 4 <= 3 and _u16(data, 1) <= 5000 and _u10(data, 3) <= 1000
+        return _u16(data, 1) <= 5000 and _u10(data, 3) <= 1000
     if frame_id == 0x131:
-        return _u10(data, 1) <= 1000 and data[3] & 0x03 <= 2
+        return _u10(data, 1) <= 1000
     if frame_id in (0x132, 0x532):
         return steer_ok
     if frame_id == 0x530:
@@ -85,12 +85,8 @@ def pix_hooke_in_range(frame_id: int, data: bytes) -> bool:
     if frame_id == 0x531:
         return _u10(data, 1) <= 1000
     if frame_id == 0x534:
-        dc, eco = (data[0] >> 4) & 0x03, (data[1] >> 2) & 0x03
-        return dc <= 2 and eco <= 2 and _u16(data, 2) <= 500 and data[4] <= 250 and data[5] & 0x0F <= 3
-    if frame_id == 0x537:
-        nibbles = [b >> shift & 0x0F for b in data[1:6] for shift in (0, 4)] + [data[6] & 0x0F]
-        return all(level <= 4 for level in nibbles)
-    return True
+        return _u16(data, 2) <= 500 and data[4] <= 250
+    return True  # 0x537: every 4-bit level is in the public range 0-15
 
 
 def ld3_dev_secoc_in_range(frame_id: int, data: bytes) -> bool:
@@ -131,7 +127,7 @@ PROFILES = {
     ),
     "pix-hooke": FuzzSpec(
         (0x530, 0x531, 0x532, 0x534, 0x537, 0x5F1, 0x5F2, 0x5F3),
-        (*COMMAND_IDS, 0x534),
+        (0x130, 0x131, 0x534),
         (*COMMAND_IDS, 0x534, 0x5F0, 0x5F1, 0x5F2, 0x5F3),
         pix_hooke_in_range,
     ),

@@ -40,22 +40,24 @@ def test_pix_hooke_brake_frame_bytes():
 
 
 def test_pix_hooke_steer_frame_bytes():
-    # 0x132: 5° road wheel left = -71° at the steering wheel (ratio 14.2857, + right) = 0xFFB9 in bits 8-23;
-    # rate 0.5 rad/s = 28.65 °/s road wheel = 409.3 °/s at the wheel = 205 at 2 °/s in bits 40-47
+    # 0x132: 5° road wheel left = -75° at the steering wheel (ratio 15, + right) = 0xFFB5 in bits 8-23;
+    # rate 0.5 rad/s = 28.65 °/s road wheel = 429.7 °/s at the wheel = 215 at 2 °/s in bits 40-47;
+    # no life counter (byte 6 stays 0); byte 7 XOR
     frame = pix_frames(math.radians(5.0), 0.0)[0x132]
-    assert frame == bytes([0x01, 0xB9, 0xFF, 0x00, 0x00, 0xCD, 0x00, 0x8A])
+    assert frame == bytes([0x01, 0xB5, 0xFF, 0x00, 0x00, 0xD7, 0x00, 0x9C])
 
 
 def test_pix_hooke_life_counters_advance_per_frame_and_reports_need_no_checksum():
     codec = ChassisCodec(PIX)
     request = ActuatorRequest.from_command(ChassisCommand(0.0, 0.0), enable=True, steer_rate=0.5)
-    lives = [codec.encode("A2V_SteerCtrl", request.to_signals(PIX)["A2V_SteerCtrl"]).data[6] & 0x0F
-             for _ in range(18)]
+    lives = [codec.encode("DriveCtrl", request.to_signals(PIX)["DriveCtrl"]).data[6] & 0x0F for _ in range(18)]
     assert lives == [k % 16 for k in range(18)]
+    steer = [codec.encode("SteerCtrl", request.to_signals(PIX)["SteerCtrl"]).data[6] for _ in range(3)]
+    assert steer == [0, 0, 0]  # the public steer command carries no life counter
     speed_report = bytearray(8)
     speed_report[1:3] = (412).to_bytes(2, "little")  # 4.12 m/s, byte 7 left 0: no checksum on 0x530
     decoded = ChassisCodec(PIX).decode(can.Message(arbitration_id=0x530, is_extended_id=False, data=speed_report))
-    assert decoded.signals["SpeedFb"] == pytest.approx(4.12)
+    assert decoded.signals["ChassisSpeedFb"] == pytest.approx(4.12)
 
 
 @pytest.mark.parametrize("name", ["pix-hooke", "user"])
@@ -65,7 +67,8 @@ def test_a_profile_drives_the_link_with_no_code_change(name, tmp_path):
         shutil.copytree(PROFILES_DIR / "pix-hooke", root)
         for file in ("chassis.dbc", "profile.toml"):
             path = root / file
-            path.write_text(path.read_text().replace("A2V_SteerCtrl", "MySteer").replace("pix-hooke", "mine"))
+            path.write_text(path.read_text().replace(" SteerCtrl", " MySteer").replace('"SteerCtrl"', '"MySteer"')
+                            .replace("SteerCtrl =", "MySteer =").replace("pix-hooke", "mine"))
         profile = load_profile(str(root))
         assert profile.commands.steer == "MySteer"
     else:
@@ -100,23 +103,23 @@ def test_a_profile_drives_the_link_with_no_code_change(name, tmp_path):
 @pytest.mark.parametrize(
     ("edit", "field"),
     [
-        (('angle = "SteerAngleTarget"', 'angle = "NoSuchSignal"'), "commands.steer.angle"),
+        (('angle = "ChassisSteerAngleTarget"', 'angle = "NoSuchSignal"'), "commands.steer.angle"),
         (("cycle_ms = 20\n", ""), "timing.cycle_ms: missing"),
         (("[gears]\n", "[gears]\nsecond = 5\n"), "gears.second: unknown name"),
         (('positive = "right"', 'positive = "up"'), "steering.positive"),
-        (('VcuLife", checksum = "VcuChecksum"', 'VcuLife", checksum = "VcuLife"'), "checksum"),
+        (('"Life", checksum = "CheckSum"', '"Life", checksum = "Life"'), "checksum"),
         (("max_accel = 3.5", "max_accel = 30.5"), "longitudinal.max_accel"),
         (("[timing]\n", "[timing]\ncycle = 1\n"), "timing.cycle: unknown key"),
-        (('speed = "V2A_DriveStaFb.SpeedFb"', 'speed = "SpeedFb"'), "reports.speed"),
+        (('speed = "DriveStaFb.ChassisSpeedFb"', 'speed = "ChassisSpeedFb"'), "reports.speed"),
         (("cycle_ms = 20", "cycle_ms = 0"), "timing.cycle_ms: must be > 0"),
         (("cycle_ms = 20", 'cycle_ms = "fast"'), "timing.cycle_ms: must be a number"),
         (("command_timeout_ms = 100", "command_timeout_ms = 10"), "timing.command_timeout_ms: shorter than one cycle"),
-        (("ratio = 14.2857", "ratio = nan"), "steering.ratio: must be finite"),
+        (("ratio = 15.0", "ratio = nan"), "steering.ratio: must be finite"),
         (("[modes]\nstandby = 0\n", "[modes]\n"), "modes: needs standby"),
-        (('speed = "V2A_DriveStaFb.SpeedFb"\n', ""), "reports.speed: missing"),
+        (('speed = "DriveStaFb.ChassisSpeedFb"\n', ""), "reports.speed: missing"),
         (("[reports.estop_values]\nnone = 0\n", "[reports.estop_values]\n"), "reports.estop_values: needs 'none'"),
-        (("constants = { DriveModeCtrl = 1 }", 'constants = { DriveModeCtrl = "one" }'),
-         "commands.drive.constants.DriveModeCtrl: must be a number"),
+        (("constants = { ChassisDriverModeCtrl = 1 }", 'constants = { ChassisDriverModeCtrl = "one" }'),
+         "commands.drive.constants.ChassisDriverModeCtrl: must be a number"),
     ],
 )
 def test_malformed_profile_is_a_one_line_error_naming_the_field(edit, field, tmp_path, capsys):

@@ -162,7 +162,7 @@ def test_recorded_hil_run_carries_every_can_frame_decoded_by_the_profile(tmp_pat
     s = result.summary
     assert len(can_msgs) == s["can_frames_tx"] + s["can_frames_rx"] == s["can_frames_logged"] > 100
     drive = [m for m in can_msgs if m["id"] == 0x130]
-    assert drive and drive[-1]["signals"]["GearCtrl"] == "D"  # the DBC's gear enum, as a name
+    assert drive and drive[-1]["signals"]["ChassisGearCtrl"] == "D"  # the DBC's gear enum, as a name
     times = [m["t"] for m in can_msgs]
     # stamped with chassis (plant) time: the run's frames, then the hand-back at standstill after it
     assert min(times) == 0.0 and s["sim_time_s"] < max(times) < s["sim_time_s"] + 1.0
