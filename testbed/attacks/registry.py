@@ -170,8 +170,8 @@ ATTACKS.add(_component(
     ResponsePhaseAttack, "adaptive: forces the alarm, then moves the MSF pose against the response",
     lambda p, rng, defense: ResponsePhaseAttack(**p),
     space=(START, FloatDim("along", -30.0, 30.0), FloatDim("lead", 0.05, 5.0, log=True),
-           FloatDim("force", -3.5, 3.5), ChoiceDim("cue", CUES), FloatDim("delay", 0.05, 3.0, log=True),
-           ChoiceDim("policy", POLICIES))))
+           FloatDim("force", -3.5, 3.5), FloatDim("yaw", -0.2, 0.2), ChoiceDim("cue", CUES),
+           FloatDim("delay", 0.05, 3.0, log=True), ChoiceDim("policy", POLICIES))))
 ATTACKS.add(_component(
     StrikeAttack, "adaptive: spends the lateral and the heading CUSUM budgets together at speed",
     lambda p, rng, defense: StrikeAttack(**p),

@@ -1,7 +1,8 @@
 """Response-phase attack: a white-box attacker who forces LD3's alarm and then attacks the response.
 
 From `start` the MSF pose is shifted `along` m along the lane (ramped over `lead` s; 0 for none), invisible to
-the lateral checks. At start + `lead` it jumps `force` m sideways (+ left) to force the alarm. Once the alarm is
+the lateral checks. At start + `lead` it jumps `force` m sideways (+ left) and turns its yaw by `yaw` rad to force
+the alarm (the turn also swings the car before the alarm comes). Once the alarm is
 observed (the victim brakes: its speed falls `BRAKE_DV` below the speed at the jump; `cue = "observed"`) or
 `delay` s after the jump (`"timed"`), the pose follows `policy`: `offmap` (moved `OFFMAP_M` sideways on the side
 of the jump, off the map), `centre` (on the lane centre, lane-parallel: D_MSF = 0), `opposite` (the jump mirrored)
@@ -38,17 +39,18 @@ class ResponsePhaseAttack(Attack):
     capabilities = frozenset({ThreatCapability.MSF_OUTPUT})
 
     def __init__(self, start: float = 10.0, along: float = 0.0, lead: float = 1.0, force: float = 2.5,
-                 cue: str = "observed", delay: float = 0.5, policy: str = "centre") -> None:
+                 yaw: float = 0.0, cue: str = "observed", delay: float = 0.5, policy: str = "centre") -> None:
         super().__init__(start)
         for name, value, low in (("response along", along, None), ("response lead", lead, 0.0),
-                                 ("response force", force, None), ("response delay", delay, 0.0)):
+                                 ("response force", force, None), ("response yaw", yaw, None),
+                                 ("response delay", delay, 0.0)):
             check_finite(name, value, low)
         if cue not in CUES:
             raise UserError(f"response cue must be one of {', '.join(CUES)}, got {cue!r}")
         if policy not in POLICIES:
             raise UserError(f"response policy must be one of {', '.join(POLICIES)}, got {policy!r}")
         self.along, self.lead, self.force, self.cue = along, lead, force, cue
-        self.delay, self.policy = delay, policy
+        self.delay, self.policy, self.yaw = delay, policy, yaw
         self.stage = IDLE
         self.offset = 0.0
         self._forced: tuple[float, float] | None = None  # (time, victim speed) at the jump
@@ -94,7 +96,9 @@ class ResponsePhaseAttack(Attack):
         except OffMapError:
             heading = view.lane_heading
         moved = shift_pose(pose, heading, self.offset)
-        if self._switched is not None and self.policy == "centre":
+        if self._switched is None or self.policy == "hold":
+            moved = Pose(moved.x, moved.y, moved.yaw + self.yaw)
+        elif self.policy == "centre":
             moved = Pose(moved.x, moved.y, heading)
         return LocalizationEstimate(est.t, moved, est.cov)
 
@@ -103,4 +107,4 @@ class ResponsePhaseAttack(Attack):
 
     def describe(self) -> dict[str, Any]:
         return {"kind": self.name, "start": self.start_time, "along": self.along, "lead": self.lead,
-                "force": self.force, "cue": self.cue, "delay": self.delay, "policy": self.policy}
+                "force": self.force, "yaw": self.yaw, "cue": self.cue, "delay": self.delay, "policy": self.policy}
