@@ -293,6 +293,43 @@ def cmd_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bound(args: argparse.Namespace) -> int:
+    from testbed.defense.config import PAPER_MODE
+    from testbed.eval.bound_table import bound_markdown, bound_rows, bound_setting, write_bound
+    from testbed.eval.scenario import apply_settings, load_scenario
+
+    sc = load_scenario(args.scenario).with_overrides(defense=args.defense, detector=args.detector)
+    if args.paper_mode:
+        sc = sc.with_overrides(defense_params={**sc.defense_params, **PAPER_MODE})
+    sc = apply_settings(sc, args.set)
+    speeds = _floats(args.speeds, "--speeds") if args.speeds else [sc.speed]
+    sigma = None
+    if args.sigma:
+        sigma = _floats(args.sigma, "--sigma")
+        if len(sigma) != 2 or min(sigma) < 0:
+            raise UserError(f"--sigma takes LATERAL,HEADING (m, rad, >= 0), got {args.sigma!r}")
+    if args.k_sigma < 0:
+        raise UserError(f"--k-sigma must be >= 0, got {args.k_sigma:g}")
+    setting = bound_setting(sc, None if sigma is None else (sigma[0], sigma[1]))
+    rows = bound_rows(setting, speeds, args.k_sigma)
+    title = (f"deviation bound: {sc.track}, {sc.vehicle}, defense {sc.defense}"
+             f"{' (paper mode)' if args.paper_mode else ''}, control {sc.rates.control_hz:g} Hz, "
+             f"camera {sc.rates.camera_hz:g} Hz, detector {sc.detector}, k = {args.k_sigma:g}")
+    print(title)
+    print(bound_markdown(rows))
+    if args.out is not None:
+        print(f"table: {write_bound(args.out, rows, title, args.force)}")
+    return 0
+
+
+def _floats(text: str, flag: str) -> list[float]:
+    """A comma list of numbers, or a one-line UserError naming `flag`."""
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise UserError(f"{flag} takes a comma list of numbers, got {text!r}") from None
+
+
 def search_victim(args: argparse.Namespace):
     """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
     from testbed.defense.config import PAPER_MODE
@@ -388,6 +425,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--address", help="ray: the cluster to connect to")
     p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("bound", help="the largest lateral deviation an attacker reaches before LD3 alarms (a linear "
+                                     "program on the closed-loop lateral model), per speed, beside the lane straddle")
+    p.add_argument("scenario", help="shipped scenario name or .toml path: its vehicle, rates, [control], [defense]")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", default="ld3",
+                   help="defense with LD3's detection: ld3 (default) or ld3-naive-ar")
+    p.add_argument("--detector", choices=DETECTORS.names(), metavar="NAME",
+                   help="lane detector whose measured benign residual σ widens b (default: the scenario's)")
+    p.add_argument("--paper-mode", action="store_true", help="LD3 as the paper writes it (unbounded: no check "
+                                                             "between detections, no heading check)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override the scenario as `ld3 run --set` does, e.g. defense.heading_tau=0.2 (repeatable)")
+    p.add_argument("--speeds", metavar="LIST", help="comma list of speeds (m/s; default: the scenario's)")
+    p.add_argument("--sigma", metavar="LAT,HEAD", help="benign residual std, lateral (m) and heading (rad) "
+                                                      "(default: measured for the detector)")
+    p.add_argument("--k-sigma", type=float, default=1.0, help="b_eff = b + k·σ (default 1)")
+    p.add_argument("--out", type=Path, help="write table.md, table.csv, bound.png here")
+    p.add_argument("--force", action="store_true", help="replace a bound table already in --out")
+    p.set_defaults(func=cmd_bound)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
