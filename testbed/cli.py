@@ -330,6 +330,28 @@ def _floats(text: str, flag: str) -> list[float]:
         raise UserError(f"{flag} takes a comma list of numbers, got {text!r}") from None
 
 
+def cmd_security_margin(args: argparse.Namespace) -> int:
+    from testbed.eval.security_margin import plan_cells, security_margin
+
+    def names(text: str | None, sep: str = ",") -> list[str] | None:
+        return None if text is None else [n.strip() for n in text.split(sep)]
+
+    try:
+        seeds = None if args.seeds is None else [int(v) for v in args.seeds.split(",")]
+    except ValueError:
+        raise UserError(f"--seeds takes a comma list of integers, got {args.seeds!r}") from None
+    threats = names(args.threats, ";")
+    cells = plan_cells(roads=names(args.roads), defenses=names(args.defenses), threats=threats, seeds=seeds,
+                       budget=args.budget)
+    print(f"security margin: {len(cells)} searches of {args.budget} trials into {args.out}")
+    table = security_margin(cells, args.out, announce=lambda line: print(line, flush=True), workers=args.workers,
+                            backend=args.backend, address=args.address, timeout=args.timeout,
+                            progress=sys.stderr.isatty())
+    print(table.read_text())
+    print(f"table: {table} and {table.with_suffix('.csv')}")
+    return 0
+
+
 def search_victim(args: argparse.Namespace):
     """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
     from testbed.defense.config import PAPER_MODE
@@ -444,6 +466,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="write table.md, table.csv, bound.png here")
     p.add_argument("--force", action="store_true", help="replace a bound table already in --out")
     p.set_defaults(func=cmd_bound)
+
+    p = sub.add_parser("security-margin", help="the security-margin table: a worst-case search (objective loss) per "
+                                               "road × threat × defense × sampler seed, with LD3's bound; resumable")
+    p.add_argument("--out", type=Path, default=Path("runs/security-margin"),
+                   help="folder of the cells and table.md/table.csv (default runs/security-margin); rerun to resume")
+    p.add_argument("--budget", type=int, default=120, help="trials per search (default 120)")
+    p.add_argument("--seeds", metavar="LIST", help="sampler seeds, comma list (default 0,1,2)")
+    p.add_argument("--roads", metavar="LIST", help="comma list of presets and held-out layouts (default: every "
+                                                    "preset, highway@101, urban-curvy@101)")
+    p.add_argument("--defenses", metavar="LIST", help="comma list of ld3, ld3-paper, naive-ar, savior (default all)")
+    p.add_argument("--threats", metavar="LIST", help="semicolon list of threat models (default "
+                                                     "gnss;msf-output;msf-output,ld-output)")
+    p.add_argument("--workers", type=int, help="parallel runs per search (as `ld3 campaign --workers`)")
+    p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
+    p.add_argument("--address", help="ray: the cluster to connect to")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.set_defaults(func=cmd_security_margin)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")
