@@ -296,8 +296,11 @@ def cmd_search(args: argparse.Namespace) -> int:
 def cmd_bound(args: argparse.Namespace) -> int:
     from testbed.defense.config import PAPER_MODE
     from testbed.eval.bound_table import bound_markdown, bound_rows, bound_setting, write_bound
+    from testbed.eval.run_folder import check_out_dir
     from testbed.eval.scenario import apply_settings, load_scenario
 
+    if args.out is not None:
+        check_out_dir(args.out, args.force)
     sc = load_scenario(args.scenario).with_overrides(defense=args.defense, detector=args.detector)
     if args.paper_mode:
         sc = sc.with_overrides(defense_params={**sc.defense_params, **PAPER_MODE})
