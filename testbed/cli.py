@@ -293,6 +293,68 @@ def cmd_search(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bound(args: argparse.Namespace) -> int:
+    from testbed.defense.config import PAPER_MODE
+    from testbed.eval.bound_table import bound_markdown, bound_rows, bound_setting, write_bound
+    from testbed.eval.run_folder import check_out_dir
+    from testbed.eval.scenario import apply_settings, load_scenario
+
+    if args.out is not None:
+        check_out_dir(args.out, args.force)
+    sc = load_scenario(args.scenario).with_overrides(defense=args.defense, detector=args.detector)
+    if args.paper_mode:
+        sc = sc.with_overrides(defense_params={**sc.defense_params, **PAPER_MODE})
+    sc = apply_settings(sc, args.set)
+    speeds = _floats(args.speeds, "--speeds") if args.speeds else [sc.speed]
+    sigma = None
+    if args.sigma:
+        sigma = _floats(args.sigma, "--sigma")
+        if len(sigma) != 2 or min(sigma) < 0:
+            raise UserError(f"--sigma takes LATERAL,HEADING (m, rad, >= 0), got {args.sigma!r}")
+    if args.k_sigma < 0:
+        raise UserError(f"--k-sigma must be >= 0, got {args.k_sigma:g}")
+    setting = bound_setting(sc, None if sigma is None else (sigma[0], sigma[1]))
+    rows = bound_rows(setting, speeds, args.k_sigma)
+    title = (f"deviation bound: {sc.track}, {sc.vehicle}, defense {sc.defense}"
+             f"{' (paper mode)' if args.paper_mode else ''}, control {sc.rates.control_hz:g} Hz, "
+             f"camera {sc.rates.camera_hz:g} Hz, detector {sc.detector}, k = {args.k_sigma:g}")
+    print(title)
+    print(bound_markdown(rows))
+    if args.out is not None:
+        print(f"table: {write_bound(args.out, rows, title, args.force)}")
+    return 0
+
+
+def _floats(text: str, flag: str) -> list[float]:
+    """A comma list of numbers, or a one-line UserError naming `flag`."""
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise UserError(f"{flag} takes a comma list of numbers, got {text!r}") from None
+
+
+def cmd_security_margin(args: argparse.Namespace) -> int:
+    from testbed.eval.security_margin import plan_cells, security_margin
+
+    def names(text: str | None, sep: str = ",") -> list[str] | None:
+        return None if text is None else [n.strip() for n in text.split(sep)]
+
+    try:
+        seeds = None if args.seeds is None else [int(v) for v in args.seeds.split(",")]
+    except ValueError:
+        raise UserError(f"--seeds takes a comma list of integers, got {args.seeds!r}") from None
+    threats = names(args.threats, ";")
+    cells = plan_cells(roads=names(args.roads), defenses=names(args.defenses), threats=threats, seeds=seeds,
+                       budget=args.budget)
+    print(f"security margin: {len(cells)} searches of {args.budget} trials into {args.out}")
+    table = security_margin(cells, args.out, announce=lambda line: print(line, flush=True), workers=args.workers,
+                            backend=args.backend, address=args.address, timeout=args.timeout,
+                            progress=sys.stderr.isatty())
+    print(table.read_text())
+    print(f"table: {table} and {table.with_suffix('.csv')}")
+    return 0
+
+
 def search_victim(args: argparse.Namespace):
     """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
     from testbed.defense.config import PAPER_MODE
@@ -388,6 +450,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--address", help="ray: the cluster to connect to")
     p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
     p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("bound", help="the largest lateral deviation an attacker reaches before LD3 alarms (a linear "
+                                     "program on the closed-loop lateral model), per speed, beside the lane straddle")
+    p.add_argument("scenario", help="shipped scenario name or .toml path: its vehicle, rates, [control], [defense]")
+    p.add_argument("--defense", choices=DEFENSES.names(), metavar="NAME", default="ld3",
+                   help="defense with LD3's detection: ld3 (default) or ld3-naive-ar")
+    p.add_argument("--detector", choices=DETECTORS.names(), metavar="NAME",
+                   help="lane detector whose measured benign residual σ widens b (default: the scenario's)")
+    p.add_argument("--paper-mode", action="store_true", help="LD3 as the paper writes it (unbounded: no check "
+                                                             "between detections, no heading check)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override the scenario as `ld3 run --set` does, e.g. defense.heading_tau=0.2 (repeatable)")
+    p.add_argument("--speeds", metavar="LIST", help="comma list of speeds (m/s; default: the scenario's)")
+    p.add_argument("--sigma", metavar="LAT,HEAD", help="benign residual std, lateral (m) and heading (rad) "
+                                                      "(default: measured for the detector)")
+    p.add_argument("--k-sigma", type=float, default=1.0, help="b_eff = b + k·σ (default 1)")
+    p.add_argument("--out", type=Path, help="write table.md, table.csv, bound.png here")
+    p.add_argument("--force", action="store_true", help="replace a bound table already in --out")
+    p.set_defaults(func=cmd_bound)
+
+    p = sub.add_parser("security-margin", help="the security-margin table: a worst-case search (objective loss) per "
+                                               "road × threat × defense × sampler seed, with LD3's bound; resumable")
+    p.add_argument("--out", type=Path, default=Path("runs/security-margin"),
+                   help="folder of the cells and table.md/table.csv (default runs/security-margin); rerun to resume")
+    p.add_argument("--budget", type=int, default=120, help="trials per search (default 120)")
+    p.add_argument("--seeds", metavar="LIST", help="sampler seeds, comma list (default 0,1,2)")
+    p.add_argument("--roads", metavar="LIST", help="comma list of presets and held-out layouts (default: every "
+                                                    "preset, highway@101, urban-curvy@101)")
+    p.add_argument("--defenses", metavar="LIST", help="comma list of ld3, ld3-paper, naive-ar, savior (default all)")
+    p.add_argument("--threats", metavar="LIST", help="semicolon list of threat models (default "
+                                                     "gnss;msf-output;msf-output,ld-output)")
+    p.add_argument("--workers", type=int, help="parallel runs per search (as `ld3 campaign --workers`)")
+    p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
+    p.add_argument("--address", help="ray: the cluster to connect to")
+    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.set_defaults(func=cmd_security_margin)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
     p.add_argument("name", help="campaign name, or `list`")

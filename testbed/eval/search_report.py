@@ -3,18 +3,21 @@ command, and convergence.png (each trial's deviation before detection and the be
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from testbed.attacks.threat import threat_label
+from testbed.attacks.threat import threat_label, within_ld3_threat_model
+from testbed.errors import UserError
+from testbed.eval.bound_table import bound_rows, bound_setting
 from testbed.eval.search import AttackSearch, TrialOutcome, attack_spec, in_threat_model_note
 
 
 def _f(v: float | None) -> str:
-    return "–" if v is None else f"{v:.2f}"
+    return "–" if v is None else "unbounded" if math.isinf(v) else f"{v:.2f}"
 
 
 def plot_convergence(path: Path, outcomes: Sequence[TrialOutcome], straddle: float | None, title: str) -> None:
@@ -38,6 +41,25 @@ def plot_convergence(path: Path, outcomes: Sequence[TrialOutcome], straddle: flo
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+def bound_section(search: AttackSearch, outcomes: Sequence[TrialOutcome]) -> list[str]:
+    """"Bound at the same settings": LD3's deviation bound at the victim's speed beside the search's worst |D|
+    before detection (testbed.eval.bound_table)."""
+    victim = search.spec.victim
+    lines = ["## Bound at the same settings", ""]
+    try:
+        row = bound_rows(bound_setting(victim), [victim.speed])[0]
+    except UserError as exc:
+        return [*lines, f"No bound: {exc}.", ""]
+    worst = max((o.dev_before_m for o in outcomes if o.dev_before_m is not None), default=None)
+    bound = "unbounded (paper mode)" if math.isinf(row.bound_m) else f"{row.bound_m:.3f} m"
+    lines.append(f"Largest |D| before the alarm at {victim.speed:g} m/s (`ld3 bound`): {bound}; one-signed attacks "
+                 f"{_f(row.one_signed_m)} m; lane straddle deviation {row.straddle_m:.3f} m. Worst |D| before "
+                 f"detection found here: {_f(worst)} m"
+                 + ("" if within_ld3_threat_model(search.spec.threat) else
+                    " (the bound covers the localization only; this threat model also reaches the lines)") + ".")
+    return [*lines, ""]
 
 
 def write_search_report(search: AttackSearch) -> Path:
@@ -78,6 +100,7 @@ def write_search_report(search: AttackSearch) -> Path:
             f"deviation): {len(undetected)}.",
             "",
         ]
+    lines += bound_section(search, outcomes)
     lines += ["## Best per family", "", "| family | trials | losses | attack | detected | "
               "\\|D\\| before detection (m) | max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|---|"]
     for family in sorted({o.family for o in outcomes}):

@@ -258,6 +258,20 @@ OTHER_COMMANDS = [
     Case("vehicle-out-finished", ("vehicle", "--map", "parking-lot", "--gnss", "nmea:{ws}/afile", "--detector",
                                   "none", "--out", "{ws}/prev"), "holds a finished run"),
     Case("patch-figure-out", ("patch-figure", "--out", "{ws}/afile/x.png"), "afile"),
+    Case("bound-scenario", ("bound", "nosuch"), "unknown scenario 'nosuch'"),
+    Case("bound-defense", ("bound", "local", "--defense", "savior"), "savior"),
+    Case("bound-speeds", ("bound", "local", "--speeds", "fast"), "--speeds"),
+    Case("bound-speed-zero", ("bound", "local", "--speeds", "0"), "speeds must be > 0"),
+    Case("bound-sigma", ("bound", "local", "--sigma", "0.1"), "--sigma"),
+    Case("bound-k-sigma", ("bound", "local", "--k-sigma", "-1"), "--k-sigma"),
+    Case("bound-out-file", ("bound", "local", "--out", "{ws}/afile"), "afile"),
+    Case("bound-out-foreign", ("bound", "local", "--out", "{ws}/foreign"), "foreign"),
+    Case("security-margin-road", ("security-margin", "--roads", "moon", "--out", "{ws}/m"), "moon"),
+    Case("security-margin-defense", ("security-margin", "--defenses", "ld4", "--out", "{ws}/m"), "ld4"),
+    Case("security-margin-threat", ("security-margin", "--threats", "telepathy", "--out", "{ws}/m"), "telepathy"),
+    Case("security-margin-seeds", ("security-margin", "--seeds", "x", "--out", "{ws}/m"), "--seeds"),
+    Case("security-margin-budget", ("security-margin", "--budget", "0", "--out", "{ws}/m"), "budget"),
+    Case("security-margin-out-file", ("security-margin", "--out", "{ws}/afile"), "afile"),
 ]
 
 CASES = [*SCENARIO_FILES, *SETTINGS, *FLAGS, *OUTPUTS, *OTHER_COMMANDS]
