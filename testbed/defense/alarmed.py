@@ -7,6 +7,8 @@ detection update (the one Alg. 1 and the heading check just compared with the li
 lines are absent), carried to the current tick by odometry. An MSF pose between detections never reaches the
 controller, whatever the control and camera rates and however late or irregular the frames. An MSF pose the
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
+The checked pose's yaw is kept within `steer_yaw_tol` of the heading the lines give (of the dead-reckoned yaw
+where no line is valid): a yaw bias the heading check lets through cannot steer the car by more than that.
 The paper mode steers on every MSF pose."""
 
 from __future__ import annotations
@@ -17,11 +19,12 @@ from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
+from testbed.defense.fused_heading import line_relative_heading
 from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 logger = logging.getLogger(__name__)
 
@@ -59,24 +62,31 @@ class Ld3AlarmedDefense(LatchingDefense):
             return False
         alarm = self.monitor.step(ld, msf, smap)
         if self.config.fail_closed:
-            self._take_checked(ld.timestamp, msf.pose, smap)
+            self._take_checked(ld, msf.pose, smap)
         if not alarm:
             return False
         self.detection_time = ld.timestamp
         logger.info("%s: attack detected at t=%.3f (S=%.3f)", self.name, ld.timestamp, self.monitor.detector.statistic)
         return True
 
-    def _take_checked(self, t: float, pose: Pose, smap: SemanticMap) -> None:
-        """The MSF pose just compared becomes the checked pose, if the map can place it (else a fault)."""
+    def _take_checked(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> None:
+        """The MSF pose just compared becomes the checked pose, its yaw within tolerance, if the map can place it
+        (else a fault)."""
         try:
-            placed = pose.is_finite() and smap.lane_dev(pose, None) is not None
+            heading = smap.lane_point(pose, None)[1] if pose.is_finite() else None
         except OffMapError:
-            placed = False
-        if placed:
-            self.checked.anchor(pose)
-        else:
-            self.faults.report("unchecked-msf", t, f"MSF pose {pose} cannot be placed; the last checked pose "
-                                                   f"carried on by odometry")
+            heading = None
+        if heading is None:
+            self.faults.report("unchecked-msf", ld.timestamp, f"MSF pose {pose} cannot be placed; the last checked "
+                                                              f"pose carried on by odometry")
+            return
+        psi = line_relative_heading(ld, self.config.existence_threshold)
+        reckoned = self.monitor.reckoned
+        ref = heading + psi if psi is not None else reckoned.yaw if reckoned is not None else None
+        if ref is not None:
+            tol = self.config.steer_yaw_tol
+            pose = Pose(pose.x, pose.y, ref + min(max(wrap_angle(pose.yaw - ref), -tol), tol))
+        self.checked.anchor(pose)
 
     def checked_pose(self, msf: LocalizationEstimate) -> Pose:
         """The pose the controller gets while normal: the last checked MSF pose carried by odometry (fail-closed

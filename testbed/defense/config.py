@@ -37,7 +37,8 @@ PSource = Literal["constant", "reported"]
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
 
 
-FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "along_b", "along_tau", "along_gain", "response_gate"})
+FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
+                              "response_gate"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 
 
@@ -77,6 +78,9 @@ class DefenseConfig(Params):
     heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
                              "against the lines' (against odometry where lines are absent), rad")
     heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
+    steer_yaw_tol: float = Field(0.01, gt=0.0, le=0.5, description="fail-closed: the pose the controller steers on "
+                                 "keeps its yaw within this of the lines' heading (of odometry's where no line is "
+                                 "valid), rad")
     along_b: float = Field(0.5, ge=0.0, description="fail-closed along-lane check: CUSUM weight on the MSF pose's "
                            "distance along the lane from the dead-reckoned pose (m)")
     along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")

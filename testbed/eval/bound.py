@@ -42,15 +42,18 @@ CONVERGENCE_TOL_M = 1e-3
 @dataclass(frozen=True)
 class Budget:
     """One CUSUM the attacker must keep under its threshold: weight b, threshold τ, benign residual std σ
-    (same unit); `b_eff(k)` = b + k·σ. τ = inf: no check."""
+    (same unit); `b_eff(k)` = b + k·σ. τ = inf: no check. `clamp`: the most of the input that reaches the
+    controller (a defense that keeps the pose it steers on within that of the lines); inf: all of it."""
 
     b: float
     tau: float
     sigma: float = 0.0
+    clamp: float = math.inf
 
     def __post_init__(self) -> None:
-        if self.b < 0 or self.tau < 0 or self.sigma < 0 or math.isnan(self.b + self.tau + self.sigma):
-            raise ValueError(f"CUSUM budget needs b, tau, sigma >= 0, got {self}")
+        if (self.b < 0 or self.tau < 0 or self.sigma < 0 or not self.clamp > 0
+                or math.isnan(self.b + self.tau + self.sigma)):
+            raise ValueError(f"CUSUM budget needs b, tau, sigma >= 0 and clamp > 0, got {self}")
 
     def b_eff(self, k: float) -> float:
         return self.b + k * self.sigma
@@ -125,8 +128,10 @@ def _solve(ra: np.ndarray, rpsi: np.ndarray, n: int, every: int, lateral: Budget
             add([(x0 + i, -1.0), (u0 + i, -1.0)], 0.0)
             prev = [(s0 + i - 1, 1.0)] if i else []
             add([(u0 + i, 1.0), (s0 + i, -1.0), *prev], budget.b_eff(k_sigma))
-    free = [(None, None)] * (2 * m) if signs is None else \
-        [(0, None) if sign > 0 else (None, 0) for sign in signs for _ in range(m)]
+    limits = [None if math.isinf(b.clamp) else b.clamp for b in (lateral, heading)]
+    free = [(None if c is None else -c, c) for c in limits for _ in range(m)] if signs is None else \
+        [(0, c) if sign > 0 else (None if c is None else -c, 0) for sign, c in zip(signs, limits, strict=True)
+         for _ in range(m)]
     bounds = free + [(0, None)] * (2 * m) + [(0, lateral.tau)] * m + [(0, heading.tau)] * m
     a_ub = coo_matrix((vals, (rows, cols)), shape=(r, 6 * m)).tocsr()
     res = linprog(cost, A_ub=a_ub, b_ub=np.array(rhs), bounds=bounds, method="highs")

@@ -24,7 +24,6 @@ from testbed.errors import UserError
 from testbed.eval.bound import Budget, deviation_bound, lateral_loop
 from testbed.eval.run_folder import SUMMARY, run_folder
 from testbed.eval.scenario import Scenario
-from testbed.loop import LoopRates
 from testbed.presets import build_track, vehicle
 
 RESIDUAL_STD: dict[str, tuple[float, float]] = {
@@ -83,14 +82,14 @@ def bound_setting(sc: Scenario, sigma: tuple[float, float] | None = None) -> Bou
     if not 0 <= lane < len(track.lanes):
         raise UserError(f"lane {lane} does not exist on {sc.track} ({len(track.lanes)} lanes)")
     config = DefenseConfig.from_dict(sc.defense_params)
-    controller = LqrLateralController.from_vehicle(params, 1.0 / sc.rates.control_hz,
+    controller = LqrLateralController.from_vehicle(params, sc.rates.control_dt,
                                                    steer_rate_weight=sc.control.steer_rate_weight)
-    every = LoopRates(sc.rates.control_hz, sc.rates.camera_hz).camera_every
+    every = sc.rates.camera_every
     straddle = track.lane_straddle_dev(lane, params.width)
     if not config.fail_closed:
         return BoundSetting(controller, every, None, None, straddle)
     return BoundSetting(controller, every, Budget(config.b, config.tau, sigma[0]),
-                        Budget(config.heading_b, config.heading_tau, sigma[1]), straddle)
+                        Budget(config.heading_b, config.heading_tau, sigma[1], clamp=config.steer_yaw_tol), straddle)
 
 
 def bound_rows(setting: BoundSetting, speeds: Sequence[float], k_sigma: float = DEFAULT_K_SIGMA) -> list[BoundRow]:

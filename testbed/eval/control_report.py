@@ -26,7 +26,7 @@ from testbed.eval.lateral_loop import (
     step_offset,
 )
 from testbed.eval.run_folder import SUMMARY, run_folder
-from testbed.loop import PHYSICS_HZ
+from testbed.rates import PHYSICS_HZ
 from vehicles.params import VEHICLES, vehicle_names
 
 SPEEDS = tuple(float(v) for v in range(1, 41))

@@ -13,18 +13,18 @@ from hil.profile import PROFILES_DIR, load_profile
 from testbed.control.config import ControlConfig
 from testbed.control.lateral_model import LateralModel
 from testbed.eval.lateral_loop import FLOORED, LateralLoop
-from testbed.loop import PHYSICS_HZ, LoopRates
+from testbed.rates import CAMERA_HZ, CONTROL_HZ, PHYSICS_HZ
 from vehicles.params import VEHICLES
 
 MAX_RATE_HZ = 100.0
 
 
 def choosable_rates() -> list[float]:
-    camera = LoopRates().camera_hz
+    camera = CAMERA_HZ
     bases = [camera] + [1.0 / load_profile(p.name).timing.cycle_s for p in sorted(PROFILES_DIR.iterdir())
                         if p.is_dir()]
     rates = {round(k * b, 6) for b in bases for k in range(1, int(MAX_RATE_HZ // b) + 1)}
-    return sorted(rates | {LoopRates().control_hz})
+    return sorted(rates | {CONTROL_HZ})
 
 
 KNOWN_BELOW_FLOOR = {

@@ -37,9 +37,17 @@ def test_paper_mode_is_unbounded() -> None:
 
 def test_a_tighter_heading_check_lowers_the_bound() -> None:
     base = load_scenario("highway").replace(defense="ld3")
+    wide = {"steer_yaw_tol": 0.5}  # the yaw tolerance opened, so that the heading check's budget decides
     loose, tight = (bound_rows(bound_setting(base.replace(defense_params=p)), [27.0])[0]
-                    for p in ({}, {"heading_b": 0.01, "heading_tau": 0.1}))
+                    for p in (wide, {**wide, "heading_b": 0.01, "heading_tau": 0.1}))
     assert tight.bound_m < loose.bound_m and tight.one_signed_m <= tight.bound_m + 1e-9
+
+
+def test_the_yaw_tolerance_of_the_steered_pose_caps_the_heading_budget() -> None:
+    base = load_scenario("highway").replace(defense="ld3")
+    default, wide = (bound_rows(bound_setting(base.replace(defense_params=p)), [27.0])[0]
+                     for p in ({}, {"steer_yaw_tol": 0.5}))
+    assert default.bound_m < 0.8 * default.straddle_m < wide.bound_m
 
 
 def test_write_bound_writes_the_table_once(tmp_path) -> None:
