@@ -150,6 +150,12 @@ def cmd_tracks(args: argparse.Namespace) -> int:
         for component in TRACKS:
             print(f"{component.name:16s} {component.help}")
         return 0
+    if args.tracks_cmd == "routes":
+        from testbed.presets import xodr_routes
+
+        for spec, roads, length in xodr_routes(args.file):
+            print(f"{spec}  {roads} road(s), {length:.0f} m")
+        return 0
     track = build_track(args.name)
     stem = re.sub(r"[^\w.-]+", "-", Path(args.name.removeprefix("xodr:")).name).strip("-")
     if args.tracks_cmd == "export":
@@ -348,11 +354,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("tracks", help="track presets")
     tsub = p.add_subparsers(dest="tracks_cmd", required=True)
     tsub.add_parser("list", help="list presets")
+    routes = tsub.add_parser("routes", help="the drivable routes of an OpenDRIVE file, as track specs")
+    routes.add_argument("file", help="xodr:PATH")
     show = tsub.add_parser("show", help="bird's-eye picture of a preset or an OpenDRIVE route")
-    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...][@LANE]")
     show.add_argument("--out", type=Path)
     export = tsub.add_parser("export", help="write a track as OpenDRIVE 1.7 (docs/opendrive.md)")
-    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...][@LANE]")
     export.add_argument("--format", choices=["xodr"], default="xodr")
     export.add_argument("--out", type=Path, help="default NAME-SEED.xodr")
     p.set_defaults(func=cmd_tracks)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from tracks.opendrive.model import OpenDriveError
 from tracks.opendrive.parse import read_file
-from tracks.opendrive.route import default_route, resolve_route
+from tracks.opendrive.route import default_route, drivable_routes, resolve_route, route_text
 from tracks.opendrive.route_track import route_track
 from tracks.road import Track
 
@@ -30,3 +30,11 @@ def load_xodr(spec: str) -> Track:
     legs = resolve_route(od, ids, lane) if ids else default_route(od, lane)
     name = f"{PREFIX}{path.name}" + (f"#{route_part}" if route_part else "")
     return route_track(legs, name, str(path))
+
+
+def list_routes(path_text: str) -> list[tuple[str, int, float]]:
+    """(`xodr:PATH#ROUTE@LANE`, roads, length of its roads in m) of every drivable route of the file at
+    `path_text` (`tracks.opendrive.route.drivable_routes`)."""
+    od = read_file(Path(path_text))
+    return [(f"{PREFIX}{path_text}{route_text(legs)}", len(legs), sum(leg.road.length for leg in legs))
+            for legs in drivable_routes(od)]

@@ -260,15 +260,16 @@ def default_route(od: OpenDrive, lane: int | None = None) -> list[Leg]:
     start = lane if lane is not None else od.ego_lane
     forward = _drivable(road.sections[0], driving_side(road, 1))
     direction = 1 if forward or (start is not None and start * driving_side(road, 1) > 0) else -1
-    legs = [_first_leg(od, road, direction, start)]
-    seen = {road.id}
-    while True:
-        leg = legs[-1]
-        nxt = _follow(od, leg)
-        if nxt is None or nxt.road.id in seen:
-            return legs
+    return _followed(od, _first_leg(od, road, direction, start))
+
+
+def _followed(od: OpenDrive, first: Leg) -> list[Leg]:
+    """`first` and the legs after it along the ego lane until a road would repeat or none follows."""
+    legs, seen = [first], {first.road.id}
+    while (nxt := _follow(od, legs[-1])) is not None and nxt.road.id not in seen:
         legs.append(nxt)
         seen.add(nxt.road.id)
+    return legs
 
 
 def _follow(od: OpenDrive, leg: Leg) -> Leg | None:
@@ -299,3 +300,32 @@ def _turn(road: Road) -> float:
     """|heading change| over a road (rad)."""
     _, _, h = PlanView(road.geometries).frame([0.0, road.length])
     return abs(math.remainder(float(h[1] - h[0]), 2.0 * math.pi))
+
+
+def drivable_routes(od: OpenDrive) -> list[list[Leg]]:
+    """From every road outside junctions, along each side that has a drivable lane, the route followed as the
+    default one is (keep right, the straightest connection the ego lane takes); routes whose roads one already
+    listed covers in the same order and direction are left out."""
+    found: list[list[Leg]] = []
+    covered: set[tuple[str, int]] = set()
+    for road in od.roads.values():
+        if road.junction != "-1":
+            continue
+        for direction in (1, -1):
+            if (road.id, direction) in covered or not _drivable(road.sections[_sections(road, direction)[0]],
+                                                                driving_side(road, direction)):
+                continue
+            try:
+                legs = _followed(od, _first_leg(od, road, direction, None))
+            except OpenDriveError:
+                continue
+            covered.update((leg.road.id, leg.direction) for leg in legs)
+            found.append(legs)
+    return found
+
+
+def route_text(legs: list[Leg]) -> str:
+    """`#ROAD,ROAD,...@LANE`: the spec of a route with its first ego lane."""
+    first = legs[0]
+    lane = first.lanes[_sections(first.road, first.direction)[0]]
+    return "#" + ",".join(leg.road.id for leg in legs) + f"@{lane}"
