@@ -38,7 +38,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     from testbed.perception.registry import DETECTORS
 
     p.add_argument("scenario", help="shipped scenario name (see `ld3 scenarios`) or path to a .toml file")
-    p.add_argument("--track", help="track preset NAME[@SEED]")
+    p.add_argument("--track", help="track preset NAME[@SEED] or an OpenDRIVE route xodr:PATH[#ROAD,...][@LANE]")
     p.add_argument("--vehicle", help="vehicle parameter set (sedan, dev-chassis)")
     p.add_argument("--speed", type=float, help="target speed (m/s)")
     p.add_argument("--duration", type=float, help="simulated duration (s)")

@@ -208,7 +208,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         PerceptionPorts(detector, defense_config.existence_threshold, keep_frame if (o.video or o.record) else None,
                         tracker),
         defense,
-        DrivingPorts(smap, lane, LanePlanner(smap, lane, sc.speed),
+        DrivingPorts(smap, lane, LanePlanner(smap, lane, sc.speed, lateral_accel=sc.control.lateral_accel),
                      LqrLateralController.from_vehicle(params, 1.0 / rates.control_hz,
                                                        steer_rate_weight=sc.control.steer_rate_weight),
                      SpeedController(max_accel=params.max_accel, max_decel=params.max_decel),
