@@ -469,8 +469,8 @@ for _spec in (
     CampaignSpec("adaptive", "security margins: a worst-case attack search per road (local, highway, urban-curvy) "
                  "× defense (none, NaiveAR, SAVIOR, LD3 paper mode, LD3 default) × threat model (gnss, msf-output, "
                  "ld-output, both)", adaptive_runs, adaptive_table, searches=run_cells),
-    CampaignSpec("maps", "OpenDRIVE maps (--maps: folders or files): each file's default route at 15 m/s with LD3, benign "
-                 "(oracle and the lane detector) and under the default trace injection", lambda detector: [],
+    CampaignSpec("maps", "OpenDRIVE maps (--maps: folders or files): each file's default route at 15 m/s with LD3, "
+                 "benign (oracle and the lane detector) and under the default trace injection", lambda detector: [],
                  map_table, on_maps=map_runs),
 ):
     CAMPAIGNS.add(_spec)
