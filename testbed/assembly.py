@@ -137,7 +137,8 @@ def assemble(settings: LoopSettings, chassis: ChassisPort, sensors: SensorPorts,
     period with the settings' steering-rate cost, the speed controller within the vehicle's limits."""
     rates, params = settings.rates, lane.vehicle
     driving = DrivingPorts(
-        lane.smap, lane.lane, LanePlanner(lane.smap, lane.lane, settings.speed),
+        lane.smap, lane.lane, LanePlanner(lane.smap, lane.lane, settings.speed,
+                                          lateral_accel=settings.control.lateral_accel),
         LqrLateralController.from_vehicle(params, rates.control_dt,
                                           steer_rate_weight=settings.control.steer_rate_weight,
                                           max_lat_accel=settings.control.steer_lat_accel),

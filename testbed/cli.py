@@ -38,7 +38,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     from testbed.perception.registry import DETECTORS
 
     p.add_argument("scenario", help="shipped scenario name (see `ld3 scenarios`) or path to a .toml file")
-    p.add_argument("--track", help="track preset NAME[@SEED]")
+    p.add_argument("--track", help="track preset NAME[@SEED] or an OpenDRIVE route xodr:PATH[#ROAD,...][@LANE]")
     p.add_argument("--vehicle", help="vehicle parameter set (sedan, dev-chassis)")
     p.add_argument("--speed", type=float, help="target speed (m/s)")
     p.add_argument("--duration", type=float, help="simulated duration (s)")
@@ -150,6 +150,12 @@ def cmd_tracks(args: argparse.Namespace) -> int:
         for component in TRACKS:
             print(f"{component.name:16s} {component.help}")
         return 0
+    if args.tracks_cmd == "routes":
+        from testbed.presets import xodr_routes
+
+        for spec, roads, length in xodr_routes(args.file):
+            print(f"{spec}  {roads} road(s), {length:.0f} m")
+        return 0
     track = build_track(args.name)
     stem = re.sub(r"[^\w.-]+", "-", Path(args.name.removeprefix("xodr:")).name).strip("-")
     if args.tracks_cmd == "export":
@@ -223,7 +229,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
                            backend=args.backend or "local", address=args.address, attacks=args.attack,
-                           budget=args.budget)
+                           budget=args.budget, maps=args.maps)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -239,7 +245,8 @@ def _campaign_list(args: argparse.Namespace) -> int:
 
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
-                                       ("--address", args.address), ("--budget", args.budget))
+                                       ("--address", args.address), ("--budget", args.budget),
+                                       ("--maps", args.maps))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -410,11 +417,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("tracks", help="track presets")
     tsub = p.add_subparsers(dest="tracks_cmd", required=True)
     tsub.add_parser("list", help="list presets")
+    routes = tsub.add_parser("routes", help="the drivable routes of an OpenDRIVE file, as track specs")
+    routes.add_argument("file", help="xodr:PATH")
     show = tsub.add_parser("show", help="bird's-eye picture of a preset or an OpenDRIVE route")
-    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    show.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...][@LANE]")
     show.add_argument("--out", type=Path)
     export = tsub.add_parser("export", help="write a track as OpenDRIVE 1.7 (docs/opendrive.md)")
-    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...]")
+    export.add_argument("name", help="NAME[@SEED] or xodr:PATH[#ROAD,ROAD,...][@LANE]")
     export.add_argument("--format", choices=["xodr"], default="xodr")
     export.add_argument("--out", type=Path, help="default NAME-SEED.xodr")
     p.set_defaults(func=cmd_tracks)
@@ -509,6 +518,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--attack", action="append", default=[], metavar="SPEC",
                    help="compose this attack after every run's own (repeatable; `ld3 run --attack` syntax)")
     p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
+    p.add_argument("--maps", nargs="+", default=[], metavar="DIR|FILE",
+                   help="campaign maps: the OpenDRIVE files, or folders of them, whose default routes it drives")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

@@ -11,6 +11,7 @@ from __future__ import annotations
 from testbed.errors import UserError
 from testbed.registry import Component, Registry
 from tracks.opendrive.load import PREFIX as XODR_PREFIX
+from tracks.opendrive.load import list_routes
 from tracks.opendrive.model import OpenDriveError
 from tracks.presets import PRESETS, list_presets, load_track, parse_track_spec
 from tracks.road import Track
@@ -53,6 +54,17 @@ def build_track(spec: str) -> Track:
     except ValueError as exc:
         raise UserError(str(exc)) from None
     return TRACKS.get(name).factory(seed)
+
+
+def xodr_routes(spec: str) -> list[tuple[str, int, float]]:
+    """The drivable routes of the OpenDRIVE file `xodr:PATH` as (track spec, roads, length in m); TrackFileError
+    where the file cannot be read."""
+    if not spec.startswith(XODR_PREFIX):
+        raise UserError(f"{spec!r}: name an OpenDRIVE file as {XODR_PREFIX}PATH")
+    try:
+        return list_routes(spec.removeprefix(XODR_PREFIX).partition("#")[0])
+    except OpenDriveError as exc:
+        raise TrackFileError(str(exc)) from None
 
 
 def vehicle(name: str) -> VehicleParams:

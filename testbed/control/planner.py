@@ -1,8 +1,12 @@
 """Lane planner: follow the ego-lane centreline at a cruise speed, or stop in lane at a set deceleration.
 
-Cruise: the speed reference ramps from the current speed to `cruise_speed` at ±max_accel.
+Cruise: the speed reference ramps from the current speed to `cruise_speed` at ±max_accel, and never exceeds the
+curve limit: at every point d ahead on the centreline (up to the distance needed to slow from the cruise speed)
+v ≤ √(a_lat/|κ(d)| + 2·CURVE_DECEL·(d − CURVE_STEP)) (a curve may start a sample step nearer), so the car
+reaches each curve at a speed that keeps its lateral acceleration within `lateral_accel`.
 Stop (LD3 attack response, paper §4.3): same centreline, v(t) = max(0, v0 − decel·(t − t0)) with
-target_accel −decel until standstill, then 0 held (the speed controller holds the brake).
+target_accel −decel until standstill, then 0 held (the speed controller holds the brake); the curve limit holds
+there too.
 """
 
 from __future__ import annotations
@@ -18,6 +22,9 @@ from tracks.pose import Pose, wrap_angle
 
 AR_DECEL = 4.0  # paper §4.3: Apollo's maximum allowed safe deceleration (m/s²)
 PREVIEW_STEP = 5.0  # m per step when walking the centreline to the preview point
+CURVE_DECEL = 2.0  # m/s²: the deceleration the curve limit allows for slowing into a curve ahead
+CURVE_STEP = 2.0  # m between the curvature samples of the curve limit
+CURVE_PERIOD = 0.25  # s between samplings of the curvature ahead
 _KERNELS = compiled_module("testbed.control.planner_kernels")
 
 
@@ -32,13 +39,19 @@ class LanePlanner:
         max_accel: float = 1.0,
         preview_time: float = 0.3,
         min_preview: float = 1.0,
+        lateral_accel: float = 3.0,
     ) -> None:
+        if lateral_accel <= 0.0:
+            raise ValueError(f"lateral acceleration bound must be positive, got {lateral_accel}")
         self.map = smap
         self.lane = lane
         self.cruise_speed = cruise_speed
         self.max_accel = max_accel
         self.preview_time = preview_time
         self.min_preview = min_preview
+        self.lateral_accel = lateral_accel
+        self._ahead: tuple[float, np.ndarray, np.ndarray] | None = None  # (time sampled, distances, a_lat/|κ|)
+        self._travel = 0.0  # m driven since the curvature ahead was sampled
         self._speed_ref: float | None = None
         self._t_last: float | None = None
         self._stop: tuple[float, float, float] | None = None  # (t0, v0, decel)
@@ -61,7 +74,7 @@ class LanePlanner:
 
     def plan(self, pose: Pose, speed: float, t: float) -> Plan:
         """The plan for a vehicle at `pose` (the pose control steers on) moving at `speed`, at time `t`."""
-        target_speed, target_accel = self._speed_profile(speed, t)
+        target_speed, target_accel = self._speed_profile(speed, t, self._curve_limit(pose, speed, t))
         distance = max(self.min_preview, self.preview_time * speed)
         terms = self._path_terms(pose, distance) if self._kernel is None else self._kernel.terms(pose, distance)
         if terms is None:
@@ -107,19 +120,60 @@ class LanePlanner:
             x, y = float(nxt[0]), float(nxt[1])
         return self.map.lane_curvature(Pose(x, y, heading), self.lane)
 
-    def _speed_profile(self, speed: float, t: float) -> tuple[float, float]:
+    def _curve_limit(self, pose: Pose, speed: float, t: float) -> float:
+        """The highest speed from which every curve ahead can be reached at `lateral_accel` by braking at
+        CURVE_DECEL (inf where none binds). The curvature ahead is sampled every CURVE_PERIOD; in between the
+        distance travelled since (at the measured speed) brings each sampled curve nearer."""
+        if self._ahead is None or t - self._ahead[0] >= CURVE_PERIOD - 1e-9:
+            self._ahead = (t, *self._curves_ahead(pose))
+            self._travel = 0.0
+        elif self._t_last is not None:
+            self._travel += max(speed, 0.0) * max(t - self._t_last, 0.0)
+        _, d, v2 = self._ahead
+        if not len(d):
+            return math.inf
+        return float(np.sqrt(np.min(v2 + 2.0 * CURVE_DECEL * np.maximum(d - self._travel - CURVE_STEP, 0.0))))
+
+    def _curves_ahead(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """(distance ahead along the centreline, a_lat/|κ| there) every CURVE_STEP up to the distance needed to
+        slow from the cruise speed (or to where the lane ends), where the lane curves."""
+        horizon = self.cruise_speed**2 / (2.0 * CURVE_DECEL) + CURVE_STEP
+        ds, v2 = [], []
+        try:
+            point, heading = self.map.lane_point(pose, self.lane)
+            x, y, d = float(point[0]), float(point[1]), 0.0
+            while True:
+                kappa = abs(self.map.lane_curvature(Pose(x, y, heading), self.lane))
+                if kappa > 1e-9:
+                    ds.append(d)
+                    v2.append(self.lateral_accel / kappa)
+                if d >= horizon:
+                    break
+                ahead = Pose(x + CURVE_STEP * math.cos(heading), y + CURVE_STEP * math.sin(heading), heading)
+                nxt, heading = self.map.lane_point(ahead, self.lane)
+                x, y, d = float(nxt[0]), float(nxt[1]), d + CURVE_STEP
+        except OffMapError:
+            pass  # the lane ends (or the pose is off it) within the horizon: the curves up to there
+        return np.array(ds), np.array(v2)
+
+    def _speed_profile(self, speed: float, t: float, limit: float) -> tuple[float, float]:
         dt = 0.0 if self._t_last is None else max(t - self._t_last, 0.0)
         self._t_last = t
         if self._stop is not None:
             t0, v0, decel = self._stop
             v = v0 - decel * (t - t0)
+            if v > limit:
+                return limit, -decel
             return (v, -decel) if v > 0.0 else (0.0, 0.0)
         if self._speed_ref is None:
             self._speed_ref = max(speed, 0.0)
         gap = self.cruise_speed - self._speed_ref
         step = self.max_accel * dt
         if abs(gap) <= step:
-            self._speed_ref = self.cruise_speed
-            return self._speed_ref, 0.0
-        self._speed_ref += math.copysign(step, gap)
-        return self._speed_ref, math.copysign(self.max_accel, gap)
+            ref, accel = self.cruise_speed, 0.0
+        else:
+            ref, accel = self._speed_ref + math.copysign(step, gap), math.copysign(self.max_accel, gap)
+        if ref > limit:
+            ref, accel = limit, -CURVE_DECEL if limit < self._speed_ref else 0.0
+        self._speed_ref = ref
+        return ref, accel

@@ -22,6 +22,7 @@ from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_c
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_table
 from testbed.eval.drp_response import drp_runs, drp_table
+from testbed.eval.map_drives import map_runs, map_table
 from testbed.eval.outputs import read_trajectory
 from testbed.eval.roc import record_detection_run, roc_runs, roc_table
 from testbed.eval.scenario import add_attacks, apply_settings, load_scenario
@@ -45,6 +46,9 @@ class CampaignSpec:
     searches: Callable[..., list[tuple[CampaignRun, dict[str, Any]]]] | None = None
     """For a campaign of attack searches: runs each of its runs as a search cell (`testbed.eval.adaptive`) in
     place of `run_campaign`; its runs' `trials` tag is the budget of each search."""
+    on_maps: Callable[[str, Sequence[str]], list[CampaignRun]] | None = None
+    """For a campaign over OpenDRIVE files: its runs for a lane detector and the `--maps` given (which it needs;
+    `build` then gives none)."""
 
 
 def _fmt(v: Any) -> str:
@@ -465,18 +469,26 @@ for _spec in (
     CampaignSpec("adaptive", "security margins: a worst-case attack search per road (local, highway, urban-curvy) "
                  "× defense (none, NaiveAR, SAVIOR, LD3 paper mode, LD3 default) × threat model (gnss, msf-output, "
                  "ld-output, both)", adaptive_runs, adaptive_table, searches=run_cells),
+    CampaignSpec("maps", "OpenDRIVE maps (--maps: folders or files): each file's default route at 15 m/s with LD3, "
+                 "benign (oracle and the lane detector) and under the default trace injection", lambda detector: [],
+                 map_table, on_maps=map_runs),
 ):
     CAMPAIGNS.add(_spec)
 
 
 def selected_runs(name: str, detector: str = "neural", select: str | None = None,
                   settings: Sequence[str] = (), attacks: Sequence[str] = (),
-                  budget: int | None = None) -> list[CampaignRun]:
+                  budget: int | None = None, maps: Sequence[str] = ()) -> list[CampaignRun]:
     """The runs of campaign `name` whose id matches one of the comma-separated globs `select` (all when None),
     with the `--attack` specs `attacks` composed after each run's own attacks and the `--set KEY=VALUE`
-    `settings` applied to every run's scenario; `budget` is the trials of each search of a search campaign."""
+    `settings` applied to every run's scenario; `budget` is the trials of each search of a search campaign,
+    `maps` the OpenDRIVE files or folders of a campaign over maps."""
     spec = CAMPAIGNS.get(name)
-    runs = spec.build(detector)
+    if spec.on_maps is None and maps:
+        raise UserError(f"--maps names the OpenDRIVE files of a campaign over maps; {name!r} is not one: drop it")
+    if spec.on_maps is not None and not maps:
+        raise UserError(f"campaign {name!r} drives OpenDRIVE files: add --maps DIR|FILE ...")
+    runs = spec.on_maps(detector, maps) if spec.on_maps is not None else spec.build(detector)
     if budget is not None:
         if spec.searches is None:
             raise UserError(f"--budget sets the trials of a search campaign; {name!r} runs fixed scenarios: drop it")
@@ -502,13 +514,13 @@ def _where(spec: CampaignSpec) -> str:
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
               backend: str = "local", address: str | None = None, attacks: Sequence[str] = (),
-              budget: int | None = None) -> Path:
+              budget: int | None = None, maps: Sequence[str] = ()) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
     run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
     `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
     `address` as `run_campaign`'s."""
     spec = CAMPAIGNS.get(name)
-    runs = selected_runs(name, detector, select, settings, attacks, budget)
+    runs = selected_runs(name, detector, select, settings, attacks, budget, maps)
     if spec.searches is not None:
         done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
                              progress=progress)

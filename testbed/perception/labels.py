@@ -2,7 +2,9 @@
 
 The ego lane is the lane the true pose projects onto (`map.project(pose).lane`); its right line is
 boundary `lane`, its left line boundary `lane + 1`. Each line is sampled along the road ahead, taken
-into the vehicle frame and fitted with a cubic y(x) over x in [0, X_MAX]. A line *exists* when it is
+into the vehicle frame and fitted with a cubic y(x) pinned to the line's offset and slope at x = 0 (what LD3
+reads) over x in [0, X_MAX], or over a range shortened until the cubic stays within FIT_TOLERANCE of the line
+(a town corner whose line turns across the car's path within X_MAX; `_range_fit`). A line *exists* when it is
 painted (kind other than 'none') on at least half of its samples in the camera's view window
 [X_VIEW_NEAR, X_VIEW_FAR]: unmarked edges and intersections give a missing line. Given the rendered frame
 (`FrameVisibility`), a line also counts as missing unless its paint stands out against the surfaces on
@@ -22,7 +24,7 @@ import numpy as np
 
 from tracks.map_api import OffMapError
 from tracks.paint import marking_coverage
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 from tracks.semantic_map import TrackMap
 from tracks.texture import tile_frame
 from vehicles.camera_rig import CameraRig
@@ -30,6 +32,9 @@ from vehicles.camera_rig import CameraRig
 X_MAX = 40.0  # m: the fitted range ahead of the reference point
 X_VIEW_NEAR, X_VIEW_FAR = 5.0, 25.0  # m: where a line must be painted to count as present
 SAMPLE_STEP = 1.0  # m between samples along the line
+FIT_TOLERANCE = 0.10  # m: the most a fitted cubic may stray from the line's samples over its range
+FIT_SHRINK = 0.8  # factor on the fitted range while the cubic strays more
+X_FIT_MIN = 8.0  # m: the shortest fitted range ahead
 VISIBLE_CONTRAST = 0.15  # RGB distance of a row's paint from a side's surface over that surface's RGB norm
 # (fresh white paint, row mean in a day frame: about 1.4 over asphalt, 0.1-0.3 over a kerb)
 VISIBLE_FRACTION = 0.15  # of a line's painted image rows in the view window that must show that contrast
@@ -130,13 +135,14 @@ class FrameVisibility:
 @dataclass(frozen=True)
 class LineTruth:
     """One true lane line: cubic y(x) coefficients (ascending powers, vehicle frame), its existence, its
-    marking kind (the most common in view, the nearest first among equals), and the fraction of its judged
-    rows whose paint the frame shows (None where not judged)."""
+    marking kind (the most common in view, the nearest first among equals), the fraction of its judged
+    rows whose paint the frame shows (None where not judged) and how far ahead the fit holds (m)."""
 
     coeffs: np.ndarray
     exists: bool
     kind: str
     visible: float | None = None
+    x_far: float = X_MAX
 
 
 @dataclass(frozen=True)
@@ -162,10 +168,11 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     c, sn = math.cos(pose.yaw), math.sin(pose.yaw)
     dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
     x, y = c * dx + sn * dy, -sn * dx + c * dy
-    fit = (x >= -2.0) & (x <= X_MAX + 2.0)
-    if np.count_nonzero(fit) < 4:  # the car faces away from the line (turned across the road): nothing in view
+    at_car = _at_car(ref, boundary.t, pose, s, x)
+    if at_car is None and np.count_nonzero((x >= -2.0) & (x <= X_MAX + 2.0)) < 4:
+        # the car faces away from the line (turned across the road): nothing in view to fit
         return LineTruth(coeffs=np.full(4, np.nan), exists=False, kind="none")
-    coeffs = np.polynomial.polynomial.polyfit(x[fit], y[fit], 3)
+    coeffs, x_far, fit = _range_fit(x, y, at_car)
     view = (x >= X_VIEW_NEAR) & (x <= X_VIEW_FAR)
     kinds = [boundary.kind_at(float(si)) for si in s[view]]
     painted = sum(k != "none" for k in kinds)
@@ -175,7 +182,64 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
         seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
     kind = Counter(kinds).most_common(1)[0][0] if kinds else "none"
-    return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen)
+    return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen, x_far=x_far)
+
+
+def _at_car(ref, t: float, pose: Pose, s: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:
+    """(offset y, slope dy/dx) at x = 0 of the line at lateral offset `t` of reference line `ref`, in the frame of
+    `pose`, from its samples at arc lengths `s` (vehicle-frame x); None where the line does not cross x = 0 on
+    the road beside the car. The crossing is found by Newton's method on x(s); the slope is the line's heading
+    there (offset lines run parallel to the reference line)."""
+    inside = (s >= 0.0) & (s <= ref.length)
+    cross = np.flatnonzero(inside[:-1] & inside[1:] & (x[:-1] <= 0.0) & (x[1:] > 0.0))
+    if not len(cross):
+        return None
+    i = cross[0]
+    si = float(s[i] + (s[i + 1] - s[i]) * (0.0 - x[i]) / (x[i + 1] - x[i]))
+    c, sn = math.cos(pose.yaw), math.sin(pose.yaw)
+    for _ in range(3):
+        px, py = ref.points(np.array([si]), t)[0]
+        xi = c * (px - pose.x) + sn * (py - pose.y)
+        rel = wrap_angle(ref.heading_at(si) - pose.yaw)
+        si = min(max(si - xi / max(math.cos(rel), 0.1), 0.0), ref.length)
+    px, py = ref.points(np.array([si]), t)[0]
+    rel = wrap_angle(ref.heading_at(si) - pose.yaw)
+    if abs(rel) >= 0.5 * math.pi - 0.05:
+        return None
+    return -sn * (px - pose.x) + c * (py - pose.y), math.tan(rel)
+
+
+def _range_fit(x: np.ndarray, y: np.ndarray, at_car: tuple[float, float] | None
+               ) -> tuple[np.ndarray, float, np.ndarray]:
+    """(cubic coefficients, range ahead x_far, mask of the samples fitted) of a line sampled in driving order at
+    vehicle-frame points (x, y): the cubic through the line's offset and slope at x = 0 (`at_car`) whose x², x³
+    terms fit the samples over x in [0, x_far] up to where x stops growing, x_far the largest of
+    X_MAX·FIT_SHRINK^k (down to X_FIT_MIN) within FIT_TOLERANCE of them; the least-squares cubic over
+    [−2, X_MAX + 2] where the line does not cross x = 0 beside the car."""
+    if at_car is None:
+        fit = (x >= -2.0) & (x <= X_MAX + 2.0)
+        return np.polynomial.polynomial.polyfit(x[fit], y[fit], 3), X_MAX, fit
+    ahead = np.ones(len(x), dtype=bool)
+    started = np.flatnonzero(x >= 0.0)
+    if len(started):
+        turned = np.flatnonzero(np.diff(x[started[0]:]) <= 0.0)
+        if len(turned):
+            ahead[started[0] + turned[0] + 1:] = False
+    y0, slope = at_car
+    x_far = X_MAX
+    while True:
+        fit = ahead & (x >= 0.0) & (x <= x_far)
+        xs = x[fit]
+        rest = (np.linalg.lstsq(np.column_stack([xs**2, xs**3]), y[fit] - y0 - slope * xs, rcond=None)[0]
+                if len(xs) >= 2 else np.zeros(2))
+        coeffs = np.array([y0, slope, *rest])
+        if _stray(coeffs, xs, y[fit]) <= FIT_TOLERANCE or x_far * FIT_SHRINK < X_FIT_MIN:
+            return coeffs, x_far, fit
+        x_far *= FIT_SHRINK
+
+
+def _stray(coeffs: np.ndarray, x: np.ndarray, y: np.ndarray) -> float:
+    return float(np.max(np.abs(np.polynomial.polynomial.polyval(x, coeffs) - y))) if len(x) else 0.0
 
 
 def ego_lines(track, pose: Pose, visibility: FrameVisibility | None = None) -> EgoLines:

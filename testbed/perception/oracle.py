@@ -1,7 +1,9 @@
 """Oracle lane detector: the map's ego lines through the frame's true pose, with optional noise and dropout.
 
-Each present line gets its offset c0 perturbed by N(0, noise_std²) and is dropped (None, probability 0)
-with probability `dropout`; a line that is not painted in view is always None with probability 0.
+Each line is the map's, fitted over the range ahead where a cubic follows it (`labels`; the detection's x range
+is the shorter of the two). Each present line gets its offset c0 perturbed by N(0, noise_std²) and is dropped
+(None, probability 0) with probability `dropout`; a line that is not painted in view is always None with
+probability 0.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import numpy as np
 
 from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.perception.labels import X_MAX, LineTruth, ego_lines
+from testbed.perception.labels import LineTruth, ego_lines
 from tracks.map_api import OffMapError
 
 MIN_VAR = 1e-4
@@ -52,5 +54,6 @@ class OracleLaneDetector(LaneDetector):
         left, left_prob = self._observe(truth.left)
         right, right_prob = self._observe(truth.right)
         var = max(self.noise_std**2, MIN_VAR)
-        return LaneDetection(frame.t, left, right, left_prob, right_prob, (0.0, X_MAX),
+        return LaneDetection(frame.t, left, right, left_prob, right_prob, (0.0, min(truth.left.x_far,
+                                                                                  truth.right.x_far)),
                              var if left is not None else None, var if right is not None else None)

@@ -1,13 +1,14 @@
-"""LanePlanner: path errors, preview curvature, cruise ramp, stop profile, off-map hold."""
+"""LanePlanner: path errors, preview curvature, cruise ramp, stop profile, off-map hold, the curve limit."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
 
-from testbed.control.planner import AR_DECEL, LanePlanner
-from tests.control.lane_map import curvy_urban, straight
+from testbed.control.planner import AR_DECEL, CURVE_DECEL, LanePlanner
+from tests.control.lane_map import PolylineLaneMap, curvy_urban, straight
 from tracks.pose import Pose
 
 
@@ -81,3 +82,49 @@ def test_off_map_holds_the_last_path_terms_and_flags_it() -> None:
     assert (held.lateral_error, held.heading_error) == (good.lateral_error, good.heading_error)
     assert held.target_speed == pytest.approx(16.0)  # the speed profile keeps running
     assert planner.plan(Pose(math.nan, 0.0, 0.0), 20.0, 1.3).off_map
+
+
+def _corner() -> PolylineLaneMap:
+    """120 m straight, a 90° corner of radius 7 m (a town junction's), 60 m straight."""
+    return PolylineLaneMap([(120.0, 0.0, 0.0), (7.0 * math.pi / 2, 1 / 7, 1 / 7), (60.0, 0.0, 0.0)])
+
+
+def test_the_speed_is_limited_by_the_curvature_ahead() -> None:
+    smap, a_lat = _corner(), 2.5
+    planner = LanePlanner(smap, 0, 15.0, max_accel=1.0, lateral_accel=a_lat)
+    s, v, dt, refs = 20.0, 15.0, 0.025, []
+    while s < smap.s[-1] - 5.0:
+        x, y, h, k = smap._at(s)
+        p = planner.plan(Pose(x, y, h), v, len(refs) * dt)
+        refs.append((s, p.target_speed, p.target_accel, k))
+        v = p.target_speed  # the car follows the reference exactly
+        s += v * dt
+    in_corner = [(ref, k) for s_, ref, _, k in refs if 120.0 <= s_ <= 120.0 + 7.0 * math.pi / 2]
+    assert in_corner and max(ref**2 * k for ref, k in in_corner) <= a_lat * 1.02
+    assert refs[0][1] == pytest.approx(15.0)  # far from the corner: the cruise speed
+    first_slow = next(s_ for s_, ref, _, _ in refs if ref < 15.0)
+    # it brakes into the corner gently, not at the last moment: from where CURVE_DECEL is enough, in small steps
+    assert first_slow <= 120.0 - (15.0**2 - a_lat * 7.0) / (2 * CURVE_DECEL)
+    assert min(b - a for (_, a, _, _), (_, b, _, _) in itertools.pairwise(refs)) > -0.5
+    assert refs[-1][1] > 10.0  # and picks the cruise back up after it
+
+
+def test_a_curve_limit_above_the_cruise_speed_changes_nothing() -> None:
+    plain, bounded = LanePlanner(_corner(), 0, 4.0), LanePlanner(_corner(), 0, 4.0, lateral_accel=3.0)
+    unbounded = LanePlanner(_corner(), 0, 4.0, lateral_accel=1e6)
+    x, y, h, _ = _corner()._at(118.0)
+    for i in range(40):
+        a, b = bounded.plan(Pose(x, y, h), 3.0, 0.025 * i), unbounded.plan(Pose(x, y, h), 3.0, 0.025 * i)
+        assert (a.target_speed, a.target_accel) == (b.target_speed, b.target_accel)
+    assert plain.lateral_accel == 3.0
+
+
+def test_the_stop_holds_the_curve_limit() -> None:
+    smap = _corner()
+    planner = LanePlanner(smap, 0, 15.0, lateral_accel=2.5)
+    x, y, h, _ = smap._at(110.0)  # 10 m before the corner at 15 m/s: a 4 m/s² stop alone is too fast there
+    planner.start_stop(0.0, 15.0)
+    p = planner.plan(Pose(x, y, h), 15.0, 0.5)
+    assert p.target_speed <= math.sqrt(2.5 * 7.0 + 2 * CURVE_DECEL * 10.0) + 1e-6 and p.target_accel == -AR_DECEL
+    with pytest.raises(ValueError):
+        LanePlanner(smap, 0, 15.0, lateral_accel=0.0)

@@ -11,17 +11,28 @@ from typing import NamedTuple
 from tracks.opendrive.marks import line_kind
 from tracks.opendrive.model import LaneRecord, LaneSection, Road, latest
 
-DRIVABLE = frozenset({"driving", "entry", "exit", "onRamp", "offRamp", "connectingRamp", "bidirectional"})
+DRIVABLE = frozenset({"driving", "entry", "exit", "onRamp", "offRamp", "connectingRamp"})  # not bidirectional
 CURBSIDE = frozenset({"sidewalk", "curb", "walking"})
 
 
 class CrossSection(NamedTuple):
     """One side at one s: `borders[0]` is the centre lane's offset, `borders[k]` the outer border of the k-th
-    lane out; `types[k-1]` and `marks[k]` (marks[0]: the centre lane's) belong to the same lanes."""
+    lane out; `ids[k-1]`, `types[k-1]` and `marks[k]` (marks[0]: the centre lane's) belong to the same lanes."""
 
     borders: list[float]
     types: list[str]
     marks: list[str]
+    ids: list[int]
+
+    def group(self, k: int) -> tuple[int, int]:
+        """(index of the first, count) of the run of drivable lanes without a gap that holds lane index k."""
+        first = k
+        while first > 0 and self.types[first - 1] in DRIVABLE:
+            first -= 1
+        last = k
+        while last + 1 < len(self.types) and self.types[last + 1] in DRIVABLE:
+            last += 1
+        return first, last - first + 1
 
     def drivable(self) -> tuple[int, int]:
         """(index of the first drivable lane from the centre, how many drivable lanes follow it without a gap);
@@ -40,7 +51,8 @@ class CrossSection(NamedTuple):
         return abs(self.borders[-1] - self.borders[n]), False
 
 
-def _width(lane: LaneRecord, ds: float) -> float:
+def lane_width(lane: LaneRecord, ds: float) -> float:
+    """The lane's width (m, >= 0) at ds from its section's start."""
     rec = latest(lane.widths, lambda w: w.s, ds) or lane.widths[0]
     return max(rec.at(ds), 0.0)
 
@@ -60,10 +72,11 @@ def cross_section(road: Road, s: float, side: int) -> CrossSection:
     section = road.section_at(s)
     ds = s - section.s
     t = road.lane_offset_at(s)
-    borders, types, marks = [t], [], [_mark(section.lane(0), ds)]
+    borders, types, marks, ids = [t], [], [_mark(section.lane(0), ds)], []
     for lane in side_lanes(section, side):
-        t += side * _width(lane, ds)
+        t += side * lane_width(lane, ds)
         borders.append(t)
         types.append(lane.type)
         marks.append(_mark(lane, ds))
-    return CrossSection(borders, types, marks)
+        ids.append(lane.id)
+    return CrossSection(borders, types, marks, ids)

@@ -66,12 +66,16 @@ class RoadMark:
 @dataclass(frozen=True)
 class LaneRecord:
     """A lane of a section: id (+ left of the reference line, − right, 0 centre), type, width records (sOffset
-    relative to the section start) and road marks."""
+    relative to the section start), road marks, the ids of the lanes it continues from and into (its `link`),
+    and whether it is given by `<border>` records only (not read: refused where a route needs it)."""
 
     id: int
     type: str
     widths: tuple[Poly3, ...]
     marks: tuple[RoadMark, ...]
+    predecessor: int | None = None
+    successor: int | None = None
+    border_only: bool = False
 
 
 @dataclass(frozen=True)
@@ -121,24 +125,31 @@ class Road:
 
 @dataclass(frozen=True)
 class Connection:
-    """A junction connection: traffic from `incoming` enters `connecting` at its `contact_point` end."""
+    """A junction connection: traffic from `incoming` enters `connecting` (a direct junction's `linkedRoad`) at
+    its `contact_point` end; `lane_links` map a lane of `incoming` to the lane it enters."""
 
     incoming: str
     connecting: str
     contact_point: str
+    lane_links: tuple[tuple[int, int], ...] = ()
 
 
 @dataclass(frozen=True)
 class Junction:
+    """A junction: its connections; `direct` when they join roads outside it (OpenDRIVE 1.7 `type="direct"`)."""
+
     id: str
     connections: tuple[Connection, ...]
+    direct: bool = False
 
 
 @dataclass
 class OpenDrive:
-    """A parsed file: its revision, roads and junctions by id, in file order."""
+    """A parsed file: its revision, roads and junctions by id, in file order, and the ego lane the file names
+    for its routes' first road (`<userData code="ld3:egoLane">` in the header, written by the exporter)."""
 
     source: str
     revision: tuple[int, int]
+    ego_lane: int | None = None
     roads: dict[str, Road] = field(default_factory=dict)
     junctions: dict[str, Junction] = field(default_factory=dict)

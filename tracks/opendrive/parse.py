@@ -33,6 +33,7 @@ GEOMETRY_PARAMS = {
     "paramPoly3": ("aU", "bU", "cU", "dU", "aV", "bV", "cV", "dV"),
 }
 SUPPORTED_REVISIONS = range(4, 9)  # 1.4 .. 1.8
+EGO_LANE_CODE = "ld3:egoLane"  # header userData: the ego lane id on a route's first road
 
 
 class _Where:
@@ -73,7 +74,15 @@ def read_file(path: Path) -> OpenDrive:
         raise where.fail("file", f"not XML ({exc})") from None
     except OSError as exc:
         raise where.fail("file", f"cannot be read ({exc.strerror})") from None
-    return parse_root(root, where)
+    return parse_root(_without_namespace(root), where)
+
+
+def _without_namespace(root: ET.Element) -> ET.Element:
+    """The tree with every tag's XML namespace (`{uri}tag`) dropped, as files with a default namespace have."""
+    for elem in root.iter():
+        if isinstance(elem.tag, str) and elem.tag.startswith("{"):
+            elem.tag = elem.tag.partition("}")[2]
+    return root
 
 
 def parse_root(root: ET.Element, where: _Where) -> OpenDrive:
@@ -86,7 +95,7 @@ def parse_root(root: ET.Element, where: _Where) -> OpenDrive:
     minor = int(where.number(header, "revMinor", "<header>"))
     if major != 1 or minor not in SUPPORTED_REVISIONS:
         raise where.fail("<header>", f"OpenDRIVE {major}.{minor} is not supported (1.4 to 1.8 are)")
-    od = OpenDrive(where.source, (major, minor))
+    od = OpenDrive(where.source, (major, minor), _ego_lane(header, where))
     for elem in root.findall("road"):
         road = _road(elem, where)
         if road.id in od.roads:
@@ -98,6 +107,13 @@ def parse_root(root: ET.Element, where: _Where) -> OpenDrive:
         junction = _junction(elem, where)
         od.junctions[junction.id] = junction
     return od
+
+
+def _ego_lane(header: ET.Element, where: _Where) -> int | None:
+    for data in header.findall("userData"):
+        if data.get("code") == EGO_LANE_CODE:
+            return int(where.number(data, "value", f"<header> <userData code={EGO_LANE_CODE}>"))
+    return None
 
 
 def _road(elem: ET.Element, where: _Where) -> Road:
@@ -168,16 +184,18 @@ def _section(elem: ET.Element, where: _Where, road: str) -> LaneSection:
 def _lane(elem: ET.Element, where: _Where, section: str) -> LaneRecord:
     lane_id = int(where.number(elem, "id", f"{section} <lane>"))
     name = f"{section} lane {lane_id}"
-    if lane_id != 0 and elem.find("border") is not None and elem.find("width") is None:
-        raise where.fail(name, "<border> is not supported (describe the lane by <width>)")
     widths = tuple(sorted((where.poly(w, "sOffset", f"{name} <width>") for w in elem.findall("width")),
                           key=lambda p: p.s))
-    if lane_id != 0 and not widths:
+    border_only = lane_id != 0 and not widths and elem.find("border") is not None
+    if lane_id != 0 and not widths and not border_only:
         raise where.fail(name, "no <width>")
     marks = tuple(sorted((RoadMark(where.number(m, "sOffset", f"{name} <roadMark>", 0.0), m.get("type", "none"),
                                    m.get("color", "standard")) for m in elem.findall("roadMark")),
                          key=lambda m: m.s_offset))
-    return LaneRecord(lane_id, elem.get("type", "driving"), widths, marks)
+    link = elem.find("link")
+    ends = [None if link is None else link.find(tag) for tag in ("predecessor", "successor")]
+    pred, succ = (None if end is None else int(where.number(end, "id", f"{name} <{end.tag}>")) for end in ends)
+    return LaneRecord(lane_id, elem.get("type", "driving"), widths, marks, pred, succ, border_only)
 
 
 def _link(elem: ET.Element | None, where: _Where, road: str) -> Link | None:
@@ -193,11 +211,16 @@ def _junction(elem: ET.Element, where: _Where) -> Junction:
     junction_id = elem.get("id")
     if junction_id is None:
         raise where.fail("<junction>", "attribute 'id' is missing")
+    direct = elem.get("type") == "direct"
+    target = "linkedRoad" if direct else "connectingRoad"
     connections = []
     for conn in elem.findall("connection"):
-        incoming, connecting = conn.get("incomingRoad"), conn.get("connectingRoad")
+        name = f"junction {junction_id} <connection id={conn.get('id')}>"
+        incoming, connecting = conn.get("incomingRoad"), conn.get(target)
         if incoming is None or connecting is None:
-            raise where.fail(f"junction {junction_id} <connection id={conn.get('id')}>",
-                             "needs incomingRoad and connectingRoad")
-        connections.append(Connection(incoming, connecting, conn.get("contactPoint", "start")))
-    return Junction(junction_id, tuple(connections))
+            missing = " and ".join(k for k, v in (("incomingRoad", incoming), (target, connecting)) if v is None)
+            raise where.fail(name, f"attribute {missing} is missing")
+        links = tuple((int(where.number(ll, "from", f"{name} <laneLink>")),
+                       int(where.number(ll, "to", f"{name} <laneLink>"))) for ll in conn.findall("laneLink"))
+        connections.append(Connection(incoming, connecting, conn.get("contactPoint", "start"), links))
+    return Junction(junction_id, tuple(connections), direct)

@@ -2,15 +2,15 @@
 lane's centre.
 
 The driving direction's lanes are those right of the centre lane when a right-hand-traffic road is driven
-forward (left when backward, mirrored for LHT). The track keeps the drivable lanes next to the centre that
-every road outside junctions has, the ego lane the innermost; inside junctions lanes a connecting road lacks
-are interpolated. The ego lane's centre is sampled every half metre of road (and at every geometry, section
-and width record start) and fitted by curvature-linear segments; lane widths become tabulated profiles when
-they vary; each lane line keeps the road-mark kind it has over most of the route outside junctions; connecting
-roads are intersections. The other direction's drivable lanes next to the centre lane become the track's
-oncoming lanes on a right-hand-traffic route (the track's oncoming lanes are its leftmost); where something
-else (a median, a left-hand-traffic route) comes first, that side is paved surface beyond the centre line.
-"""
+forward (left when backward, mirrored for LHT). The ego lane is the route's (`Leg.lanes`); the track keeps the
+drivable lanes beside it, without a gap, that every road outside junctions has; inside junctions lanes a
+connecting road lacks are interpolated. The ego lane's centre is sampled every half metre of road (and at every
+geometry, section and width record start) and fitted by curvature-linear segments; lane widths become tabulated
+profiles when they vary; each lane line keeps the road-mark kind it has over most of the route outside
+junctions; connecting roads are intersections. The other direction's drivable lanes next to the centre lane
+become the track's oncoming lanes on a right-hand-traffic route (the track's oncoming lanes are its leftmost);
+where something else (a median, a left-hand-traffic route) comes first, that side is paved surface beyond the
+centre line."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from tracks.opendrive.centreline import fit_segments
 from tracks.opendrive.cross_section import CrossSection, cross_section
 from tracks.opendrive.model import OpenDriveError, Road
 from tracks.opendrive.plan_view import PlanView
-from tracks.opendrive.route import Leg
+from tracks.opendrive.route import Leg, driving_side
 from tracks.pose import Pose
 from tracks.road import Track
 
@@ -49,11 +49,24 @@ class _Knot(NamedTuple):
 
 
 class _Sample(NamedTuple):
+    """The ego lane's centre and heading, both sides' cross sections and the ego lane's index `ego` in `near`."""
+
     x: float
     y: float
     heading: float
     near: CrossSection
     far: CrossSection
+    ego: int
+
+    def rank(self) -> tuple[int, int]:
+        """(drivable lanes between the ego lane and the centre side of its run, drivable lanes from the ego lane
+        outward, itself included)."""
+        first, count = self.near.group(self.ego)
+        return self.ego - first, first + count - self.ego
+
+    def lane(self, j: int, e: int) -> int:
+        """The index in `near` of track lane j counted from the centre side, the ego lane being lane e."""
+        return self.ego - e + j
 
 
 def _breaks(road: Road) -> list[float]:
@@ -83,7 +96,7 @@ def _knots(legs: list[Leg]) -> list[list[_Knot]]:
 
 def _side(leg: Leg) -> int:
     """The road side (−1 right, +1 left of its reference line) of the lanes driven in the leg's direction."""
-    return -leg.direction if leg.road.rule == "RHT" else leg.direction
+    return driving_side(leg.road, leg.direction)
 
 
 class _Sampler:
@@ -92,6 +105,11 @@ class _Sampler:
     def __init__(self, legs: list[Leg], source: str) -> None:
         self.legs, self.source = legs, source
         self.views = [PlanView(leg.road.geometries) for leg in legs]
+
+    def ego_lane(self, k: _Knot, p: float) -> int:
+        """The ego lane's id at road arc length p of knot k's leg."""
+        road = self.legs[k.leg].road
+        return self.legs[k.leg].lanes[road.sections.index(road.section_at(p))]
 
     def sections(self, k: _Knot) -> tuple[CrossSection, CrossSection]:
         leg = self.legs[k.leg]
@@ -106,20 +124,19 @@ class _Sampler:
         x, y, h = self.views[k.leg].frame(ps)
         t = np.empty_like(ps)
         for j, p in enumerate(ps):
-            cs = cross_section(leg.road, min(max(float(p), k.lo + 1e-7), k.hi - 1e-7), side)
-            first, _ = cs.drivable()
-            t[j] = 0.5 * (cs.borders[first] + cs.borders[first + 1])
+            q = min(max(float(p), k.lo + 1e-7), k.hi - 1e-7)
+            cs = cross_section(leg.road, q, side)
+            i = cs.ids.index(self.ego_lane(k, q))
+            t[j] = 0.5 * (cs.borders[i] + cs.borders[i + 1])
         return x - t * np.sin(h), y + t * np.cos(h)
 
     def sample(self, k: _Knot) -> _Sample:
         near, far = self.sections(k)
-        if near.drivable()[1] == 0:
-            raise OpenDriveError(f"{self.source}: road {self.legs[k.leg].road.id} at s={k.p:.1f}: no drivable lane "
-                                 f"in the driving direction")
+        ego = near.ids.index(self.ego_lane(k, min(max(k.p, k.lo + 1e-7), k.hi - 1e-7)))
         step = DELTA * self.legs[k.leg].direction
         ps = np.array([k.p, min(max(k.p - step, k.lo), k.hi), min(max(k.p + step, k.lo), k.hi)])
         x, y = self.centre(k, ps)
-        return _Sample(float(x[0]), float(y[0]), math.atan2(y[2] - y[1], x[2] - x[1]), near, far)
+        return _Sample(float(x[0]), float(y[0]), math.atan2(y[2] - y[1], x[2] - x[1]), near, far, ego)
 
 
 def route_track(legs: list[Leg], name: str, source: str) -> Track:
@@ -138,7 +155,9 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
         samples += leg_samples
         junction += [legs[i].road.junction != "-1"] * len(leg_knots)
     outside = [not j for j in junction] if not all(junction) else [True] * len(junction)
-    n = min(s.near.drivable()[1] for s, o in zip(samples, outside, strict=True) if o)
+    ranks = [s.rank() for s, o in zip(samples, outside, strict=True) if o]
+    e = min(inner for inner, _ in ranks)  # the ego lane's index among the track's lanes from the centre side
+    n = e + min(outer for _, outer in ranks)
 
     xs, ys = np.array([s.x for s in samples]), np.array([s.y for s in samples])
     heading = np.unwrap([s.heading for s in samples])
@@ -154,32 +173,35 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     if len(set(outward)) > 1:
         raise OpenDriveError(f"{source}: route {roads}: mixes right- and left-hand traffic roads")
     order = list(range(n)) if outward[0] > 0 else list(range(n - 1, -1, -1))  # track lane -> lane from centre
-    m = _oncoming(samples, outside) if outward[0] < 0 else 0
-    widths = np.array([[*_widths(s.near, n), *_widths(s.far, m)] for s in samples])
+    m = _oncoming(samples, outside, e) if outward[0] < 0 else 0
+    widths = np.array([[*_widths(s, n, e), *_widths_far(s.far, m)] for s in samples])
     for col in widths.T:
         bad = np.isnan(col)
         col[bad] = np.interp(sigma[bad], sigma[~bad], col[~bad])
     widths = widths[:, order + list(range(n, n + m))]
     varies = np.ptp(widths, axis=0).max() > 1e-6
     weights = np.gradient(sigma) * np.array(outside)
-    kinds = [_kind([_mark(s.near, b) for s in samples], weights)
+    kinds = [_kind([_mark(s.near, s.lane(b, e)) for s in samples], weights)
              for b in (range(n + 1) if outward[0] > 0 else range(n, -1, -1))]
-    kinds += [_kind([_mark(s.far, b) for s in samples], weights) for b in range(1, m + 1)]
-    outer, inner = _edges(samples, outside, n, m)
+    kinds += [_kind([_mark(s.far, s.far.drivable()[0] + b) for s in samples], weights) for b in range(1, m + 1)]
+    outer, inner = _edges(samples, outside, n, m, e)
     right, left = (inner, outer) if outward[0] > 0 else (outer, inner)
     crossings = _intersections(sigma, junction)
     both = f" and {m} oncoming" if m else ""
     description = (f"OpenDRIVE {Path(source).name}, roads {' → '.join(leg.road.id for leg in legs)}: {n}{both} "
                    f"lane(s), {reference.length:.0f} m")
     return Track(name, 0, description, reference, [float(w) for w in np.median(widths, axis=0)], kinds, right,
-                 left, ego_lane=order.index(0), intersections=crossings,
+                 left, ego_lane=order.index(e), intersections=crossings,
                  width_table=(sigma, widths) if varies else None, oncoming=m)
 
 
-def _oncoming(samples: list[_Sample], outside: list[bool]) -> int:
+def _oncoming(samples: list[_Sample], outside: list[bool], e: int) -> int:
     """How many of the other direction's drivable lanes start at the centre lane at every sample outside
-    junctions (0 where one has none there)."""
-    counts = [s.far.drivable() for s, o in zip(samples, outside, strict=True) if o]
+    junctions where the track's lanes start there too (0 where one side has something else there)."""
+    inside = [s for s, o in zip(samples, outside, strict=True) if o]
+    if any(s.lane(0, e) != 0 for s in inside):
+        return 0
+    counts = [s.far.drivable() for s in inside]
     return 0 if any(first != 0 for first, _ in counts) else min(count for _, count in counts)
 
 
@@ -191,15 +213,24 @@ def _check_join(a: _Sample, b: _Sample, where: str) -> None:
                              f"{turn:.3f} rad where they meet (at most {JOIN_GAP} m, {JOIN_TURN} rad)")
 
 
-def _widths(cs: CrossSection, n: int) -> list[float]:
+def _widths(s: _Sample, n: int, e: int) -> list[float]:
+    """Widths of the track's n lanes from the centre side at one sample (NaN where its road lacks one)."""
+    first, count = s.near.group(s.ego)
+    out = []
+    for j in range(n):
+        i = s.lane(j, e)
+        out.append(abs(s.near.borders[i + 1] - s.near.borders[i]) if first <= i < first + count else math.nan)
+    return out
+
+
+def _widths_far(cs: CrossSection, m: int) -> list[float]:
     first, count = cs.drivable()
-    return [abs(cs.borders[first + k + 1] - cs.borders[first + k]) if k < count else math.nan for k in range(n)]
+    return [abs(cs.borders[first + k + 1] - cs.borders[first + k]) if k < count else math.nan for k in range(m)]
 
 
-def _mark(cs: CrossSection, boundary: int) -> str:
-    """The mark on the `boundary`-th lane line counted from the centre side of the first drivable lane."""
-    k = cs.drivable()[0] + boundary
-    return cs.marks[k] if k < len(cs.marks) else "none"
+def _mark(cs: CrossSection, k: int) -> str:
+    """The mark on the lane line at border index k (the centre lane's at 0), none beyond the section's lanes."""
+    return cs.marks[k] if 0 <= k < len(cs.marks) else "none"
 
 
 def _kind(kinds: list[str], weights: np.ndarray) -> str:
@@ -209,22 +240,23 @@ def _kind(kinds: list[str], weights: np.ndarray) -> str:
     return max(tally, key=lambda k: tally[k]) if sum(tally.values()) > 0.0 else "none"
 
 
-def _edges(samples: list[_Sample], outside: list[bool], n: int, m: int) -> tuple[Edge, Edge]:
+def _edges(samples: list[_Sample], outside: list[bool], n: int, m: int, e: int) -> tuple[Edge, Edge]:
     """(outer edge, edge beyond the centre line or beyond the `m` oncoming lanes): paved widths the narrowest
     outside junctions."""
-    near = _edge([s.near for s, o in zip(samples, outside, strict=True) if o], n)
+    kept = [s for s, o in zip(samples, outside, strict=True) if o]
+    near = _edge([(s.near, s.lane(n, e)) for s in kept])
     if m:
-        return near, _edge([s.far for s, o in zip(samples, outside, strict=True) if o], m)
-    inner = min(abs(s.near.borders[s.near.drivable()[0]] - s.far.borders[-1])
-                for s, o in zip(samples, outside, strict=True) if o)
+        return near, _edge([(s.far, s.far.drivable()[0] + m) for s in kept])
+    inner = min(abs(s.near.borders[s.lane(0, e)] - s.far.borders[-1]) for s in kept)
     return near, Edge("shoulder", inner, "grass")
 
 
-def _edge(sections: list[CrossSection], n: int) -> Edge:
-    """The edge beyond the n-th drivable lane of one side: a curb edge if a curb or sidewalk follows anywhere."""
+def _edge(sections: list[tuple[CrossSection, int]]) -> Edge:
+    """The edge beyond border index k of each (cross section, k): a curb edge if a curb or sidewalk follows
+    anywhere."""
     paved, curb = math.inf, False
-    for cs in sections:
-        width, kerb = cs.paved_beyond(cs.drivable()[0] + n)
+    for cs, k in sections:
+        width, kerb = cs.paved_beyond(k)
         paved, curb = min(paved, width), curb or kerb
     return Edge("curb", paved, "concrete", bodies=(CURB,)) if curb else Edge("shoulder", paved, "grass")
 

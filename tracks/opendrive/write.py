@@ -3,8 +3,9 @@ centre lane on the leftmost such lane line (through `laneOffset`), oncoming lane
 shoulder lanes, a curb edge as a curb lane (on the left only beyond oncoming lanes).
 
 Every intersection zone becomes a junction with one connecting road (no cross street); the roads between are
-joined through it lane by lane. Lines, arcs and clothoids are written as line, arc and spiral records; lane
-widths and the lane offset of a track with width profiles as piecewise-linear records.
+joined through it lane by lane. The header's `<userData code="ld3:egoLane">` names the ego lane's id. Lines,
+arcs and clothoids are written as line, arc and spiral records; lane widths and the lane offset of a track with
+width profiles as piecewise-linear records.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from tracks.geometry import Arc, Clothoid, Straight
 from tracks.opendrive.marks import road_mark
+from tracks.opendrive.parse import EGO_LANE_CODE
 from tracks.road import Track
 
 JUNCTION_IDS = 1000  # junction k has id JUNCTION_IDS + k, apart from the road ids 1..n
@@ -150,8 +152,10 @@ def _mark(lane: ET.Element, kind: str) -> None:
 def track_to_xodr(track: Track) -> str:
     """The OpenDRIVE 1.7 text of `track`."""
     root = ET.Element("OpenDRIVE")
-    ET.SubElement(root, "header", revMajor="1", revMinor="7", name=f"{track.name}@{track.seed}", version="1.0",
-                  date=datetime.date(2000, 1, 1).isoformat(), vendor="ld3-testbed")
+    header = ET.SubElement(root, "header", revMajor="1", revMinor="7", name=f"{track.name}@{track.seed}",
+                           version="1.0", date=datetime.date(2000, 1, 1).isoformat(), vendor="ld3-testbed")
+    ET.SubElement(header, "userData", code=EGO_LANE_CODE,
+                  value=str(-(len(track.lanes) - track.oncoming - track.ego_lane)))
     pieces = _pieces(track)
     road_ids = [str(i + 1) for i in range(len(pieces))]
     junction_of = {}

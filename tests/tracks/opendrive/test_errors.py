@@ -10,6 +10,7 @@ from testbed.presets import TrackFileError, build_track
 from tests.tracks.opendrive.xodr_text import constant, document, geometry, road, section
 
 LANES = [section(0.0, [constant(3.5)])]
+TWO_WAY = [section(0.0, [constant(3.5)], [constant(3.5)])]
 LINE = [geometry(0, 0.0, 0.0, 0.0, 50.0, "<line/>")]
 APART = document(road("1", 50.0, LINE, LANES), road("2", 50.0, [geometry(0, 0.0, 30.0, 0.0, 50.0, "<line/>")], LANES))
 
@@ -21,11 +22,14 @@ APART = document(road("1", 50.0, LINE, LANES), road("2", 50.0, [geometry(0, 0.0,
      "road 4 <geometry s=0>: unsupported geometry <clothoid> (supported: line, arc, spiral, poly3, paramPoly3)"),
     (APART, "#1,2", "route 1,2: road 1 does not lead to road 2 (no road link or junction connection joins them)"),
     (APART, "#1,9", "route 1,9: road '9' is not in the file"),
+    (APART, "#2,2", "route 2,2: road 2 is named twice in a row"),
     (document(road("1", 50.0, [geometry(0, 0.0, "x", 0.0, 50.0, "<line/>")], LANES)), "",
      "road 1 <geometry s=0>: attribute y='x' is not a number"),
     (document(road("1", 50.0, LINE, LANES), minor=3), "", "<header>: OpenDRIVE 1.3 is not supported (1.4 to 1.8 are)"),
-    (document(road("1", 50.0, LINE, [section(0.0, [], [constant(3.5)])])), "",
-     "road 1 at s=0.0: no drivable lane in the driving direction"),
+    (document(road("1", 50.0, LINE, [TWO_WAY[0].replace('"driving"', '"sidewalk"')])), "",
+     "road 1 <laneSection s=0>: no drivable lane in the driving direction"),
+    (document(road("1", 50.0, LINE, TWO_WAY)), "#@-3", "road 1 <laneSection s=0>: lane -3 is not a drivable lane of "
+     "the driving direction (those are: -1)"),
     (document(road("1", 50.0, LINE, [section(0.0, [constant(3.5)]).replace("<width", "<border")])), "",
      "lane -1: <border> is not supported (describe the lane by <width>)"),
 ])

@@ -37,8 +37,9 @@ def test_each_geometry_type_matches_the_analytic_lanes_within_1_cm(shape, tmp_pa
     path, root = _write(tmp_path, document(road("7", 80.0, [geometry(0, 12.0, -4.0, 0.4, 80.0, SHAPES[shape])],
                                                 TWO_LANES)))
     track = load_xodr(str(path))
-    # lane −2 is track lane 0, the ego lane −1 the innermost, the other side's lane 1 the oncoming track lane 2
-    assert len(track.lanes) == 3 and track.ego_lane == 1 and track.oncoming == 1 and track.lanes[2].oncoming
+    # lane −2 is track lane 0 and the ego lane (keep right), −1 track lane 1, the other side's lane 1 the oncoming
+    # track lane 2
+    assert len(track.lanes) == 3 and track.ego_lane == 0 and track.oncoming == 1 and track.lanes[2].oncoming
     assert [b.runs[0].kind for b in track.boundaries] == ["solid_white", "dashed_white", "solid_yellow", "solid_white"]
     worst = map_errors(track, root, [("7", 1)], step=4.0)
     assert worst["dev"] < 0.01 and worst["point"] < 0.01 and worst["width"] < 0.01, worst
@@ -85,7 +86,7 @@ def test_a_route_through_a_junction_follows_every_road_and_marks_the_junction(ro
     track = load_xodr(f"{path}{route}")
     assert track.description.endswith(f"roads 1 → 10 → 2: 2 and 1 oncoming lane(s), {track.length:.0f} m")
     (a, b), = track.intersections
-    outer_arc = (30.0 + 1.75) * math.pi / 2  # the ego lane (−1) is outside the left turn
+    outer_arc = (30.0 + 3.5 + 1.625) * math.pi / 2  # the ego lane (−2, keep right) is outside the left turn
     assert a == pytest.approx(60.0, abs=0.01) and b - a == pytest.approx(outer_arc, abs=0.01)
     assert track.boundaries[1].kind_at(0.5 * (a + b)) == "none" and track.boundaries[1].kind_at(10.0) == "dashed_white"
     worst = map_errors(track, root, [("1", 1), ("10", 1), ("2", 1)])

@@ -57,7 +57,7 @@ def test_export_then_import_gives_the_same_map_within_1_cm(spec, tmp_path, schem
     track, path = _exported(spec, tmp_path)
     schema.validate(str(path))
     again = load_xodr(str(path))
-    assert len(again.lanes) == len(track.lanes)
+    assert len(again.lanes) == len(track.lanes) and again.ego_lane == track.ego_lane
     assert [b.runs[0].kind for b in again.boundaries] == [b.runs[0].kind for b in track.boundaries]
     assert len(again.intersections) == len(track.intersections)
     assert again.length == pytest.approx(track.length, rel=0.01)
