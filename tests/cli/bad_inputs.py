@@ -272,6 +272,11 @@ OTHER_COMMANDS = [
     Case("security-margin-seeds", ("security-margin", "--seeds", "x", "--out", "{ws}/m"), "--seeds"),
     Case("security-margin-budget", ("security-margin", "--budget", "0", "--out", "{ws}/m"), "budget"),
     Case("security-margin-out-file", ("security-margin", "--out", "{ws}/afile"), "afile"),
+    Case("control-rates-word", ("control", "report", "--rates", "forty", "--out", "{ws}/c"), "--rates"),
+    Case("control-rates-slow", ("control", "report", "--rates", "0.5", "--out", "{ws}/c"), "not a control rate"),
+    Case("control-vehicle", ("control", "report", "--vehicle", "tank", "--out", "{ws}/c"), "unknown vehicle 'tank'"),
+    Case("control-steer-rate-weight", ("control", "report", "--steer-rate-weight", "-1", "--out", "{ws}/c"),
+         "--steer-rate-weight"),
 ]
 
 CASES = [*SCENARIO_FILES, *SETTINGS, *FLAGS, *OUTPUTS, *OTHER_COMMANDS]
