@@ -39,7 +39,7 @@ class DetectConfig:
     detector: str = "neural"
     params: dict | None = None
     fps: float = 20.0
-    speed: float = 0.0
+    speed: float = 25.0
     tracking: bool = True
     overlay: str = "video"
     limit: int | None = None
@@ -77,6 +77,50 @@ def frame_fitter(calibration: CameraCalibration | None, rig: CameraRig, shape: t
     return Rectifier(calibration, rig)
 
 
+class Overlay:
+    """The detector's view with the tracked lines and the deviation: `video` (DIR/overlay.mp4 at the frames' own
+    rate, taken from the first two), `images` (DIR/overlay/NNNNNN.png) or `none`."""
+
+    def __init__(self, kind: str, out: Path, rig: CameraRig, fps: float) -> None:
+        self.kind, self.out, self.rig, self.fps = kind, out, rig, fps
+        self.video = None
+        self.first: tuple | None = None
+        self.count = 0
+        if kind == "images":
+            (out / "overlay").mkdir(exist_ok=True)
+
+    def add(self, frame: CameraFrame, ld: LaneDetection, signals) -> None:
+        from testbed.eval.video import VideoWriter, draw_detection, draw_signals
+
+        self.count += 1
+        if self.kind == "images":
+            picture = draw_signals(draw_detection(frame.image, ld, self.rig), signals)
+            cv2.imwrite(str(self.out / "overlay" / f"{self.count - 1:06d}.png"), cv2.cvtColor(picture,
+                                                                                             cv2.COLOR_RGB2BGR))
+        elif self.kind == "video":
+            if self.first is None:
+                self.first = (frame, ld, signals)
+                return
+            if self.video is None:
+                self.video = VideoWriter(self.rig, 1.0 / max(frame.t - self.first[0].t, 1e-3))
+                self.video.add(*self.first)
+            self.video.add(frame, ld, signals)
+
+    def finish(self) -> None:
+        """Write overlay.mp4 (a single frame plays at `fps`)."""
+        from testbed.eval.video import VideoWriter
+
+        if self.kind == "video" and self.video is None and self.first is not None:
+            self.video = VideoWriter(self.rig, self.fps)
+            self.video.add(*self.first)
+        if self.video is not None:
+            self.video.write(self.out / "overlay.mp4")
+
+    def close(self) -> None:
+        if self.video is not None:
+            self.video.close()
+
+
 def _number(value: float | None) -> str:
     return "" if value is None or not math.isfinite(value) else f"{value:.4f}"
 
@@ -84,7 +128,7 @@ def _number(value: float | None) -> str:
 def run_detect(config: DetectConfig, detector, rig: CameraRig) -> dict:
     """Run the pass; write detections.csv, the overlay and report.md (+ dev.png) under `config.out`; return the
     summary the report states."""
-    from testbed.eval.video import FrameSignals, VideoWriter, draw_detection, draw_signals
+    from testbed.eval.video import FrameSignals
 
     calibration = CameraCalibration.load(config.calibration) if config.calibration else None
     warning = view_check(calibration, rig) if calibration else None
@@ -93,9 +137,7 @@ def run_detect(config: DetectConfig, detector, rig: CameraRig) -> dict:
     tracked_centre, raw_centre = LaneCentre(), LaneCentre()
     fit = None
     rows: list[dict] = []
-    video = VideoWriter(rig, config.fps) if config.overlay == "video" else None
-    if config.overlay == "images":
-        (config.out / "overlay").mkdir(exist_ok=True)
+    overlay = Overlay(config.overlay, config.out, rig, config.fps)
     try:
         for t, image in frame_stream(config.camera, config.fps):
             if config.limit is not None and len(rows) >= config.limit:
@@ -112,18 +154,10 @@ def run_detect(config: DetectConfig, detector, rig: CameraRig) -> dict:
                          "left_existence": f"{raw.left_prob:.3f}", "right_existence": f"{raw.right_prob:.3f}",
                          "left_c0_m": _number(raw.left[0] if raw.left is not None else None),
                          "right_c0_m": _number(raw.right[0] if raw.right is not None else None)})
-            signals = FrameSignals(t, dev, None, None, None, "normal")
-            if video is not None:
-                video.add(frame, ld, signals)
-            elif config.overlay == "images":
-                picture = draw_signals(draw_detection(frame.image, ld, rig), signals)
-                cv2.imwrite(str(config.out / "overlay" / f"{len(rows) - 1:06d}.png"),
-                            cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))
-        if video is not None:
-            video.write(config.out / "overlay.mp4")
+            overlay.add(frame, ld, FrameSignals(t, dev, None, None, None, "normal"))
+        overlay.finish()
     finally:
-        if video is not None:
-            video.close()
+        overlay.close()
     if not rows:
         raise UserError(f"no frame came from {config.camera}")
     with open(config.out / "detections.csv", "w", newline="") as f:

@@ -7,6 +7,8 @@ from pathlib import Path
 
 from hil.frame_stream import SPECS
 
+DEFAULT_SPEED = 25.0
+
 
 def add_detect_parser(ld: argparse.ArgumentParser) -> None:
     """Add `detect` to the `ld` group's subcommands."""
@@ -24,8 +26,10 @@ def add_detect_parser(ld: argparse.ArgumentParser) -> None:
     p.add_argument("--detector", default="neural", choices=DETECTORS.names())
     p.add_argument("--weights", help="neural checkpoint: a path or a shipped name (default: the shipped weights)")
     p.add_argument("--fps", type=float, default=20.0, help="frame rate of pictures (and of a video that gives none)")
-    p.add_argument("--speed", type=float, default=0.0, metavar="M/S",
-                   help="the car's speed the tracker assumes (no odometry on a camera alone; default 0)")
+    p.add_argument("--speed", type=float, default=DEFAULT_SPEED, metavar="M/S",
+                   help=f"the car's speed the tracker assumes (no odometry on a camera alone; default "
+                        f"{DEFAULT_SPEED:g}, a highway speed): it carries the lines along their heading between "
+                        f"frames; 0 holds them still, which lags a lane change by over 0.5 s")
     p.add_argument("--no-tracking", dest="tracking", action="store_false", help="report the detector's lines as is")
     p.add_argument("--overlay", choices=("video", "images", "none"), default="video",
                    help="overlay.mp4, overlay/NNNNNN.png or nothing (default video)")

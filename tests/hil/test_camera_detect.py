@@ -111,3 +111,17 @@ def test_frames_that_do_not_fit_the_detector_are_refused_in_one_line(tmp_path, c
         assert why in capsys.readouterr().err
     assert main(["ld", "detect", "--camera", camera, "--out", str(tmp_path / "out"), "--detector", "oracle"]) == 2
     assert "does not read a camera" in capsys.readouterr().err
+
+
+def test_a_video_is_stamped_by_its_rate_and_its_overlay_is_a_video(tmp_path):
+    path = tmp_path / "drive.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (RIG.width, RIG.height))
+    for _ in range(4):
+        writer.write(cv2.cvtColor(_rig_view(), cv2.COLOR_RGB2BGR))
+    writer.release()
+    out = tmp_path / "out"
+    assert main(["ld", "detect", "--camera", f"video:{path}", "--out", str(out), "--detector", "classical"]) == 0
+    rows = _rows(out)
+    assert [r["t"] for r in rows] == ["0.0000", "0.1000", "0.2000", "0.3000"]
+    assert all(r["left_found"] == r["right_found"] == "1" for r in rows)
+    assert (out / "overlay.mp4").stat().st_size > 0
