@@ -23,6 +23,7 @@ from testbed.perception.neural import FRAME_SHAPE, X_ANCHORS, LaneNet, load_mode
 
 NEGATIVE_KINDS = ("uniform", "gaussian", "dark", "motion-blur", "texture")
 PULL = 1e-3  # weight of the L2 pull of the refitted rows toward the originals
+NEGATIVE_WEIGHT = 0.3  # weight of the negatives' mean loss against the positives' (docs/decisions.md)
 
 
 def negative_frames(n: int, seed: int) -> list[np.ndarray]:
@@ -68,8 +69,8 @@ def _existence_rows(model: LaneNet) -> slice:
     return slice(2 * len(X_ANCHORS), 2 * len(X_ANCHORS) + 2)
 
 
-def refit_existence(model: LaneNet, positives: torch.Tensor, labels: torch.Tensor,
-                    negatives: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def refit_existence(model: LaneNet, positives: torch.Tensor, labels: torch.Tensor, negatives: torch.Tensor,
+                    negative_weight: float = NEGATIVE_WEIGHT) -> tuple[torch.Tensor, torch.Tensor]:
     """New existence rows (2, 64) and biases (2,) from hidden features of positives (labels (N, 2) in {0, 1})
     and negatives (all 0)."""
     last = model.glob[3]
@@ -81,7 +82,8 @@ def refit_existence(model: LaneNet, positives: torch.Tensor, labels: torch.Tenso
 
     def closure() -> torch.Tensor:
         opt.zero_grad()
-        loss = bce(positives @ w.T + b, labels) + bce(negatives @ w.T + b, torch.zeros(len(negatives), 2))
+        loss = bce(positives @ w.T + b, labels)
+        loss = loss + negative_weight * bce(negatives @ w.T + b, torch.zeros(len(negatives), 2))
         loss = loss + PULL * ((w - w0).square().sum() + (b - b0).square().sum())
         loss.backward()
         return loss
