@@ -10,6 +10,7 @@ The deviation from the lane centre (+ left) of a detection: −(c0_left + c0_rig
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -132,17 +133,20 @@ def run_detect(config: DetectConfig, detector, rig: CameraRig) -> dict:
 
     calibration = CameraCalibration.load(config.calibration) if config.calibration else None
     warning = view_check(calibration, rig) if calibration else None
+    frames = frame_stream(config.camera, config.fps)
+    first = next(frames, None)  # what cannot be read or fitted is refused before anything is written
+    if first is None:
+        raise UserError(f"no frame came from {config.camera}")
+    fit = frame_fitter(calibration, rig, first[1].shape)
     config.out.mkdir(parents=True, exist_ok=True)
     tracker = LaneTracker() if config.tracking else None
     tracked_centre, raw_centre = LaneCentre(), LaneCentre()
-    fit = None
     rows: list[dict] = []
     overlay = Overlay(config.overlay, config.out, rig, config.fps)
     try:
-        for t, image in frame_stream(config.camera, config.fps):
+        for t, image in itertools.chain([first], frames):
             if config.limit is not None and len(rows) >= config.limit:
                 break
-            fit = fit or frame_fitter(calibration, rig, image.shape)
             frame = CameraFrame(t, fit(image))
             raw = detector.detect(frame)
             ld = tracker.update(raw, config.speed, 0.0) if tracker is not None else raw
@@ -158,8 +162,7 @@ def run_detect(config: DetectConfig, detector, rig: CameraRig) -> dict:
         overlay.finish()
     finally:
         overlay.close()
-    if not rows:
-        raise UserError(f"no frame came from {config.camera}")
+        frames.close()
     with open(config.out / "detections.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, COLUMNS)
         writer.writeheader()

@@ -45,6 +45,10 @@ def _detect(args: argparse.Namespace) -> int:
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
 
+    if args.frames is not None and args.frames < 1:
+        raise UserError(f"--frames must be at least 1, got {args.frames}")
+    if args.speed < 0:
+        raise UserError(f"--speed must be >= 0 m/s, got {args.speed:g}")
     if Capability.CAMERA_IMAGE not in DETECTORS.get(args.detector).provides:
         raise UserError(f"detector {args.detector} does not read a camera: use neural, neural-onnx or classical")
     params = {"weights": args.weights} if args.weights else {}

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import glob
 import time
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from testbed.errors import UserError
 SPECS = "video:FILE, v4l2:DEV or images:GLOB"
 
 
-def frame_stream(spec: str, fps: float) -> Iterator[tuple[float, np.ndarray]]:
+def frame_stream(spec: str, fps: float) -> Generator[tuple[float, np.ndarray], None, None]:
     """The frames of `spec`; `fps` stamps images (and a video whose container gives no rate)."""
     try:
         import cv2
