@@ -31,14 +31,14 @@ COLUMNS = ("t", "left_found", "right_found", "dev_m", "dev_raw_m", "lane_width_m
 
 @dataclass(frozen=True)
 class DetectConfig:
-    """What `ld3 ld detect` reads and writes: camera spec, calibration, detector (and its `[detector]` params),
+    """What `ld3 ld detect` reads and writes: camera spec, calibration, detector (and its weights, None: default),
     frame rate of images, assumed speed (m/s) for the tracker, whether to track, the overlay kind, frame limit."""
 
     camera: str
     out: Path
     calibration: Path | None = None
     detector: str = "neural"
-    params: dict | None = None
+    weights: str | None = None
     fps: float = 20.0
     speed: float = 25.0
     tracking: bool = True
@@ -211,7 +211,8 @@ def write_report(config: DetectConfig, summary: dict, rows: list[dict]) -> None:
         return "-" if value is None else f"{value:.3f} m"
 
     lines = [f"# Lane detection on {config.camera}", "",
-             f"Detector `{config.detector}`, calibration `{config.calibration or 'none (frames are the rig view)'}`"
+             f"Detector `{config.detector}`" + (f" (weights `{config.weights}`)" if config.weights else "")
+             + f", calibration `{config.calibration or 'none (frames are the rig view)'}`"
              f", tracking {'on' if config.tracking else 'off'} (speed {config.speed:g} m/s).", ""]
     if summary["coverage"] is not None:
         lines += [f"The camera sees {summary['coverage']:.0%} of the road the detector reads.", ""]

@@ -55,7 +55,7 @@ def _detect(args: argparse.Namespace) -> int:
     rig = CameraRig(get_vehicle("sedan").camera)
     detector = make_detector(args.detector, track=None, rig=rig, params=params)
     config = DetectConfig(camera=args.camera, out=args.out, calibration=args.calibration, detector=args.detector,
-                          params=params, fps=args.fps, speed=args.speed, tracking=args.tracking,
+                          weights=args.weights, fps=args.fps, speed=args.speed, tracking=args.tracking,
                           overlay=args.overlay, limit=args.frames)
     s = run_detect(config, detector, rig)
     step = s["dev_m_p95_step"]
