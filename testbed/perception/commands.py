@@ -1,5 +1,5 @@
-"""`ld3 ld dataset|train|average|eval|export-onnx|closed-loop`: lane-detector tooling subcommands (argparse),
-registered by testbed/cli.py."""
+"""`ld3 ld dataset|train|average|existence-refit|eval|export-onnx|closed-loop`: lane-detector tooling subcommands
+(argparse), registered by testbed/cli.py (hil adds `ld3 ld detect`)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 
 
 def add_ld_parser(subparsers) -> argparse.ArgumentParser:
-    """Register `ld` with its `dataset`, `train`, `average`, `eval`, `export-onnx` and `closed-loop` subcommands;
-    each sets `func(args) -> int`."""
+    """Register `ld` with its `dataset`, `train`, `average`, `existence-refit`, `eval`, `export-onnx` and
+    `closed-loop` subcommands; each sets `func(args) -> int`."""
     ld = subparsers.add_parser("ld", help="lane detector: render datasets, train, evaluate")
     sub = ld.add_subparsers(dest="ld_command", required=True)
 
@@ -51,6 +51,15 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("checkpoints", type=Path, nargs="+", metavar="CHECKPOINT")
     p.add_argument("--out", type=Path, required=True)
     p.set_defaults(func=_average)
+
+    p = sub.add_parser("existence-refit", help="refit a LaneNet's existence outputs alone, with frames without lane "
+                                               "lines (noise, dark, blur, textures) as negatives; lines unchanged")
+    p.add_argument("--init", type=Path, help="checkpoint to start from (default: the shipped weights)")
+    p.add_argument("--data", type=Path, nargs="+", required=True, help="simulation datasets: the positives")
+    p.add_argument("--negatives", type=int, default=2000, help="frames without lane lines drawn (default 2000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the negatives' draws")
+    p.add_argument("--out", type=Path, required=True, help="checkpoint to write")
+    p.set_defaults(func=_existence_refit)
 
     p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
     p.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
@@ -132,6 +141,19 @@ def _average(args: argparse.Namespace) -> int:
     from testbed.perception.weight_mean import mean_checkpoint
 
     print(f"wrote {mean_checkpoint(args.checkpoints, args.out)}")
+    return 0
+
+
+def _existence_refit(args: argparse.Namespace) -> int:
+    from testbed.perception.existence_head import write_refit
+
+    if args.negatives < 1:
+        from testbed.errors import UserError
+
+        raise UserError("--negatives must be at least 1")
+    fit = write_refit(args.init, args.data, args.out, args.negatives, args.seed)
+    print(f"wrote {args.out}: {fit['positives']} positives, existence right on {fit['positive_accuracy']:.1%} of "
+          f"their lines; {fit['negatives']} negatives, both lines rejected on {fit['negatives_rejected']:.1%}")
     return 0
 
 

@@ -18,6 +18,14 @@ class Case:
     """Files to create in the workspace first (path -> content)."""
 
 
+def _png(width: int, height: int) -> bytes:
+    """A grey PNG picture of that size."""
+    import cv2
+    import numpy as np
+
+    return cv2.imencode(".png", np.full((height, width, 3), 90, np.uint8))[1].tobytes()
+
+
 def _toml(id: str, text: str, says: str) -> Case:
     return Case(f"toml-{id}", ("run", "{ws}/s.toml", "--out", "{ws}/out"), says, {"s.toml": text})
 
@@ -228,6 +236,27 @@ OTHER_COMMANDS = [
                                           "{ws}/cl"), "--lead-gap must"),
     Case("ld-dataset-traffic", ("ld", "dataset", "--out", "{ws}/d", "--frames", "2", "--traffic", "-2"),
          "number of cars"),
+    Case("ld-detect-camera", ("ld", "detect", "--camera", "usb:0", "--out", "{ws}/d"), "--camera takes"),
+    Case("ld-detect-no-images", ("ld", "detect", "--camera", "images:{ws}/none*.png", "--out", "{ws}/d"),
+         "no image matches"),
+    Case("ld-detect-video", ("ld", "detect", "--camera", "video:{ws}/afile", "--out", "{ws}/d"), "cannot open camera"),
+    Case("ld-detect-size", ("ld", "detect", "--camera", "images:{ws}/f.png", "--out", "{ws}/d"),
+         "give --calibration", {"f.png": _png(64, 32)}),
+    Case("ld-detect-calibration", ("ld", "detect", "--camera", "images:{ws}/f.png", "--calibration", "{ws}/no.toml",
+                                   "--out", "{ws}/d"), "no.toml", {"f.png": _png(64, 32)}),
+    Case("ld-detect-calibration-size", ("ld", "detect", "--camera", "images:{ws}/f.png", "--calibration",
+                                        "{ws}/c.toml", "--out", "{ws}/d"), "the calibration's 640x360",
+         {"f.png": _png(64, 32), "c.toml": "[intrinsics]\nwidth = 640\nheight = 360\nfx = 500\nfy = 500\n"
+                                           "cx = 320\ncy = 180\n[extrinsics]\nmount_x = 0\nmount_height = 1.2\n"
+                                           "pitch_deg = 0\n"}),
+    Case("ld-detect-frames", ("ld", "detect", "--camera", "images:{ws}/f.png", "--frames", "0", "--out", "{ws}/d"),
+         "--frames", {"f.png": _png(64, 32)}),
+    Case("ld-detect-oracle", ("ld", "detect", "--camera", "usb:0", "--detector", "oracle", "--out", "{ws}/d"),
+         "does not read a camera"),
+    Case("ld-existence-refit-data", ("ld", "existence-refit", "--data", "{ws}/nodata", "--out", "{ws}/w.pt"),
+         "nodata"),
+    Case("ld-existence-refit-negatives", ("ld", "existence-refit", "--data", "{ws}/nodata", "--negatives", "0",
+                                          "--out", "{ws}/w.pt"), "--negatives"),
     Case("ld-average-one", ("ld", "average", "--out", "{ws}/m.pt", "{ws}/afile"), "at least two checkpoints"),
     Case("ld-average-not-checkpoint", ("ld", "average", "--out", "{ws}/m.pt", "{ws}/afile", "{ws}/afile"),
          "not a torch file"),
