@@ -15,7 +15,6 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from hil.camera_calibration import CameraCalibration, Rectifier, view_check
@@ -95,6 +94,8 @@ class Overlay:
 
         self.count += 1
         if self.kind == "images":
+            import cv2  # the [camera] extra; imported where a picture is written
+
             picture = draw_signals(draw_detection(frame.image, ld, self.rig), signals)
             cv2.imwrite(str(self.out / "overlay" / f"{self.count - 1:06d}.png"), cv2.cvtColor(picture,
                                                                                              cv2.COLOR_RGB2BGR))

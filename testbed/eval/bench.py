@@ -79,7 +79,8 @@ def _instrument(sim, timer: SectionTimer) -> None:
         timer.wrap_all(sim.parts.attack, ("spoof_gnss", "tamper_msf", "tamper_ld", "state"), "attack")
         timer.wrap(loop, "_attacker_view", "attack")
     timer.wrap(loop, "_record", "logging")
-    timer.wrap_all(sim, ("_edge_beyond", "_stopped"), "consequence monitor")
+    timer.wrap(sim, "_edge_beyond", "consequence monitor")
+    timer.wrap(sim.run_loop, "_stood_still", "consequence monitor")
     timer.wrap(sim.monitor, "observe", "consequence monitor")
     timer.wrap(sim.parts.world, "contact_kinds", "consequence monitor")
     if sim.parts.camera is not None:

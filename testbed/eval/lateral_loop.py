@@ -12,12 +12,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from testbed.control.lateral import LqrLateralController, discretise
 from testbed.control.lateral_model import LateralModel
+
+if TYPE_CHECKING:
+    import control
+
+
+def _control():
+    """python-control, imported on first use: importing it imports pyplot, which chooses a backend."""
+    import control
+
+    return control
 
 CAR_STIFFNESS_SCALE = 50.0
 """The simulated car's tyres against the design model's: they barely slip (docs/decisions.md, the steering-rate
@@ -97,7 +107,7 @@ def delayed_plant(model: LateralModel, speed: float, dt: float, lag_s: float) ->
     for j in range(1, held):
         big[n + j, n + j - 1] = 1.0
     c = np.hstack([np.eye(n), np.zeros((n, held))])
-    return control.ss(big, b_in, c, np.zeros((n, 1)), dt)
+    return _control().ss(big, b_in, c, np.zeros((n, 1)), dt)
 
 
 def controller(gain: np.ndarray, dt: float) -> control.StateSpace:
@@ -105,9 +115,9 @@ def controller(gain: np.ndarray, dt: float) -> control.StateSpace:
     u = (1 − k_δ)·u_prev − K_x·x when `gain` has five entries, u = −K·x when four."""
     kx = np.asarray(gain[:4], dtype=float).reshape(1, 4)
     if len(gain) == 4:
-        return control.ss(np.zeros((1, 1)), np.zeros((1, 4)), np.zeros((1, 1)), -kx, dt)
+        return _control().ss(np.zeros((1, 1)), np.zeros((1, 4)), np.zeros((1, 1)), -kx, dt)
     keep = np.array([[1.0 - float(gain[4])]])
-    return control.ss(keep, -kx, keep, -kx, dt)
+    return _control().ss(keep, -kx, keep, -kx, dt)
 
 
 @dataclass(frozen=True)
@@ -139,7 +149,7 @@ def loop_margins(speed: float, max_pole: float, loop: control.StateSpace, dt: fl
     `frequency_response`): gain margins where L crosses the negative real axis, phase margin where |L| = 1."""
     nyquist = math.pi / dt
     omega = np.geomspace(2 * math.pi * 0.01, nyquist, FREQUENCIES)
-    resp = control.frequency_response(loop, omega)
+    resp = _control().frequency_response(loop, omega)
     values = np.asarray(resp.complex).ravel()
     up, down, phase, crossover = math.inf, math.inf, math.inf, 0.0
     for i in np.flatnonzero(np.sign(values.imag[:-1]) != np.sign(values.imag[1:])):
@@ -180,11 +190,11 @@ class LateralLoop:
 
     def closed_loop(self, speed: float) -> control.StateSpace:
         """Closed loop from a command disturbance at the plant input to the state: u = C(x) + d."""
-        return control.feedback(self.plant(speed), controller(self.gain(speed), self.dt), sign=1)
+        return _control().feedback(self.plant(speed), controller(self.gain(speed), self.dt), sign=1)
 
     def loop_gain(self, speed: float) -> control.StateSpace:
         """L(z) at the steering command, for negative feedback: the command's way round the loop, negated."""
-        return control.series(self.plant(speed), -controller(self.gain(speed), self.dt))
+        return _control().series(self.plant(speed), -controller(self.gain(speed), self.dt))
 
     def point(self, speed: float) -> LoopPoint:
         poles = self.closed_loop(speed).poles()

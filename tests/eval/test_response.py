@@ -37,14 +37,20 @@ def test_attack_response_internals_are_written(fr_runs):
     summary, run_dir = fr_runs["default"]
     with (run_dir / "trajectory.csv").open() as fh:
         rows = list(csv.DictReader(fh))
-    internals = ("fused_dev", "r_msf", "r_ld", "k_msf", "k_ld", "heading_used")
+    internals = ("fused_dev", "r_ld", "k_msf", "k_ld", "heading_used")
     for row in rows:
         assert all((row[c] != "") == (row["mode"] == "ar") for c in internals), row
+        # R^MSF is empty outside the response and where the step left the MSF out (its gain then 0)
+        assert (row["r_msf"] != "") == (row["mode"] == "ar" and float(row["k_msf"] or 0) > 0), row
     every = Rates().camera_every  # camera at 20 Hz: a fresh detection every `every` control ticks
     assert every > 1 and [r["ld_fresh"] for r in rows[:2 * every + 1]] == (["1"] + ["0"] * (every - 1)) * 2 + ["1"]
     ar = [r for r in rows if r["mode"] == "ar"]
     assert ar and float(ar[0]["t"]) == pytest.approx(summary["detection_time_s"])
-    assert all(0.0 < float(r["k_msf"]) < 1.0 and 0.0 < float(r["k_ld"]) < 1.0 for r in ar)
+    # the response keeps the MSF until it strays from the odometry-carried deviation, then leaves it out for good
+    kept = [float(r["k_msf"]) > 0.0 for r in ar]
+    assert kept[0] and not kept[-1] and kept == sorted(kept, reverse=True)
+    assert "msf-disowned" in {f["kind"] for f in summary["faults"]}
+    assert all(0.0 < float(r["k_ld"]) < 1.0 for r in ar) and all(float(r["k_msf"]) < 1.0 for r in ar)
     # the fused heading stays within a few hundredths of a radian of the lane
     assert max(abs(float(r["heading_used"])) for r in ar) <= 0.05
     assert (run_dir / "ar_fusion.png").stat().st_size > 10_000

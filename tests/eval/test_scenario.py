@@ -70,7 +70,7 @@ def test_control_table_is_set_validated_and_written_back(tmp_path):
     with pytest.raises(ScenarioError, match=r"control.steer_rate_weight must be >= 0"):
         apply_settings(sc, ["control.steer_rate_weight=-1"])
     with pytest.raises(ScenarioError, match=r"unknown scenario key 'control.rate'; known in \[control\]: "
-                                            r"lateral_accel, steer_rate_weight"):
+                                            r"lateral_accel, steer_lat_accel, steer_rate_weight"):
         apply_settings(sc, ["control.rate=1"])
     assert apply_settings(sc, ["control.lateral_accel=2.5"]).control.lateral_accel == 2.5
     with pytest.raises(ScenarioError, match=r"control.lateral_accel must be > 0"):

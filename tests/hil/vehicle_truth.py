@@ -32,7 +32,8 @@ RTK = 4
 def gga(x: float, y: float, hdop: float) -> bytes:
     """One $GPGGA line at world (x, y) with `hdop` as given (RTK fix quality)."""
     lat, lon = PLANE.to_latlon(x, y)
-    stamp = time.strftime("%H:%M:%S", time.gmtime()) + ".00"
+    now = time.time()  # hundredths of a second: a 10 Hz stream's fixes each carry a later UTC time
+    stamp = time.strftime("%H:%M:%S", time.gmtime(now)) + f".{int(now * 100) % 100:02d}"
     return NMEAMessage("GP", "GGA", GET, hpnmeamode=True, time=stamp, lat=abs(lat), NS="N" if lat >= 0 else "S",
                        lon=abs(lon), EW="E" if lon >= 0 else "W", quality=RTK, numSV=14, HDOP=hdop, alt=0.0,
                        altUnit="M", sep=0.0, sepUnit="M", diffAge="", diffStation="").serialize()
