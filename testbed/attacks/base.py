@@ -43,7 +43,8 @@ class AttackerView:
 class WhiteBox:
     """What a white-box attacker knows before the run: the semantic map and the victim's lane, the LiDAR
     locator's feature quality at a world point, the defense's public parameters (`defense`: CUSUM `b`, `tau`
-    and the rest of its `[defense]` table), and the lane detector's and the control loop's rates (Hz)."""
+    and the rest of its `[defense]` table), the lane detector's and the control loop's rates (Hz), and the
+    victim's lateral controller (its model, gains and period; read, never stepped)."""
 
     smap: SemanticMap
     lane: int
@@ -51,6 +52,7 @@ class WhiteBox:
     detector_hz: float
     control_hz: float
     lidar_quality: Callable[[float, float], float] = lambda x, y: 1.0
+    controller: Any = None
 
 
 def left_normal(heading: float) -> np.ndarray:

@@ -17,6 +17,7 @@ from typing import Any
 from pydantic import Field, create_model
 
 from testbed.attacks.along import AlongShift
+from testbed.attacks.bound_replay import BoundReplay
 from testbed.attacks.burst import PROFILES, BurstAttack
 from testbed.attacks.coordinated import CoordinatedShift
 from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
@@ -81,6 +82,7 @@ _DESCRIPTIONS = {
     "policy": "the MSF pose in the response: offmap, centre, opposite or hold",
     "hspend": "fraction of the heading check's threshold the strike spends",
     "hsustain": "yaw bias held after the strike, as a fraction of the heading check's weight",
+    "k_sigma": "benign residual noise granted to the attacker, in σ of the measured residual (0: none)",
     "kappa": "curvature above which the road counts as a curve (1/m)",
     "distance": "lateral distance the MSF pose is moved (m, + left)",
     "spend": "fraction of the CUSUM threshold τ the burst spends",
@@ -177,3 +179,7 @@ ATTACKS.add(_component(
     lambda p, rng, defense: StrikeAttack(**p),
     space=(START, FloatDim("spend", 0.2, 1.2), FloatDim("hspend", 0.2, 1.2), FloatDim("spread", 0.05, 3.0, log=True),
            FloatDim("sustain", 0.0, 1.2), FloatDim("hsustain", 0.0, 1.2), SIDE)))
+ATTACKS.add(_component(
+    BoundReplay, "adaptive: replays the worst attack of the deviation bound's linear program on the victim's loop",
+    lambda p, rng, defense: BoundReplay(**p),
+    space=(START, FloatDim("scale", 0.5, 1.2), SIDE)))

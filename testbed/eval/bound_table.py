@@ -1,4 +1,4 @@
-"""`ld3 bound SCENARIO`: LD3's deviation bound (testbed.eval.bound) at the scenario's vehicle, rates, control
+"""`ld3 bound SCENARIO`: LD3's deviation bound (testbed.control.attack_bound) at the scenario's vehicle, rates, control
 design and `[defense]` CUSUMs, per speed, beside the lane straddle deviation; table.md, table.csv, bound.png.
 
 The benign residual std σ that widens b comes from `RESIDUAL_STD` (the scenario's detector) unless given.
@@ -17,11 +17,11 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from testbed.control.attack_bound import Budget, deviation_bound, lateral_loop
 from testbed.control.lateral import LqrLateralController
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
-from testbed.eval.bound import Budget, deviation_bound, lateral_loop
 from testbed.eval.run_folder import SUMMARY, run_folder
 from testbed.eval.scenario import Scenario
 from testbed.presets import build_track, vehicle

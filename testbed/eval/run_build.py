@@ -209,7 +209,8 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
                    detector=detector, tracker=tracker, on_frame=keep_frame if (o.video or o.record) else None,
                    attack=attack)
     if attack is not None:
-        attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality))
+        attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality,
+                             controller=run.loop.driving.lateral))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
     return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,

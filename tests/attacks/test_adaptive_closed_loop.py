@@ -20,6 +20,7 @@ CASES = {
     "response": ({"kind": "response", "start": 3.0, "along": 15.0, "lead": 1.0, "force": 2.0,
                   "policy": "centre"}, "msf-output"),
     "strike": ({"kind": "strike", "start": 3.0, "spend": 0.9, "hspend": 0.9, "spread": 0.5}, "msf-output"),
+    "bound-replay": ({"kind": "bound-replay", "start": 3.0}, "msf-output"),
 }
 
 
@@ -44,6 +45,8 @@ def test_each_family_acts_in_a_short_closed_loop_run(family):
         assert max(abs(r.attack_offset) for r in result.rows) == 25.0
     if family == "unchecked":  # LD3 steers on checked poses only: the moves between detections reach nothing
         assert not s["detected"] and s["max_abs_dev_m"] < 0.2 and s["consequence"] == "reach_destination"
+    if family == "bound-replay":  # the linear program's worst inputs stay within its CUSUM budgets
+        assert max(abs(r.attack_offset) for r in result.rows) <= 0.2 + 2.0 + 1e-9
     if family == "response":  # the forced alarm, then an MSF held on the centre line: disowned, stop in lane
         assert s["detected"] and s["consequence"] == "stop_in_lane"
         assert "msf-disowned" in {f["kind"] for f in s["faults"]}

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from testbed.control.attack_bound import AttackedLoop, Budget, deviation_bound, lateral_loop
 from testbed.control.lateral import LqrLateralController
-from testbed.eval.bound import AttackedLoop, Budget, deviation_bound, lateral_loop
 from vehicles.params import SEDAN
 
 NONE = Budget(0.0, 0.0)
