@@ -317,9 +317,9 @@ class AttackSearch:
             writer.writerow(["trial", "family", "attack", "detected", "detection_time_s", "dev_before_detection_m",
                              "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score"])
             for o in self.sorted_outcomes():
-                writer.writerow([o.number, o.family, attack_spec(o.attack), _cell(o.detected),
-                                 _cell(o.detection_time_s), _cell(o.dev_before_m), _cell(o.max_dev_m), o.consequence,
-                                 _cell(o.undetected_departure), _cell(o.loss), _cell(o.score)])
+                writer.writerow([o.number, o.family, attack_spec(o.attack), csv_cell(o.detected),
+                                 csv_cell(o.detection_time_s), csv_cell(o.dev_before_m), csv_cell(o.max_dev_m),
+                                 o.consequence, csv_cell(o.undetected_departure), csv_cell(o.loss), csv_cell(o.score)])
         return path
 
     def write_best(self) -> Path | None:
@@ -334,7 +334,8 @@ class AttackSearch:
         return path
 
 
-def _cell(value: Any) -> str:
+def csv_cell(value: Any) -> str:
+    """A CSV cell: empty for None or NaN, lower-case booleans, floats to four decimals."""
     if value is None:
         return ""
     if isinstance(value, bool):

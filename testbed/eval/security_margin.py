@@ -24,10 +24,11 @@ from typing import Any
 from testbed.attacks.threat import parse_threat, within_ld3_threat_model
 from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
+from testbed.eval.adaptive import Victim
 from testbed.eval.bound_table import bound_rows, bound_setting
 from testbed.eval.campaign import RunExecutor, load_summary, run_and_write
 from testbed.eval.scenario import Scenario, load_scenario
-from testbed.eval.search import AttackSearch, SearchSpec, attack_spec
+from testbed.eval.search import AttackSearch, SearchSpec, attack_spec, csv_cell
 from testbed.eval.search_report import write_search_report
 from tracks.presets import PRESETS, parse_track_spec
 
@@ -43,21 +44,11 @@ DURATION_S = 45.0
 """Simulated time of every trial: long enough for an attack started up to 30 s in to act."""
 
 
-@dataclass(frozen=True)
-class Defended:
-    """A defense column: its label, folder name, registered defense and `[defense]` overrides."""
-
-    label: str
-    slug: str
-    defense: str
-    params: tuple[tuple[str, Any], ...] = ()
-
-
 DEFENSES = (
-    Defended("LD3 default", "ld3", "ld3"),
-    Defended("LD3 paper mode", "ld3-paper", "ld3", tuple(PAPER_MODE.items())),
-    Defended("NaiveAR", "naive-ar", "ld3-naive-ar"),
-    Defended("SAVIOR", "savior", "savior"),
+    Victim("LD3 default", "ld3", "ld3"),
+    Victim("LD3 paper mode", "ld3-paper", "ld3", tuple(PAPER_MODE.items())),
+    Victim("NaiveAR", "naive-ar", "ld3-naive-ar"),
+    Victim("SAVIOR", "savior", "savior"),
 )
 
 
@@ -66,7 +57,7 @@ class Cell:
     """One search: road, defense, threat model, sampler seed, trials; its victim scenario and folder."""
 
     road: str
-    defended: Defended
+    defended: Victim
     threat: str
     seed: int
     budget: int
@@ -79,7 +70,7 @@ class Cell:
         return victim_scenario(self.road, self.defended)
 
 
-def victim_scenario(road: str, defended: Defended) -> Scenario:
+def victim_scenario(road: str, defended: Victim) -> Scenario:
     """The road's shipped scenario (its preset's; a held-out layout's family) with the defense, MSF
     localization, the oracle detector and `DURATION_S`."""
     name, seed = parse_track_spec(road)
@@ -205,7 +196,7 @@ def cell_bound(cell: Cell) -> float | None:
 
 
 @functools.cache
-def _road_bound(road: str, defended: Defended) -> float | None:
+def _road_bound(road: str, defended: Victim) -> float | None:
     victim = victim_scenario(road, defended)
     try:
         setting = bound_setting(victim)
@@ -257,19 +248,9 @@ def write_table(out: Path, rows: Sequence[Row]) -> Path:
         writer = csv.writer(fh)
         writer.writerow(fields)
         for r in rows:
-            writer.writerow([_csv(getattr(r, f)) for f in fields])
+            writer.writerow([csv_cell(getattr(r, f)) for f in fields])
     os.replace(tmp, out / "table.csv")
     return out / "table.md"
-
-
-def _csv(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, bool):
-        return str(v).lower()
-    if isinstance(v, float):
-        return "inf" if math.isinf(v) else f"{v:.4f}"
-    return str(v)
 
 
 def _write_atomic(path: Path, text: str) -> None:

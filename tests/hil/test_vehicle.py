@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
-import shutil
 import threading
 import time
 import tty
@@ -19,11 +17,11 @@ import pytest
 from hil.ecu_process import EcuProcess
 from hil.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
 from hil.nmea_out import gga_sentence
-from hil.profile import PROFILES_DIR
 from hil.timing import ClockMode
 from testbed.cli import main
 from testbed.localization.sensors import GnssFix
 from testbed.presets import build_track
+from tests.hil.slow_profile import slow_dev_profile
 
 PLANE = LocalTangentPlane(*DEFAULT_ORIGIN)
 
@@ -61,14 +59,9 @@ class NmeaFeeder:
 def ecu(tmp_path):
     """A realtime ECU process on a pty, speaking ld3-dev at a 50 ms cycle with 500 ms time-outs, so that a
     starved process on the shared test machine does not trip the time-outs, which these tests are not about."""
-    profile = tmp_path / "slow-dev"
-    shutil.copytree(PROFILES_DIR / "ld3-dev", profile)
-    text = (profile / "profile.toml").read_text()
-    for key, value in (("cycle_ms", 50), ("command_timeout_ms", 500), ("report_timeout_ms", 500)):
-        text = re.sub(rf"^{key} = \d+", f"{key} = {value}", text, flags=re.MULTILINE)
-    (profile / "profile.toml").write_text(text)
-    process = EcuProcess(plant="kinematic", clock=ClockMode.REALTIME, profile=str(profile))
-    yield process, str(profile)
+    profile = slow_dev_profile(tmp_path)
+    process = EcuProcess(plant="kinematic", clock=ClockMode.REALTIME, profile=profile)
+    yield process, profile
     process.stop()
 
 

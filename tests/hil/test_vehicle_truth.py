@@ -6,28 +6,20 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 
 import numpy as np
 import pytest
 
-from hil.profile import PROFILES_DIR
 from testbed.cli import main
 from testbed.rates import CONTROL_HZ
+from tests.hil.slow_profile import slow_dev_profile
 from tests.hil.vehicle_truth import TruthBench
 
 
 @pytest.fixture
 def slow_profile(tmp_path):
-    """ld3-dev (no yaw-rate report) at a 50 ms cycle with 500 ms time-outs, so that a starved test machine does
-    not trip the time-outs, which these tests are not about."""
-    profile = tmp_path / "slow-dev"
-    shutil.copytree(PROFILES_DIR / "ld3-dev", profile)
-    text = (profile / "profile.toml").read_text()
-    for key, value in (("cycle_ms", 50), ("command_timeout_ms", 500), ("report_timeout_ms", 500)):
-        text = re.sub(rf"^{key} = \d+", f"{key} = {value}", text, flags=re.MULTILINE)
-    (profile / "profile.toml").write_text(text)
-    return str(profile)
+    """ld3-dev (no yaw-rate report) at a slow cycle (`slow_dev_profile`)."""
+    return slow_dev_profile(tmp_path)
 
 
 def _drive(bench: TruthBench, profile: str, out, track: str, *extra: str) -> int:
