@@ -2,8 +2,7 @@
 
 Per lane detection: (R_MSF, R_LD) from the deviation histories, then kf.update(D_MSF, R_MSF), predict,
 kf.update(D_LD, R_LD), predict. Without a D_MSF (fail-closed mode, an MSF pose the map cannot place) the
-MSF update is left out: predict, kf.update(D_LD, P^LD), predict, with R_MSF = ∞ and its gain 0 (and the other
-way round when the response leaves the lines out).
+MSF update is left out: predict, kf.update(D_LD, P^LD), predict, with R_MSF = ∞ and its gain 0.
 The fused deviation d is placed on the lane centreline point along the lane normal (`pose_on_lane`) to
 give the pose the controller uses during attack response.
 """
@@ -56,21 +55,11 @@ class SafetyDrivenFusion:
 
     def update_ld(self, d_ld: float, p_ld: float) -> FusionStep:
         """One step on D_LD alone, measured with LD's own uncertainty P^LD (m²); the histories are unchanged."""
-        k_ld = self._update_alone(d_ld, p_ld)
-        self.last = FusionStep(self.kf.x, math.inf, p_ld, 0.0, k_ld)
-        return self.last
-
-    def update_msf(self, d_msf: float, p_msf: float) -> FusionStep:
-        """One step on D_MSF alone (the lines left out), with the MSF's own uncertainty P^MSF (m²)."""
-        k_msf = self._update_alone(d_msf, p_msf)
-        self.last = FusionStep(self.kf.x, p_msf, math.inf, k_msf, 0.0)
-        return self.last
-
-    def _update_alone(self, d: float, p: float) -> float:
         self.kf.predict()
-        gain = self.kf.update(d, p)
-        self.kf.predict()
-        return gain
+        k_ld = self.kf.update(d_ld, p_ld)
+        d = self.kf.predict()
+        self.last = FusionStep(d, math.inf, p_ld, 0.0, k_ld)
+        return self.last
 
 
 def pose_on_lane(point: np.ndarray, heading: float, d: float, yaw: float) -> Pose:

@@ -28,16 +28,17 @@ from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
 from testbed.defense.fused_heading import FusedHeading
 from testbed.defense.fusion import FusionStep, SafetyDrivenFusion, pose_on_lane
+from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
 
 
-def nearest_lane_image(d_ld: float, d_odo: float, width: float) -> float:
+def nearest_lane_image(d_ld: float, d_ref: float, width: float) -> float:
     """D_LD moved by at most one lane width towards the deviation odometry predicts: a line crossed in the
     response is a lane change of the car, not a jump of D_LD when Alg. 3 re-references to the next line."""
-    shift = max(-1, min(1, round((d_odo - d_ld) / width)))
+    shift = max(-1, min(1, round((d_ref - d_ld) / width)))
     return d_ld + shift * width
 
 
@@ -54,10 +55,18 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
         self._msf_disowned = False
+        self._reference = DeadReckoning()
+        """The response's reference: the dead-reckoned pose at the alarm, carried by odometry and re-anchored only at
+        the lines' D_LD that passed the gate; the MSF never moves it."""
 
     @property
     def response_decel(self) -> float:
         return self.config.ar_decel
+
+    def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
+        super().on_odometry(t, speed, yaw_rate)
+        if self.config.fail_closed:
+            self._reference.on_odometry(t, speed, yaw_rate)
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.config.fail_closed:
@@ -105,45 +114,47 @@ class Ld3Defense(Ld3AlarmedDefense):
             self.faults.report("odometry-off-map", t, f"fused pose: {err}; carried by odometry alone")
             return
         d_ld = mon.fresh_d_ld if alarm else mon.lines_deviation(ld, width)
-        d_odo = float(smap.lane_dev(pose, lane))
-        d_msf = self._gate_msf(t, d_msf, d_odo)
+        if alarm or self._reference.pose is None:
+            self._reference.anchor(pose)
+        reference = self._reference.pose
+        d_ref = float(smap.lane_dev(reference, lane))
+        d_msf = self._gate_msf(t, d_msf, d_ref)
         if d_ld is not None:
-            d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_odo, width), d_odo)
-        if d_ld is not None or d_msf is not None:
-            self.fusion.carry(d_odo)
+            d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_ref, width), d_ref)
+        if d_ld is not None:
+            ref_point, ref_heading = smap.lane_point(reference, lane)
+            self._reference.anchor(pose_on_lane(ref_point, ref_heading, d_ld, reference.yaw))
+            self.fusion.carry(float(smap.lane_dev(pose, lane)))
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
 
-    def _gate_msf(self, t: float, d_msf: float | None, d_odo: float) -> float | None:
-        """D_MSF if the MSF has kept within `response_gate` of the odometry-carried fused deviation throughout the
-        response; once it has not (or the map could not place it), the MSF is disowned for the rest of the
-        response (None, a fault)."""
-        if not self._msf_disowned and (d_msf is None or abs(d_msf - d_odo) > self.config.response_gate):
+    def _gate_msf(self, t: float, d_msf: float | None, d_ref: float) -> float | None:
+        """D_MSF if the MSF has kept within `response_gate` of the reference deviation throughout the response;
+        once it has not (or the map could not place it), the MSF is disowned for the rest of the response (None, a
+        fault)."""
+        if not self._msf_disowned and (d_msf is None or abs(d_msf - d_ref) > self.config.response_gate):
             self._msf_disowned = True
             seen = "not placed on the ego lane" if d_msf is None else f"D_MSF={d_msf:.3f}"
-            self.faults.report("msf-disowned", t, f"{seen}, odometry-carried D={d_odo:.3f}; MSF left out of the "
-                                                  f"response")
+            self.faults.report("msf-disowned", t, f"{seen}, reference D={d_ref:.3f}; MSF left out of the response")
         return None if self._msf_disowned else d_msf
 
-    def _gate_ld(self, t: float, d_ld: float, d_odo: float) -> float | None:
-        """D_LD if within `response_gate` of the odometry-carried fused deviation, else None (a fault)."""
-        if abs(d_ld - d_odo) <= self.config.response_gate:
+    def _gate_ld(self, t: float, d_ld: float, d_ref: float) -> float | None:
+        """D_LD if within `response_gate` of the reference deviation, else None (a fault)."""
+        if abs(d_ld - d_ref) <= self.config.response_gate:
             return d_ld
-        self.faults.report("ld-gated", t, f"D_LD={d_ld:.3f} is {abs(d_ld - d_odo):.3f} m from the odometry-carried "
-                                          f"D={d_odo:.3f}; this detection left out of the response")
+        self.faults.report("ld-gated", t, f"D_LD={d_ld:.3f} is {abs(d_ld - d_ref):.3f} m from the reference "
+                                          f"D={d_ref:.3f}; this detection left out of the response")
         return None
 
-    def _fuse(self, ld: LaneDetection, msf: LocalizationEstimate, d_msf: float | None, d_ld: float | None,
+    def _fuse(self, ld: LaneDetection, msf: LocalizationEstimate, d_msf: float | None, d_ld: float,
               lane_heading: float) -> FusionStep:
-        """Alg. 2 with both deviations, or on the one source the response kept (at least one is given)."""
+        """Alg. 2 with both deviations, or on D_LD alone when the MSF is left out."""
         if d_msf is None:
             self.faults.report("msf-left-out", ld.timestamp, f"Alg. 2 on D_LD={d_ld:.3f} alone")
             return self.fusion.update_ld(d_ld, self._ld_uncertainty(ld))
         p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
-        if d_ld is None:
-            return self.fusion.update_msf(d_msf, p_msf)
         return self.fusion.update(d_msf, d_ld, p_msf, p_ld)
 
     def _unreckoned_pose(self, t: float, msf: LocalizationEstimate, smap: SemanticMap) -> Pose | None:
