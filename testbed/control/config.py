@@ -21,9 +21,9 @@ class ControlConfig(Params):
     lateral_accel: float = Field(3.0, gt=0, le=10, description="the planner's lateral-acceleration bound in curves "
                                  "(m/s²): it slows for the curvature ahead so that v²·|κ| stays within it")
 
-    steer_lat_accel: float = Field(6.0, gt=0, description="largest lateral acceleration a steering command may ask "
-                                   "for beyond the road's own curvature (m/s²): a step in the pose cannot throw the "
-                                   "car into a skid")
+    steer_lat_accel: float = Field(10.0, gt=0, description="largest lateral acceleration a steering command may ask "
+                                   "for beyond the road's own curvature (m/s²): about a dry road's grip, so a step in "
+                                   "the pose cannot command the car into a skid")
 
     def explicit(self) -> dict[str, Any]:
         """The table as TOML would hold it, defaults left out."""

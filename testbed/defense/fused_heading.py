@@ -10,7 +10,9 @@
   (1 / R_MSF + 1 / R_LD) with Alg. 4's uncertainties of the last fusion step, so the heading follows the
   source the deviation fusion trusts (the lines alone when R_MSF is infinite).
 
-In fail-closed mode the LD3 response passes the dead-reckoned yaw where "MSF yaw" is written here.
+In fail-closed mode the LD3 response passes the dead-reckoned yaw where "MSF yaw" is written here (`own_yaw`): a
+yaw no attacker moves, so when the fusion leaves the MSF out "fused" follows that yaw, not the lines' clamped
+slope (which would hide a large heading error from the controller).
 """
 
 from __future__ import annotations
@@ -34,8 +36,9 @@ def line_relative_heading(ld: LaneDetection, existence_threshold: float) -> floa
 class FusedHeading:
     """The fused pose's yaw for one heading source; `relative` is its last heading relative to the lane."""
 
-    def __init__(self, source: str, clamp: float, existence_threshold: float) -> None:
+    def __init__(self, source: str, clamp: float, existence_threshold: float, own_yaw: bool = False) -> None:
         self.source = source
+        self.own_yaw = own_yaw
         self.clamp = clamp
         self.existence_threshold = existence_threshold
         self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then
@@ -53,7 +56,10 @@ class FusedHeading:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
         if self.source == "fused" and uncertainties is not None:
             r_msf, r_ld = uncertainties
-            self._ld_weight = 1.0 if math.isinf(r_msf) else r_msf / (r_msf + r_ld)
+            if math.isinf(r_msf):  # the MSF left out: its yaw is the attacker's, or the defense's own (odometry)
+                self._ld_weight = 0.0 if self.own_yaw else 1.0
+            else:
+                self._ld_weight = r_msf / (r_msf + r_ld)
 
     def yaw(self, msf_yaw: float, lane_heading: float) -> float:
         """The fused pose's yaw at the current MSF yaw and lane heading."""

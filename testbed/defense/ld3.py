@@ -50,7 +50,8 @@ class Ld3Defense(Ld3AlarmedDefense):
     def __init__(self, config: DefenseConfig) -> None:
         super().__init__(config)
         self.fusion = SafetyDrivenFusion(config.window, config.lam, config.kf_q, config.kf_p0, config.r_power)
-        self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold)
+        self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold,
+                                    own_yaw=config.fail_closed)
         self._p_ld = config.p_ld
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None

@@ -64,3 +64,14 @@ def test_fused_source_weighs_the_headings_by_the_fusion_uncertainties():
     # ψ_LD = 0.02, ψ_MSF = -0.01; R_MSF = 3, R_LD = 1: LD weight 3/4 -> 0.75·0.02 + 0.25·(-0.01) = 0.0125
     h.on_detection(lines(math.tan(-0.02), math.tan(-0.02)), msf_yaw=-0.01, lane_heading=0.0, uncertainties=(3.0, 1.0))
     assert h.yaw(-0.01, 0.0) == pytest.approx(0.0125)
+
+
+def test_with_the_msf_left_out_fused_follows_its_own_yaw_in_fail_closed_mode_and_the_lines_in_paper_mode():
+    # the car turned 0.3 rad against the lane; the lines say so but are clamped to 0.02; R_MSF = ∞ (MSF left out)
+    ld = lines(math.tan(-0.3), math.tan(-0.3))
+    own = FusedHeading("fused", 0.02, 0.5, own_yaw=True)  # the yaw passed is odometry's
+    own.on_detection(ld, msf_yaw=0.3, lane_heading=0.0, uncertainties=(math.inf, 0.2))
+    assert own.yaw(0.3, 0.0) == pytest.approx(0.3)
+    paper = FusedHeading("fused", 0.02, 0.5)  # the yaw passed is the attacked MSF's
+    paper.on_detection(ld, msf_yaw=0.3, lane_heading=0.0, uncertainties=(math.inf, 0.2))
+    assert paper.yaw(0.3, 0.0) == pytest.approx(0.02)
