@@ -33,11 +33,12 @@ class FaultLog:
         self._first: dict[str, tuple[float, str]] = {}
         self._last: dict[str, float] = {}
 
-    def report(self, kind: str, t: float, detail: str) -> None:
+    def report(self, kind: str, t: float, detail: str, *, expected: bool = False) -> None:
+        """Count one fault; `expected`: a consequence of a fault already warned of (logged at debug level)."""
         self.counts[kind] += 1
         self._first.setdefault(kind, (t, detail))
         self._last[kind] = t
-        level = logging.DEBUG if kind in self._active else logging.WARNING
+        level = logging.DEBUG if expected or kind in self._active else logging.WARNING
         self._active.add(kind)
         self._logger.log(level, "t=%.3f %s: %s", t, kind, detail)
 

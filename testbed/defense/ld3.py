@@ -153,7 +153,8 @@ class Ld3Defense(Ld3AlarmedDefense):
               lane_heading: float) -> FusionStep:
         """Alg. 2 with both deviations, or on D_LD alone when the MSF is left out."""
         if d_msf is None:
-            self.faults.report("msf-left-out", ld.timestamp, f"Alg. 2 on D_LD={d_ld:.3f} alone")
+            self.faults.report("msf-left-out", ld.timestamp, f"Alg. 2 on D_LD={d_ld:.3f} alone",
+                               expected=self._msf_disowned)
             return self.fusion.update_ld(d_ld, self._ld_uncertainty(ld))
         p_msf, p_ld = self._source_uncertainties(ld, msf, lane_heading)
         return self.fusion.update(d_msf, d_ld, p_msf, p_ld)
