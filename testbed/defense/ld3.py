@@ -13,10 +13,13 @@ Paper mode (`fail_closed = False`): the fused deviation is placed at the MSF pos
 cannot answer for the MSF pose, the last fused pose is carried along by the MSF's motion.
 Fail-closed mode (the default): the fused pose is the monitor's dead-reckoned pose, carried by odometry
 between detections and, on each detection with a valid line, placed across the ego lane at the fused
-deviation (lane point at its own station, its own yaw); the heading option reads that yaw where the paper
-reads the MSF's. An MSF pose the map cannot place leaves Alg. 2 to D_LD alone; a detection without a valid
-line leaves the pose to odometry. The MSF pose is handed to control in response only when there is no
-pose to carry (never anchored, the MSF unplaceable at the alarm), as a fault.
+deviation (lane point at its own station, its own yaw), Alg. 2's state first moved to where odometry carried it;
+the heading option reads that yaw where the paper reads the MSF's. Each source is checked against a reference,
+the dead-reckoned pose at the alarm re-anchored only at lines that pass the check: lines farther than
+`response_gate` are left out of that detection, the MSF out of the rest of the response (as is an MSF pose the
+map cannot place); Alg. 2 then runs on D_LD alone. A detection without a valid line leaves the pose to
+odometry. The MSF pose is handed to control in response only when there is no pose to carry (never anchored,
+the MSF unplaceable at the alarm), as a fault.
 """
 
 from __future__ import annotations
@@ -115,21 +118,31 @@ class Ld3Defense(Ld3AlarmedDefense):
             self.faults.report("odometry-off-map", t, f"fused pose: {err}; carried by odometry alone")
             return
         d_ld = mon.fresh_d_ld if alarm else mon.lines_deviation(ld, width)
-        if alarm or self._reference.pose is None:
-            self._reference.anchor(pose)
-        reference = self._reference.pose
+        reference = self._reference_on_lane(t, pose, smap, lane, alarm)
+        ref_point, ref_heading = smap.lane_point(reference, lane)
         d_ref = float(smap.lane_dev(reference, lane))
         d_msf = self._gate_msf(t, d_msf, d_ref)
         if d_ld is not None:
             d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_ref, width), d_ref)
         if d_ld is not None:
-            ref_point, ref_heading = smap.lane_point(reference, lane)
             self._reference.anchor(pose_on_lane(ref_point, ref_heading, d_ld, reference.yaw))
             self.fusion.carry(float(smap.lane_dev(pose, lane)))
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
+
+    def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int, alarm: bool) -> Pose:
+        """The gate's reference: the dead-reckoned pose at the alarm, carried since; restarted at the fused pose
+        (a fault) when the map cannot place it."""
+        if alarm or self._reference.pose is None:
+            self._reference.anchor(pose)
+        try:
+            smap.lane_point(self._reference.pose, lane)
+        except OffMapError as err:
+            self.faults.report("odometry-off-map", t, f"response reference: {err}; restarted at the fused pose")
+            self._reference.anchor(pose)
+        return self._reference.pose
 
     def _gate_msf(self, t: float, d_msf: float | None, d_ref: float) -> float | None:
         """D_MSF if the MSF has kept within `response_gate` of the reference deviation throughout the response;
