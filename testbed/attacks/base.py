@@ -54,6 +54,11 @@ class WhiteBox:
     lidar_quality: Callable[[float, float], float] = lambda x, y: 1.0
     controller: Any = None
 
+    @property
+    def ticks_per_detection(self) -> int:
+        """Control ticks from one lane detection to the next (the loop's camera period in ticks)."""
+        return max(1, round(self.control_hz / self.detector_hz))
+
 
 def left_normal(heading: float) -> np.ndarray:
     """Unit vector pointing left of a direction of travel `heading` (rad)."""

@@ -50,13 +50,12 @@ class BoundReplay(Attack):
     def _solve(self, speed: float) -> tuple[np.ndarray, np.ndarray, float]:
         wb = self.whitebox
         d = wb.defense
-        every = max(1, round(wb.control_hz / wb.detector_hz))
         lateral = Budget(float(d.b), float(d.tau))
         if getattr(d, "fail_closed", False):
             heading = Budget(float(d.heading_b), float(d.heading_tau), clamp=float(d.steer_yaw_tol))
         else:
             heading = Budget(0.0, math.inf, clamp=PAPER_YAW_LIMIT)
-        loop = lateral_loop(wb.controller, max(speed, 1.0), every)
+        loop = lateral_loop(wb.controller, max(speed, 1.0), wb.ticks_per_detection)
         result = deviation_bound(loop, lateral, heading, k_sigma=self.k_sigma, horizon_s=HORIZON_S)
         return result.offsets_m, result.yaw_biases, 1.0 / wb.detector_hz
 

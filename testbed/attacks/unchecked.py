@@ -34,7 +34,7 @@ class UncheckedTicks(Attack):
 
     def know(self, whitebox: WhiteBox) -> None:
         super().know(whitebox)
-        self._rates = (whitebox.control_hz, max(1, round(whitebox.control_hz / whitebox.detector_hz)))
+        self._rates = (whitebox.control_hz, whitebox.ticks_per_detection)
 
     def detection_tick(self, t: float) -> bool:
         """Whether the loop runs a lane detection on the control tick at `t` (ticks counted from t = 0)."""

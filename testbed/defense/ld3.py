@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from testbed.defense.alarmed import Ld3AlarmedDefense
 from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
@@ -118,8 +120,7 @@ class Ld3Defense(Ld3AlarmedDefense):
             self.faults.report("odometry-off-map", t, f"fused pose: {err}; carried by odometry alone")
             return
         d_ld = mon.fresh_d_ld if alarm else mon.lines_deviation(ld, width)
-        reference = self._reference_on_lane(t, pose, smap, lane, alarm)
-        ref_point, ref_heading = smap.lane_point(reference, lane)
+        reference, ref_point, ref_heading = self._reference_on_lane(t, pose, smap, lane, alarm)
         d_ref = float(smap.lane_dev(reference, lane))
         d_msf = self._gate_msf(t, d_msf, d_ref)
         if d_ld is not None:
@@ -132,17 +133,19 @@ class Ld3Defense(Ld3AlarmedDefense):
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
 
-    def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int, alarm: bool) -> Pose:
-        """The gate's reference: the dead-reckoned pose at the alarm, carried since; restarted at the fused pose
-        (a fault) when the map cannot place it."""
+    def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int,
+                           alarm: bool) -> tuple[Pose, np.ndarray, float]:
+        """The gate's reference (the dead-reckoned pose at the alarm, carried since; restarted at the fused pose,
+        a fault, when the map cannot place it) with its lane point and lane heading."""
         if alarm or self._reference.pose is None:
             self._reference.anchor(pose)
         try:
-            smap.lane_point(self._reference.pose, lane)
+            point, heading = smap.lane_point(self._reference.pose, lane)
         except OffMapError as err:
             self.faults.report("odometry-off-map", t, f"response reference: {err}; restarted at the fused pose")
             self._reference.anchor(pose)
-        return self._reference.pose
+            point, heading = smap.lane_point(pose, lane)
+        return self._reference.pose, point, heading
 
     def _gate_msf(self, t: float, d_msf: float | None, d_ref: float) -> float | None:
         """D_MSF if the MSF has kept within `response_gate` of the reference deviation throughout the response;
