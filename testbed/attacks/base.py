@@ -59,6 +59,10 @@ class WhiteBox:
         """Control ticks from one lane detection to the next (the loop's camera period in ticks)."""
         return max(1, round(self.control_hz / self.detector_hz))
 
+    def detection_tick(self, t: float) -> bool:
+        """Whether the loop runs a lane detection on the control tick at `t` (ticks counted from t = 0)."""
+        return round(t * self.control_hz) % self.ticks_per_detection == 0
+
 
 def left_normal(heading: float) -> np.ndarray:
     """Unit vector pointing left of a direction of travel `heading` (rad)."""

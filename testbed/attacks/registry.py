@@ -26,6 +26,7 @@ from testbed.attacks.gnss_drift import GnssDrift
 from testbed.attacks.heading import HeadingBias
 from testbed.attacks.offmap import OffMapAttack
 from testbed.attacks.response import CUES, POLICIES, ResponsePhaseAttack
+from testbed.attacks.shadow import ShadowAttack
 from testbed.attacks.space import SIDE, START, ChoiceDim, Dim, FloatDim, IntDim
 from testbed.attacks.stealthy import CusumKnowledge, StealthyAttack
 from testbed.attacks.strike import StrikeAttack
@@ -80,13 +81,13 @@ _DESCRIPTIONS = {
     "cue": "how the attacker learns of the alarm: observed (the victim brakes) or timed",
     "delay": "timed cue: time after the jump the response is assumed to run (s)",
     "policy": "the MSF pose in the response: offmap, centre, opposite or hold",
-    "hspend": "fraction of the heading check's threshold the strike spends",
-    "hsustain": "yaw bias held after the strike, as a fraction of the heading check's weight",
+    "hspend": "fraction of the heading check's threshold spent",
+    "hsustain": "yaw bias held after the spend, as a fraction of the heading check's weight",
     "k_sigma": "benign residual noise granted to the attacker, in σ of the measured residual (0: none)",
     "kappa": "curvature above which the road counts as a curve (1/m)",
     "distance": "lateral distance the MSF pose is moved (m, + left)",
     "spend": "fraction of the CUSUM threshold τ the burst spends",
-    "profile": "burst shape: flat, rise or fall", "sustain": "offset held after the burst, as a fraction of b",
+    "profile": "burst shape: flat, rise or fall", "sustain": "offset (residual) held after the spend, as a fraction of b",
     "bias": "heading bias added to the MSF yaw (rad, + left)",
     "rate": "lateral drift rate (m/s)", "limit": "largest lateral offset (m)",
     "lidar_below": "the drift begins once the LiDAR feature quality is below this (0..1; > 1: at start)",
@@ -183,3 +184,9 @@ ATTACKS.add(_component(
     BoundReplay, "adaptive: replays the worst attack of the deviation bound's linear program on the victim's loop",
     lambda p, rng, defense: BoundReplay(**p),
     space=(START, FloatDim("scale", 0.5, 1.2), SIDE)))
+ATTACKS.add(_component(
+    ShadowAttack, "adaptive: runs a shadow of LD3's CUSUMs and spends their budgets closed-loop, the MSF's own error "
+    "cancelled", lambda p, rng, defense: ShadowAttack(**p),
+    space=(START, FloatDim("spend", 0.2, 1.2), FloatDim("sustain", 0.5, 1.2), FloatDim("hspend", 0.2, 1.2),
+           FloatDim("hsustain", 0.5, 1.2), FloatDim("spread", 0.05, 3.0, log=True), FloatDim("along", -1.0, 1.0),
+           SIDE)))

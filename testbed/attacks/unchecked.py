@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from testbed.attacks.base import Attack, AttackerView, WhiteBox, shift_pose
+from testbed.attacks.base import Attack, AttackerView, shift_pose
 from testbed.attacks.profile import check_finite, ramp_fraction
 from testbed.attacks.threat import ThreatCapability
 from testbed.localization.estimate import LocalizationEstimate
@@ -30,18 +30,12 @@ class UncheckedTicks(Attack):
         self.lateral, self.yaw, self.ramp = lateral, yaw, ramp
         self.stage = IDLE
         self.offset = 0.0
-        self._rates: tuple[float, int] | None = None  # (control rate, control ticks per detection)
-
-    def know(self, whitebox: WhiteBox) -> None:
-        super().know(whitebox)
-        self._rates = (whitebox.control_hz, whitebox.ticks_per_detection)
 
     def detection_tick(self, t: float) -> bool:
-        """Whether the loop runs a lane detection on the control tick at `t` (ticks counted from t = 0)."""
-        if self._rates is None:
+        """Whether the loop runs a lane detection on the control tick at `t` (the white box's rates)."""
+        if self.whitebox is None:
             raise RuntimeError("unchecked attack used before know(): it needs the control and detection rates")
-        control_hz, every = self._rates
-        return round(t * control_hz) % every == 0
+        return self.whitebox.detection_tick(t)
 
     def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
         k = ramp_fraction(view.t - self.start_time, self.ramp)

@@ -21,6 +21,7 @@ CASES = {
                   "policy": "centre"}, "msf-output"),
     "strike": ({"kind": "strike", "start": 3.0, "spend": 0.9, "hspend": 0.9, "spread": 0.5}, "msf-output"),
     "bound-replay": ({"kind": "bound-replay", "start": 3.0}, "msf-output"),
+    "shadow": ({"kind": "shadow", "start": 3.0, "sustain": 1.0, "hsustain": 1.2, "spread": 2.0}, "msf-output"),
 }
 
 
@@ -50,6 +51,8 @@ def test_each_family_acts_in_a_short_closed_loop_run(family):
     if family == "response":  # the forced alarm, then an MSF held on the centre line: disowned, stop in lane
         assert s["detected"] and s["consequence"] == "stop_in_lane"
         assert "msf-disowned" in {f["kind"] for f in s["faults"]}
+    if family == "shadow":  # spending both budgets moves the car, but not out of its lane
+        assert 0.1 < s["max_abs_dev_m"] < 0.45 and s["consequence"] in ("reach_destination", "stop_in_lane")
 
 
 def test_the_paper_mode_steers_on_unchecked_ticks_and_is_moved():
@@ -58,3 +61,12 @@ def test_the_paper_mode_steers_on_unchecked_ticks_and_is_moved():
                                         attack=attack)
     paper = run_scenario(sc.replace(defense_params=dict(PAPER_MODE)), None).summary
     assert paper["max_abs_dev_m"] > 0.5
+
+
+def test_the_paper_mode_without_a_heading_check_is_moved_further_by_the_shadow():
+    attack, _ = CASES["shadow"]
+    sc = load_scenario("local").replace(defense="ld3", localization="msf", duration=9.0, start_s=310.0,
+                                        attack=attack)
+    default = run_scenario(sc, None).summary
+    paper = run_scenario(sc.replace(defense_params=dict(PAPER_MODE)), None).summary
+    assert paper["max_abs_dev_m"] > default["max_abs_dev_m"] + 0.2
