@@ -25,7 +25,7 @@ from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix
 from tracks.map_api import SemanticMap
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,13 @@ def shift_lines(ld: LaneDetection, offset: float, slope: float = 0.0) -> LaneDet
         return c
 
     return dataclasses.replace(ld, left=moved(ld.left), right=moved(ld.right))
+
+
+def msf_error(est: LocalizationEstimate, view: AttackerView, whitebox: WhiteBox) -> tuple[float, float]:
+    """The MSF's own error as an attacker who sees the true pose reads it before tampering: its lane deviation
+    less the true one (m, + left) and its yaw less the true yaw (rad); OffMapError where the map cannot place it."""
+    lateral = float(whitebox.smap.lane_dev(est.pose, whitebox.lane)) - view.phys_dev
+    return lateral, wrap_angle(est.pose.yaw - view.true_pose.yaw)
 
 
 def shift_pose(pose: Pose, heading: float, offset: float) -> Pose:

@@ -2,21 +2,25 @@
 gains and period), LD3's CUSUMs and the detection rate solves the bound's linear program at the victim's speed when
 it starts and replays the program's worst inputs: per detection an MSF offset a_i (m) and yaw bias ψ_i (rad),
 held until the next (`testbed.control.attack_bound`). `k_sigma` grants it that much benign residual noise on its
-side (0: none, the safe choice), `scale` multiplies the inputs and `direction` mirrors them. The program stops at
-the peak it aims for; the attack releases there."""
+side (0: none, the safe choice), `scale` multiplies the inputs and `direction` mirrors them. With `cancel` the
+attacker, who sees the true pose, takes the MSF's own error out of what it sends, so the residual the defense sees
+is the program's input and not the input plus the MSF's noise. The program stops at the peak it aims for; the
+attack releases there."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Any
 
 import numpy as np
 
-from testbed.attacks.base import Attack, AttackerView, WhiteBox, shift_pose
+from testbed.attacks.base import Attack, AttackerView, WhiteBox, msf_error, shift_pose
 from testbed.attacks.profile import check_finite, side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.control.attack_bound import Budget, deviation_bound, lateral_loop
 from testbed.localization.estimate import LocalizationEstimate
+from tracks.map_api import OffMapError
 from tracks.pose import Pose
 
 PAPER_YAW_LIMIT = 0.15
@@ -31,12 +35,12 @@ class BoundReplay(Attack):
     name = "bound-replay"
     capabilities = frozenset({ThreatCapability.MSF_OUTPUT})
 
-    def __init__(self, start: float = 10.0, scale: float = 1.0, k_sigma: float = 0.0,
+    def __init__(self, start: float = 10.0, scale: float = 1.0, k_sigma: float = 0.0, cancel: bool = True,
                  direction: str = "left") -> None:
         super().__init__(start)
         check_finite("bound-replay scale", scale, 0.0)
         check_finite("bound-replay k_sigma", k_sigma, 0.0)
-        self.scale, self.k_sigma = scale, k_sigma
+        self.scale, self.k_sigma, self.cancel = scale, k_sigma, cancel
         self.direction, self.sign = direction, side_sign(direction, "bound-replay")
         self.stage = IDLE
         self.offset = 0.0
@@ -71,8 +75,13 @@ class BoundReplay(Attack):
             return est
         self.stage = REPLAY
         self.offset = self.sign * self.scale * float(offsets[i])
-        moved = shift_pose(est.pose, view.lane_heading, self.offset)
         yaw = self.sign * self.scale * float(yaws[i])
+        error = (0.0, 0.0)
+        if self.cancel and est.pose.is_finite():
+            with contextlib.suppress(OffMapError):  # a pose the map cannot place is sent as it is
+                error = msf_error(est, view, self.whitebox)
+        moved = shift_pose(est.pose, view.lane_heading, self.offset - error[0])
+        yaw -= error[1]
         return LocalizationEstimate(est.t, Pose(moved.x, moved.y, moved.yaw + yaw), est.cov)
 
     def state(self) -> dict[str, Any]:
@@ -80,4 +89,4 @@ class BoundReplay(Attack):
 
     def describe(self) -> dict[str, Any]:
         return {"kind": self.name, "start": self.start_time, "scale": self.scale, "k_sigma": self.k_sigma,
-                "direction": self.direction}
+                "cancel": self.cancel, "direction": self.direction}

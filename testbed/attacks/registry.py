@@ -83,11 +83,13 @@ _DESCRIPTIONS = {
     "policy": "the MSF pose in the response: offmap, centre, opposite or hold",
     "hspend": "fraction of the heading check's threshold spent",
     "hsustain": "yaw bias held after the spend, as a fraction of the heading check's weight",
+    "cancel": "take the MSF's own error (seen against the true pose) out of what is sent",
     "k_sigma": "benign residual noise granted to the attacker, in σ of the measured residual (0: none)",
     "kappa": "curvature above which the road counts as a curve (1/m)",
     "distance": "lateral distance the MSF pose is moved (m, + left)",
     "spend": "fraction of the CUSUM threshold τ the burst spends",
-    "profile": "burst shape: flat, rise or fall", "sustain": "offset (residual) held after the spend, as a fraction of b",
+    "profile": "burst shape: flat, rise or fall",
+    "sustain": "offset (residual) held after the spend, as a fraction of b",
     "bias": "heading bias added to the MSF yaw (rad, + left)",
     "rate": "lateral drift rate (m/s)", "limit": "largest lateral offset (m)",
     "lidar_below": "the drift begins once the LiDAR feature quality is below this (0..1; > 1: at start)",
@@ -183,7 +185,7 @@ ATTACKS.add(_component(
 ATTACKS.add(_component(
     BoundReplay, "adaptive: replays the worst attack of the deviation bound's linear program on the victim's loop",
     lambda p, rng, defense: BoundReplay(**p),
-    space=(START, FloatDim("scale", 0.5, 1.2), SIDE)))
+    space=(START, FloatDim("scale", 0.5, 1.2), ChoiceDim("cancel", (True, False)), SIDE)))
 ATTACKS.add(_component(
     ShadowAttack, "adaptive: runs a shadow of LD3's CUSUMs and spends their budgets closed-loop, the MSF's own error "
     "cancelled", lambda p, rng, defense: ShadowAttack(**p),

@@ -15,13 +15,13 @@ from __future__ import annotations
 from typing import Any
 
 from testbed.attacks.along import along_lane
-from testbed.attacks.base import Attack, AttackerView, WhiteBox, shift_pose
+from testbed.attacks.base import Attack, AttackerView, WhiteBox, msf_error, shift_pose
 from testbed.attacks.profile import check_finite, side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.defense.attack_detection import Cusum
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError
-from tracks.pose import Pose, wrap_angle
+from tracks.pose import Pose
 
 IDLE, SPENDING, SUSTAINING = "idle", "spending", "sustaining"
 
@@ -71,8 +71,7 @@ class ShadowAttack(Attack):
         r = budgeted_residual(lateral, self.spend, self.sustain, self._share)
         rh = budgeted_residual(heading, self.hspend, self.hsustain, self._share)
         self.stage = SPENDING if lateral.statistic < self.spend * lateral.tau - 1e-12 else SUSTAINING
-        error = float(wb.smap.lane_dev(est.pose, wb.lane)) - view.phys_dev
-        yaw_error = wrap_angle(est.pose.yaw - view.true_pose.yaw)
+        error, yaw_error = msf_error(est, view, wb)
         self._choice = (self.sign * r - error, self.sign * rh - yaw_error)
 
     def tamper_msf(self, est: LocalizationEstimate, view: AttackerView) -> LocalizationEstimate:
