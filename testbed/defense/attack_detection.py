@@ -11,7 +11,10 @@ residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at ever
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
 towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
-residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. D_MSF is
+residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
+MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is anchored on
+them at its own station: an attacker who holds the residual just above b cannot leave odometry to drift until
+the response takes it for the car's place. D_MSF is
 measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
 the lines. Every skipped or degraded update is a fault. A second CUSUM (`heading`) checks the MSF's heading
 relative to the lane against the lines' (against the dead-reckoned yaw where lines are absent): an MSF yaw
@@ -212,6 +215,8 @@ class LaneConsistencyMonitor:
         if abs(d_msf - d_ld) <= self.detector.cusum.b:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld)
+        elif reckoned is not None and abs(float(smap.lane_dev(reckoned, lane)) - d_ld) <= self.detector.cusum.b:
+            self._anchor(ld, reckoned, smap, lane, d_ld)  # the lines agree with odometry: its own station kept
         psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True

@@ -41,8 +41,9 @@ class Drive:
     offset from the car (an attacker's shift), `yaw(t, x)` its yaw (the car's is 0)."""
 
     def __init__(self, defense: Ld3AlarmedDefense, smap: FakeStraightMap, x0: float = 50.0, speed: float = 10.0,
-                 dev: float = 0.0) -> None:
+                 dev: float = 0.0, gyro_bias: float = 0.0) -> None:
         self.defense, self.smap, self.x0, self.speed, self.dev = defense, smap, x0, speed, dev
+        self.gyro_bias = gyro_bias
         self.ticks = 0
         self.control: list[Pose] = []
         self.alarm_x: float | None = None
@@ -59,7 +60,7 @@ class Drive:
     def run(self, seconds: float, msf: Callable[[float, float], float] = lambda t, x: 0.0,
             yaw: Callable[[float, float], float] = lambda t, x: 0.0) -> Drive:
         for _ in range(round(seconds * 100)):
-            self.defense.on_odometry(self.t, self.speed, 0.0)
+            self.defense.on_odometry(self.t, self.speed, self.gyro_bias)
             est = LocalizationEstimate(self.t, Pose(self.x, self.dev + msf(self.t, self.x), yaw(self.t, self.x)),
                                        np.eye(3) * 0.01)
             if self.ticks % 5 == 0:
@@ -118,6 +119,17 @@ def test_imu_grade_yaw_rate_noise_drifts_far_less_than_b_across_an_intersection(
 
 
 # --- off-map MSF poses ------------------------------------------------------------------------------------
+
+def test_odometry_follows_lines_that_agree_with_it_while_the_msf_is_held_just_above_b():
+    """An MSF held 0.205 m off (b = 0.2: never agreeing, S growing 5 mm a detection) for 15 s on a gyro biased by
+    2 mrad/s, which alone would carry the dead-reckoned pose metres off: it stays on the lines."""
+    defense = Ld3Defense(DefenseConfig())
+    drive = Drive(defense, FakeStraightMap(), gyro_bias=0.002).run(2.0)
+    drive.run(15.0, msf=lambda t, x: 0.205)
+    assert defense.mode == "normal"
+    reckoned = defense.monitor.reckoned
+    assert abs(drive.smap.lane_dev(reckoned, 0)) < 0.02 and abs(reckoned.x - drive.x) < 0.5
+
 
 @pytest.mark.parametrize("bad", [30.0, math.nan])
 def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
