@@ -45,7 +45,6 @@ from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
 from testbed.eval.summary import HilSummary
-from testbed.extras import require_modules
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -184,7 +183,6 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
-    require_modules(("pybullet", "cv2"), "sim", "ld3 hil (its world is the simulator's)")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
