@@ -197,6 +197,11 @@ class CanChassisBridge(ChassisPort):
     def latched_faults(self) -> tuple[ChassisFault, ...]:
         return self.fault_latch.faults
 
+    def reported(self, quantity: str) -> float | None:
+        """The latest reported value (DBC units) of a report quantity of the profile; None before its first."""
+        with self._state_lock:
+            return self.follower.value(quantity)
+
     # ------------------------------------------------------------------ public extras
     def time(self) -> float:
         """Chassis time: plant time in lockstep; in realtime, wall time from the epoch the last `engage` set."""

@@ -63,6 +63,7 @@ from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
+from vehicles.params import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -112,9 +113,9 @@ class ReportedChassis(ChassisPort):
     """The bridge as the loop sees it on a vehicle: what the chassis reports, its yaw rate from `yaw_rate_source`,
     no pose (the bridge's odometry is no truth)."""
 
-    def __init__(self, bridge: CanChassisBridge, wheelbase: float) -> None:
+    def __init__(self, bridge: CanChassisBridge, params: VehicleParams) -> None:
         self.bridge = bridge
-        self.port = YawRateChassis(bridge, bridge.profile, wheelbase)
+        self.port = YawRateChassis(bridge, bridge.profile, params)
 
     def read(self) -> ChassisState:
         return dataclasses.replace(self.port.read(), true_pose=None)
@@ -238,7 +239,7 @@ class VehicleRun:
         defense = DEFENSES.get(config.defense).factory(settings.defense,
                                                        BicycleCoefficients(wheelbase=self.params.wheelbase))
         self.localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
-        chassis = ReportedChassis(self.bridge, self.params.wheelbase)
+        chassis = ReportedChassis(self.bridge, self.params)
         run = assemble(settings, chassis,
                        SensorPorts(self.localization, self._capture if self.camera is not None else None),
                        defense, LanePorts(self.smap, lane, self.params), detector=self.detector,

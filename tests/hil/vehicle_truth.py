@@ -23,6 +23,7 @@ from hil.kinematic_plant import KinematicBicyclePlant
 from hil.nmea_gnss import UERE_M
 from hil.profile import load_profile
 from hil.timing import ClockMode
+from hil.wheels import WheelGeometry
 from testbed.presets import build_track, vehicle
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
@@ -62,7 +63,8 @@ class TruthBench:
         self.plant = KinematicBicyclePlant(wheelbase=params.wheelbase, pose=Pose(*axle, start.yaw))
         self.channel = f"ld3-bench-{uuid.uuid4().hex[:10]}"
         self.bus = BusConfig("virtual", self.channel).open()
-        self.ecu = EcuEmulator(self.bus, self.plant, EcuLimits(), ClockMode.REALTIME, profile=load_profile(profile))
+        self.ecu = EcuEmulator(self.bus, self.plant, EcuLimits(), ClockMode.REALTIME, profile=load_profile(profile),
+                               wheels=WheelGeometry.of(params))
         self.ecu.start()
         self.hdop, self.hostile_after = hdop, hostile_after
         self.push_mps, self.push_after = push_mps, push_after
