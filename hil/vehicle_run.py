@@ -187,7 +187,11 @@ class VehicleRun:
             self.recording = Recording(self.rig)
         # from here, every thread the run starts (bus, receive, readers, pacer) inherits the realtime scheduling
         self.scheduling = realtime_scheduling(config.rt_priority)
-        self.bus = bus.open()
+        try:
+            self.bus = bus.open()
+        except BaseException:
+            normal_scheduling()
+            raise
         self.interface = bus.interface
         self.readers: list[Any] = []
         try:
