@@ -78,6 +78,7 @@ def test_a_receiver_with_an_absurd_hdop_ends_the_drive_as_a_fault_in_lane(slow_p
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["consequence"] == "chassis_fault" and summary["ended_by"] == "standstill"
     assert summary["sim_time_s"] < 8.0 and (tmp_path / "run" / "trajectory.csv").exists()
+    assert summary["nmea_refused"]["hdop"] >= 1 and summary["nmea_refused"]["position"] == 0
     assert off < 0.3  # the in-lane stop
 
 
