@@ -1,14 +1,14 @@
 """CAN chassis bridge: a ChassisPort whose vehicle (ECU emulator or real chassis) sits behind a CAN bus.
 
-The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle,
-whatever the loop's rate, carrying the loop's latest command while it is younger than one control period
-(`hil.timing`): if the loop stalls, sending stops and the chassis's own command time-out trips. In realtime a
-pacer thread sends the cycles on the wall clock, so a long tick of the loop does not delay them. Commands are
-checked first: a non-finite value latches bad_command and
-brakes; finite values are clamped to the profile's limits. Reports are followed through a can.Notifier and
-verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and steering
-angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only compared
-against it: `odometry_error_max_m`, `odometry_error_last_m`).
+The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle, whatever
+the loop's rate, carrying the loop's latest command while it is younger than one control period (in realtime one
+control period and one cycle; `hil.timing`): if the loop stalls, sending stops and the chassis's own command time-
+out trips. In realtime a pacer thread sends the cycles on the wall clock, so a long tick of the loop does not delay
+them; it starts with the engage's hold command, sent at once. Commands are checked first: a non-finite value
+latches bad_command and brakes; finite values are clamped to the profile's limits. Reports are followed through a
+can.Notifier and verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and
+steering angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only
+compared against it: `odometry_error_max_m`, `odometry_error_last_m`).
 
 Faults (`hil.faults`) are latched with their chassis time; from then on every command brakes at the profile's
 fault_decel, keeping the loop's steering so the car stops in its lane, and `latched_faults()` tells the run to
