@@ -2,9 +2,9 @@
 
 The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle, whatever
 the loop's rate, carrying the loop's latest command while it is younger than one control period (in realtime one
-control period and one cycle; `hil.timing`): if the loop stalls, sending stops and the chassis's own command time-
-out trips. In realtime a pacer thread sends the cycles on the wall clock, so a long tick of the loop does not delay
-them; it starts with the engage's hold command, sent at once. Commands are checked first: a non-finite value
+control period and one cycle; `hil.timing`): if the loop stalls, sending stops and the chassis's own command
+time-out trips. In realtime a pacer thread sends the cycles on the wall clock, so a long tick of the loop does not
+delay them; it starts with the engage's hold command, sent at once. Commands are checked first: a non-finite value
 latches bad_command and brakes; finite values are clamped to the profile's limits. Reports are followed through a
 can.Notifier and verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and
 steering angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only
