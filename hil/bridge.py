@@ -1,21 +1,22 @@
 """CAN chassis bridge: a ChassisPort whose vehicle (ECU emulator or real chassis) sits behind a CAN bus.
 
-The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle,
-whatever the loop's rate, carrying the loop's latest command while it is younger than one control period
-(`hil.timing`): if the loop stalls, sending stops and the chassis's own command time-out trips. In realtime a
-pacer thread sends the cycles on the wall clock, so a long tick of the loop does not delay them. Commands are
-checked first: a non-finite value latches bad_command and
-brakes; finite values are clamped to the profile's limits. Reports are followed through a can.Notifier and
-verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and steering
-angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only compared
-against it: `odometry_error_max_m`, `odometry_error_last_m`).
+The profile says what goes on the wire. A command cycle goes out at every multiple of the profile's cycle, whatever
+the loop's rate, carrying the loop's latest command while it is younger than one control period (in realtime one
+control period and one cycle; `hil.timing`): if the loop stalls, sending stops and the chassis's own command
+time-out trips. In realtime a pacer thread sends the cycles on the wall clock, so a long tick of the loop does not
+delay them; it starts with the engage's hold command, sent at once. Commands are checked first: a non-finite value
+latches bad_command and brakes; finite values are clamped to the profile's limits. Reports are followed through a
+can.Notifier and verified by the codec; the pose is the bridge's own kinematic odometry from the reported speed and
+steering angle (`hil.odometry`), never a simulator frame (truth frames, where an emulator sends them, are only
+compared against it: `odometry_error_max_m`, `odometry_error_last_m`).
 
 Faults (`hil.faults`) are latched with their chassis time; from then on every command brakes at the profile's
 fault_decel, keeping the loop's steering so the car stops in its lane, and `latched_faults()` tells the run to
 end as chassis_fault. Lost feedback or a lost ECU leaves the odometry braking at fault_decel from the last
 reported speed (what the chassis's own time-out does). A link that dies (the receive thread's bus fails, or a
 send fails because the device is gone) latches link_lost; `interrupt` latches interrupted (SIGINT, SIGTERM).
-`release` hands control back only at standstill.
+`release` hands control back only at standstill. In realtime, while engaged, each report ID is held to its rate
+(`hil.report_rate`): faster is a second sender (foreign_sender).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from hil.odometry import KinematicOdometry
 from hil.profile import ChassisProfile, default_profile
 from hil.report_map import ReportFollower
 from hil.report_rate import ReportRateGuard
+from hil.scheduling import realtime_scheduling
 from hil.timing import ClockMode, CommandCycle
 from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
 
@@ -81,6 +83,7 @@ class CanChassisBridge(ChassisPort):
         profile: ChassisProfile | None = None,
         odometry: KinematicOdometry | None = None,
         key: bytes | None = None,
+        pacer_priority: int | None = None,
     ) -> None:
         self.bus = bus
         self.clock = clock
@@ -99,8 +102,11 @@ class CanChassisBridge(ChassisPort):
         self._report_ids = self.profile.report_ids
         self._speed_message = self.profile.reports.quantities["speed"].message
         self._cycle_us = round(self.profile.timing.cycle_s * 1e6)
-        self._commands = CommandCycle(self._cycle_us)
+        self._commands = CommandCycle(self._cycle_us, self._cycle_us if clock is ClockMode.REALTIME else 0)
         self._pacer: threading.Thread | None = None
+        self.pacer_priority = pacer_priority
+        self.pacer_scheduling = "normal"
+        """How the realtime pacer thread was scheduled (`hil.scheduling`): `SCHED_FIFO N`, or normal (and why)."""
         self._pacer_stop = threading.Event()
         self._cycle_lock = threading.Lock()
         self._listeners: list[can.Listener] = []
@@ -191,6 +197,11 @@ class CanChassisBridge(ChassisPort):
     def latched_faults(self) -> tuple[ChassisFault, ...]:
         return self.fault_latch.faults
 
+    def reported(self, quantity: str) -> float | None:
+        """The latest reported value (DBC units) of a report quantity of the profile; None before its first."""
+        with self._state_lock:
+            return self.follower.value(quantity)
+
     # ------------------------------------------------------------------ public extras
     def time(self) -> float:
         """Chassis time: plant time in lockstep; in realtime, wall time from the epoch the last `engage` set."""
@@ -207,11 +218,17 @@ class CanChassisBridge(ChassisPort):
         """Enable handshake: release until standby without a latched fault, then enable until self-driving."""
         self._handshake(False, timeout, lambda: self.follower.mode == "standby" and not self._comm_faults())
         self._handshake(True, timeout, lambda: self.follower.mode == "self_driving")
+        if self.clock is ClockMode.REALTIME:
+            # report rates are judged from here: before, a set-up that holds the GIL for seconds (building the
+            # loop under load) starved the receive thread, and its backlog was taken for a second sender
+            self._report_rate = self._rate_guards()
         self._engaged = True
         if self.clock is ClockMode.REALTIME:
             # the run's clock starts here: pacing from construction would replay set-up time as a burst of steps
             self._t0 = self._wall_clock() - self._t_us / 1e6
             self._speed_seen_wall = self._wall_clock()
+            # the handshake's hold goes on until the loop's first command: its cycles continue without a gap
+            self._commands.give(ChassisCommand(self._last_steer, 0.0), self._now_us())
             self._start_pacer()
 
     def release(self, timeout: float = 2.0) -> None:
@@ -414,9 +431,11 @@ class CanChassisBridge(ChassisPort):
         self._pacer = None
 
     def _pace(self) -> None:
-        """Realtime: one command cycle at each cycle boundary of chassis time; woken late, it sends at once and
-        goes on at the next boundary after now (boundaries it slept through are not sent as a burst)."""
-        boundary_us = (self._now_us() // self._cycle_us + 1) * self._cycle_us
+        """Realtime: one command cycle at each cycle boundary of chassis time, the first at once (the engage's hold);
+        woken late, it sends at once and goes on at the next boundary after now (boundaries it slept through are
+        not sent as a burst)."""
+        self.pacer_scheduling = realtime_scheduling(self.pacer_priority)
+        boundary_us = self._now_us() // self._cycle_us * self._cycle_us
         while not self._pacer_stop.wait(max(self._t0 + boundary_us / 1e6 - self._wall_clock(), 0.0)):
             command = self._cycle_command(self._now_us())
             if command is not None:
@@ -501,6 +520,8 @@ class CanChassisBridge(ChassisPort):
     def _note_report_arrival(self, frame_id: int) -> None:
         if self.clock is ClockMode.LOCKSTEP:
             self._window[frame_id] += 1
+            return
+        if not self._engaged:
             return
         guard = self._report_rate[frame_id]
         if not guard.arrive(frame_id, self._wall_clock()):

@@ -43,6 +43,7 @@ from testbed.cli import OneLineParser
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
 from testbed.eval.run_folder import check_out_dir
+from testbed.extras import require_modules
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
@@ -207,6 +208,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
         return replay_main(args.log, bus_from_args(args), ids=args.ids, yes=args.yes, profile=args.profile)
     if args.log is not None:
         raise UserError(f"unexpected argument {str(args.log)!r} after the scenario")
+    # before importing the run: its world is the simulator's, and a missing extra must name itself
+    require_modules(("pybullet", "cv2"), "sim", "ld3 hil (its world is the simulator's)")
     from hil.scenario_run import LinkConfig, run_hil_scenario
     from testbed.cli import scenario_from_args
 

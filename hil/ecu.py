@@ -31,7 +31,9 @@ from hil.command_guard import CommandGuard, GuardLimits
 from hil.profile import ChassisProfile
 from hil.report_map import DrivingMode, EStopSource, VcuReport
 from hil.timing import ClockMode, ReportSchedule
+from hil.wheels import WheelGeometry
 from testbed.chassis import ChassisCommand, ChassisPort
+from vehicles.params import get_vehicle
 
 STANDSTILL_MPS = 0.01
 
@@ -54,8 +56,13 @@ def brake_to_standstill(speed: float, decel: float, dt: float) -> float:
     return -min(decel, speed / dt) if dt > 0 else -decel
 
 
+DEV_CHASSIS_WHEELS = WheelGeometry.of(get_vehicle("dev-chassis"))
+"""The rear wheels whose rpm the emulator reports where its profile maps them, unless told others."""
+
+
 class EcuEmulator:
-    """The VCU: verifies commands, enforces limits and time-outs, steps the plant, publishes reports."""
+    """The VCU: verifies commands, enforces limits and time-outs, steps the plant, publishes reports (rear-wheel
+    rpm from the plant's speed and yaw rate through `wheels`)."""
 
     def __init__(
         self,
@@ -67,9 +74,11 @@ class EcuEmulator:
         profile: ChassisProfile | None = None,
         truth: bool | None = None,
         key: bytes | None = None,
+        wheels: WheelGeometry = DEV_CHASSIS_WHEELS,
     ) -> None:
         self.bus = bus
         self.plant = plant
+        self.wheels = wheels
         self.limits = limits
         self.clock = clock
         self._wall_clock = wall_clock
@@ -276,6 +285,7 @@ class EcuEmulator:
         brake_pct = max(-self._accel_cmd, 0.0) / longitudinal.full_brake_decel * 100.0
         throttle_pct = max(self._accel_cmd, 0.0) / longitudinal.full_throttle_accel * 100.0
         estop = self.estop_source()
+        wheel_rpm = self.wheels.rear_rpm(state.speed, state.yaw_rate)
         return VcuReport(
             speed=state.speed,
             accel=state.accel,
@@ -299,6 +309,8 @@ class EcuEmulator:
             faults=dict(self.injected_faults),
             bad_freshness_count=self.guard.rejected["freshness"],
             bad_mac_count=self.guard.rejected["mac"],
+            wheel_rpm_rl=wheel_rpm[0],
+            wheel_rpm_rr=wheel_rpm[1],
         )
 
     def _publish(self, poll: bool) -> None:

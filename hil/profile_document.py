@@ -20,7 +20,7 @@ from pydantic import (
 REPORT_QUANTITIES = (
     "speed", "accel", "steer", "yaw_rate", "gear", "mode", "estop", "brake_pct", "throttle_pct",
     "emergency_active", "steer_limited", "comm_fault_level", "bad_checksum_count", "bad_counter_count",
-    "bad_format_count", "bad_freshness_count", "bad_mac_count",
+    "bad_format_count", "bad_freshness_count", "bad_mac_count", "wheel_rpm_rl", "wheel_rpm_rr",
 )
 REQUIRED_REPORTS = ("speed", "steer", "mode")
 ESTOP_SOURCES = (

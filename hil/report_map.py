@@ -81,6 +81,8 @@ class VcuReport:
     faults: dict[str, int] = field(default_factory=dict)
     bad_freshness_count: int = 0
     bad_mac_count: int = 0
+    wheel_rpm_rl: float = 0.0
+    wheel_rpm_rr: float = 0.0
 
     def _quantities(self, p: ChassisProfile) -> dict[str, float]:
         estop_values = p.reports.estop_values
@@ -97,6 +99,7 @@ class VcuReport:
             "comm_fault_level": int(comm), "bad_checksum_count": self.bad_checksum_count,
             "bad_counter_count": self.bad_counter_count, "bad_format_count": self.bad_format_count,
             "bad_freshness_count": self.bad_freshness_count, "bad_mac_count": self.bad_mac_count,
+            "wheel_rpm_rl": self.wheel_rpm_rl, "wheel_rpm_rr": self.wheel_rpm_rr,
         }
 
     def to_signals(self, profile: ChassisProfile | None = None, truth: bool = True) -> dict[str, dict[str, float]]:

@@ -39,13 +39,13 @@ from hil.recorder import LOG_SUFFIXES, FrameRecorder
 from hil.secoc_key import link_key
 from hil.sensor_io import SENSOR_MODES, SensorIo
 from hil.timing import ClockMode
+from hil.wheels import WheelGeometry
 from hil.yaw_rate import YawRateChassis, yaw_rate_source
 from testbed.errors import UserError
 from testbed.eval.run_folder import claimed_out_dir
 from testbed.eval.runner import RunResult, SimRun
 from testbed.eval.scenario import Scenario
 from testbed.eval.summary import HilSummary
-from testbed.extras import require_modules
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -119,7 +119,7 @@ class HilLink:
             self.world = plant.world
             self._ecu_bus = BusConfig("virtual", self.channel).open()
             self._ecu = EcuEmulator(self._ecu_bus, plant, EcuLimits(), clock, profile=self.profile,
-                                    truth=config.truth, key=self.key)
+                                    truth=config.truth, key=self.key, wheels=WheelGeometry.of(vehicle(sc.vehicle)))
             self._ecu.start()
         elif spawns_ecu:
             self._process = EcuProcess(plant=ECU_PLANT, plant_args=plant_args_for(sc), clock=clock,
@@ -184,7 +184,6 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
-    require_modules(("pybullet", "cv2"), "sim", "ld3 hil (its world is the simulator's)")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
@@ -201,7 +200,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                 link.sensor_io = SensorIo(link.bridge.time, link.bridge.sensor_fault)
             if prepare is not None:
                 prepare(link)
-            chassis = YawRateChassis(link.bridge, link.profile, vehicle(sc.vehicle).wheelbase)
+            chassis = YawRateChassis(link.bridge, link.profile, vehicle(sc.vehicle))
             sim = SimRun(sc, chassis=chassis, world=link.world, record=record,
                          sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
             if sim.parts.recording is not None:

@@ -10,8 +10,9 @@ command cycles): at the first step whose end has reached its next due time, whic
 multiple of the period; in realtime a step up to half a cycle early counts as on time (wall-clock jitter).
 
 Command rule (both modes): a command cycle goes out at every multiple of the profile's cycle (20 ms), carrying
-the loop's latest command while it is younger than one control period; a loop that stalls longer stops the
-cycles, and the chassis's own command time-out trips. With 10 ms ticks the commands of ticks 0, 2, 4, ... go
+the loop's latest command while it is younger than one control period (in realtime, one control period and one
+cycle: a tick a little late must not cost a cycle); a loop that stalls longer stops the cycles, and the
+chassis's own command time-out trips. With 10 ms ticks the commands of ticks 0, 2, 4, ... go
 out; with 25 ms ticks (40 Hz) the command of tick 0 goes out at 0 and 20 ms, that of tick 1 at 40 ms, and so on.
 """
 
@@ -32,11 +33,13 @@ class ClockMode(Enum):
 
 
 class CommandCycle:
-    """The command rule: `at(t_us)`, for a cycle boundary t_us, is the command that cycle carries (None: none)."""
+    """The command rule: `at(t_us)`, for a cycle boundary t_us, is the command that cycle carries (None: none);
+    a command stands for one control period (`loop_us`) plus `grace_us` of lateness of the next."""
 
-    def __init__(self, period_us: int = CYCLE_US) -> None:
+    def __init__(self, period_us: int = CYCLE_US, grace_us: int = 0) -> None:
         self.period_us = period_us
         self.loop_us = period_us
+        self.grace_us = grace_us
         self._command: ChassisCommand | None = None
         self._given_us = 0
 
@@ -45,7 +48,7 @@ class CommandCycle:
         self._command, self._given_us = command, t_us
 
     def at(self, t_us: int) -> ChassisCommand | None:
-        if self._command is None or t_us - self._given_us >= self.loop_us:
+        if self._command is None or t_us - self._given_us >= self.loop_us + self.grace_us:
             return None
         return self._command
 

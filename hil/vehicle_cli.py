@@ -12,6 +12,7 @@ from pathlib import Path
 from hil.geodetic import DEFAULT_ORIGIN, parse_origin
 from hil.link_errors import LINK_ERRORS, link_error_line
 from hil.profile import DEFAULT_PROFILE
+from hil.scheduling import RT_PRIORITY
 from testbed.eval.run_folder import claimed_out_dir
 
 EXIT_FAULT, EXIT_LINK = 3, 4
@@ -47,6 +48,10 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
                    "[defense] tables the loop runs with (its other keys are the simulator's and are not read)")
     p.add_argument("--record", action="store_true", help="also write run.mcap (what LD3's detection read at each "
                    "frame) for `ld3 replay`")
+    p.add_argument("--rt-priority", type=int, default=RT_PRIORITY, metavar="N",
+                   help="SCHED_FIFO priority of the run's threads, the command pacer one above (default %(default)s; "
+                        "0: normal scheduling; without the privilege the run goes on at normal priority and its "
+                        "summary says so)")
     p.add_argument("--out", type=Path, help="output folder (default runs/vehicle-DATE-TIME)")
     p.add_argument("--force", action="store_true", help="replace a finished drive already in --out")
     add_bus_arguments(p, "the chassis's CAN interface (hardware rules unless the virtual bus or a pty)")
@@ -64,7 +69,7 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
                            calibration=args.calibration, detector=args.detector,
                            detector_weights=args.detector_weights, defense=defense,
                            vehicle=args.vehicle, speed=args.speed, duration=args.duration, lane=args.lane,
-                           profile=args.profile, record=args.record, **tables)
+                           profile=args.profile, record=args.record, rt_priority=args.rt_priority, **tables)
     if args.out is None:
         args.out = Path("runs") / f"vehicle-{time.strftime('%Y%m%d-%H%M%S')}"
     try:

@@ -26,7 +26,7 @@ from typing import Any
 import can
 import numpy as np
 
-from hil.bridge import CanChassisBridge
+from hil.bridge import BridgeError, CanChassisBridge
 from hil.bus_config import BusConfig
 from hil.camera_calibration import CameraCalibration, Rectifier
 from hil.camera_reader import CameraReader, OpenCvSource
@@ -37,6 +37,7 @@ from hil.nmea_gnss import NmeaGnssReader, open_nmea
 from hil.odometry import KinematicOdometry, OdometryGeometry
 from hil.profile import load_profile
 from hil.recorder import FrameRecorder
+from hil.scheduling import MAX_PRIORITY, RT_PRIORITY, normal_scheduling, realtime_scheduling
 from hil.secoc_key import link_key
 from hil.timing import ClockMode
 from hil.vehicle_localization import MeasuredLocalization
@@ -62,6 +63,7 @@ from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.semantic_map import TrackMap
 from vehicles.camera_rig import CameraRig
+from vehicles.params import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,7 @@ class VehicleConfig:
     control: ControlConfig = field(default_factory=ControlConfig)
     defense_params: dict[str, Any] = field(default_factory=dict)
     record: bool = False
+    rt_priority: int = RT_PRIORITY
 
     def __post_init__(self) -> None:
         for key in ("speed", "duration", "first_fix_s"):
@@ -97,6 +100,8 @@ class VehicleConfig:
                 raise UserError(f"--{key.replace('_', '-')} must be a number > 0, got {value!r}")
         if self.lane is not None and self.lane < 0:
             raise UserError(f"--lane must be >= 0, got {self.lane}")
+        if not 0 <= self.rt_priority < MAX_PRIORITY:
+            raise UserError(f"--rt-priority must be 0 (none) to {MAX_PRIORITY - 1}, got {self.rt_priority}")
 
     def settings(self) -> LoopSettings:
         """The loop's settings: the speed, the duration and the `[rates]`, `[control]` and `[defense]` tables."""
@@ -108,9 +113,9 @@ class ReportedChassis(ChassisPort):
     """The bridge as the loop sees it on a vehicle: what the chassis reports, its yaw rate from `yaw_rate_source`,
     no pose (the bridge's odometry is no truth)."""
 
-    def __init__(self, bridge: CanChassisBridge, wheelbase: float) -> None:
+    def __init__(self, bridge: CanChassisBridge, params: VehicleParams) -> None:
         self.bridge = bridge
-        self.port = YawRateChassis(bridge, bridge.profile, wheelbase)
+        self.port = YawRateChassis(bridge, bridge.profile, params)
 
     def read(self) -> ChassisState:
         return dataclasses.replace(self.port.read(), true_pose=None)
@@ -180,7 +185,13 @@ class VehicleRun:
             except ModuleNotFoundError as exc:
                 raise missing_extra(exc, "--record") from None
             self.recording = Recording(self.rig)
-        self.bus = bus.open()
+        # from here, every thread the run starts (bus, receive, readers, pacer) inherits the realtime scheduling
+        self.scheduling = realtime_scheduling(config.rt_priority)
+        try:
+            self.bus = bus.open()
+        except BaseException:
+            normal_scheduling()
+            raise
         self.interface = bus.interface
         self.readers: list[Any] = []
         try:
@@ -188,7 +199,8 @@ class VehicleRun:
             self.recorder = FrameRecorder(out_dir / "can.asc")
             geometry = OdometryGeometry(wheelbase=self.params.wheelbase, ref_ahead=-self.params.rear_axle_x)
             self.bridge = CanChassisBridge(self.bus, clock=ClockMode.REALTIME, reply_timeout=5.0,
-                                           profile=self.profile, odometry=KinematicOdometry(geometry=geometry), key=key)
+                                           profile=self.profile, odometry=KinematicOdometry(geometry=geometry), key=key,
+                                           pacer_priority=config.rt_priority + 1 if config.rt_priority else None)
             self.bridge.add_listener(self.recorder)
             self.gnss = NmeaGnssReader(open_nmea(config.gnss.removeprefix("nmea:")), config.origin, self.bridge.time)
             self.readers.append(self.gnss)
@@ -215,7 +227,7 @@ class VehicleRun:
                         from None
                 return Pose(x, y, heading), coord.lane
         raise UserError(f"no GNSS fix from {self.config.gnss} within {self.config.first_fix_s:.0f} s "
-                        f"({self.gnss.counts})")
+                        f"({self.gnss.counts.describe()})")
 
     def _capture(self, t: float, pose: Pose | None) -> CameraFrame:
         frame = self.camera.capture(t, pose)
@@ -231,7 +243,7 @@ class VehicleRun:
         defense = DEFENSES.get(config.defense).factory(settings.defense,
                                                        BicycleCoefficients(wheelbase=self.params.wheelbase))
         self.localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
-        chassis = ReportedChassis(self.bridge, self.params.wheelbase)
+        chassis = ReportedChassis(self.bridge, self.params)
         run = assemble(settings, chassis,
                        SensorPorts(self.localization, self._capture if self.camera is not None else None),
                        defense, LanePorts(self.smap, lane, self.params), detector=self.detector,
@@ -244,6 +256,8 @@ class VehicleRun:
             with contextlib.suppress(KeyboardInterrupt):  # a second signal: stop driving the loop, close brakes
                 while not run.done:
                     run.step()
+            with contextlib.suppress(*LINK_ERRORS, BridgeError, KeyboardInterrupt):  # close() tries again
+                self.bridge.stop_and_release(timeout=10.0)  # before the outputs: no gap in the command cycles
         wall = time.monotonic() - wall0
         summary = self._summary(run, defense, lane, chassis.port.source, wall)
         write_trajectory(self.out_dir / "trajectory.csv", run.rows)
@@ -285,10 +299,13 @@ class VehicleRun:
             "detected": bool(status.detected), "detection_time_s": status.detection_time, "detection_dev_m": None,
             "ar_max_dev_m": None, "ar_stop_dev_m": None, "stop_time_s": run.stop_t,
             "rates": self.settings.rates.model_dump(), "yaw_rate_source": yaw_source,
-            "interface": self.interface, "profile": self.profile.name, "can_log": str(self.out_dir / "can.asc"),
+            "interface": self.interface, "loop_scheduling": self.scheduling,
+            "command_pacer": self.bridge.pacer_scheduling, "profile": self.profile.name,
+            "can_log": str(self.out_dir / "can.asc"),
             "can_frames_tx": self.bridge.frames_tx, "can_frames_rx": self.bridge.frames_rx,
             "nmea_fixes": self.gnss.counts.fixes, "nmea_bad": self.gnss.counts.bad,
-            "nmea_no_fix": self.gnss.counts.no_fix, "gnss_fixes_refused": self.localization.fixes_refused,
+            "nmea_no_fix": self.gnss.counts.no_fix,
+            "nmea_refused": dict(self.gnss.counts.refused), "gnss_fixes_refused": self.localization.fixes_refused,
             "camera_frames": self.camera.frames if self.camera else 0,
         })
 
@@ -303,5 +320,6 @@ class VehicleRun:
             reader.close()
         with contextlib.suppress(can.CanError, OSError):  # a dead device cannot be closed cleanly
             self.bus.shutdown()
+        normal_scheduling()
         if getattr(self, "recorder", None) is not None:
             self.recorder.stop()

@@ -140,9 +140,15 @@ class VehicleSummary(RunSummary, CanLinkFields):
     nmea_fixes: int
     nmea_bad: int
     nmea_no_fix: int
+    nmea_refused: dict[str, int]
+    """GGA sentences with a fix that were refused, by reason (hdop, position, time)."""
     gnss_fixes_refused: int
     """GNSS fixes the localization refused (unusable, or outside the MSF's gate)."""
     camera_frames: int
+    loop_scheduling: str
+    """How the loop's thread was scheduled (`SCHED_FIFO N`, or normal and why; `hil.scheduling`)."""
+    command_pacer: str
+    """How the bridge's command pacer thread was scheduled, as `loop_scheduling`."""
 
 
 def _json_safe(value: Any) -> Any:

@@ -102,3 +102,54 @@ def test_realtime_commands_keep_the_profile_period_at_a_40_hz_loop():
     assert statistics.median(gaps) == pytest.approx(0.02, abs=0.003)
     assert max(gaps) <= 3 * 0.02
     assert not bridge.latched_faults()
+
+
+def _realtime_pix() -> tuple[EcuEmulator, CanChassisBridge, list[can.BusABC]]:
+    channel = f"cycle-rt-{uuid.uuid4().hex}"
+    ecu_bus, bridge_bus = (can.Bus(interface="virtual", channel=channel) for _ in range(2))
+    ecu = EcuEmulator(ecu_bus, KinematicBicyclePlant(), clock=ClockMode.REALTIME, profile=PIX)
+    ecu.start()
+    return ecu, CanChassisBridge(bridge_bus, clock=ClockMode.REALTIME, profile=PIX), [ecu_bus, bridge_bus]
+
+
+def test_a_report_backlog_before_engaging_is_no_second_sender_but_a_burst_while_engaged_is():
+    """A set-up that starves the receive thread for seconds hands it a backlog before the engage: not a fault.
+    The same burst while engaged is a second sender."""
+    ecu, bridge, buses = _realtime_pix()
+    codec = ChassisCodec(PIX)
+    drive_status = PIX.reports.quantities["speed"].message
+    burst = [codec.encode(drive_status, {}) for _ in range(3 * 6)]  # three slacks of 5 cycles at once
+    try:
+        for frame in burst:
+            bridge.handle(frame)
+        bridge.engage()
+        assert not bridge.latched_faults()
+        for frame in burst:
+            bridge.handle(frame)
+        assert [f.kind for f in bridge.latched_faults()][:1] == ["foreign_sender"]
+    finally:
+        bridge.close()
+        ecu.stop()
+        for bus in buses:
+            bus.shutdown()
+
+
+def test_realtime_commands_go_on_without_a_gap_from_the_handshake_to_the_loop():
+    """The engage's hold command is sent at once and stands until the loop's first command: no cycle is missed
+    between the handshake's last cycle and the loop's first."""
+    ecu, bridge, buses = _realtime_pix()
+    sent = _Sent()
+    try:
+        bridge.add_listener(sent)
+        bridge.engage()
+        for _ in range(8):
+            bridge.send(ChassisCommand(0.0, 0.5))
+            bridge.advance(0.025)
+        bridge.stop_and_release()
+    finally:
+        bridge.close()
+        ecu.stop()
+        for bus in buses:
+            bus.shutdown()
+    drive = [f.timestamp for f in sent.frames if f.arbitration_id == PIX.frame_id(PIX.commands.drive)]
+    assert max(b - a for a, b in itertools.pairwise(drive)) < 2 * 0.02

@@ -1,6 +1,7 @@
 """`ld3 vehicle` on a bench whose GNSS comes from where the car truly is (`vehicle_truth.TruthBench`): a chassis
-without a yaw-rate report keeps its lane through a curve, and a receiver that sends a non-finite or absurd HDOP
-ends the drive as a fault with an in-lane stop and every output written."""
+without a yaw-rate report keeps its lane through a curve, a receiver that sends a non-finite or absurd HDOP
+ends the drive as a fault with an in-lane stop and every output written, and a drive spoofed sideways, recorded
+with `--record`, replays to the same detection time."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import pytest
 from testbed.cli import main
 from testbed.rates import CONTROL_HZ
 from tests.hil.slow_profile import slow_dev_profile
-from tests.hil.vehicle_truth import TruthBench
+from tests.hil.vehicle_truth import TruthBench, lane_video
 
 
 @pytest.fixture
@@ -77,4 +78,24 @@ def test_a_receiver_with_an_absurd_hdop_ends_the_drive_as_a_fault_in_lane(slow_p
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["consequence"] == "chassis_fault" and summary["ended_by"] == "standstill"
     assert summary["sim_time_s"] < 8.0 and (tmp_path / "run" / "trajectory.csv").exists()
+    assert summary["nmea_refused"]["hdop"] >= 1 and summary["nmea_refused"]["position"] == 0
     assert off < 0.3  # the in-lane stop
+
+
+def test_a_recorded_spoofed_drive_replays_to_the_same_detection_time(slow_profile, tmp_path, capsys):
+    video = tmp_path / "lane.avi"
+    lane_video(video, 20.0)
+    bench = TruthBench(slow_profile, "parking-lot", 5.0, push_mps=0.3, push_after=2.0)
+    try:
+        code = main(["vehicle", "--map", "parking-lot", "--gnss", f"nmea:{bench.path}", "--interface", "virtual",
+                     "--channel", bench.channel, "--profile", slow_profile, "--camera", f"video:{video}",
+                     "--detector", "classical", "--speed", "2", "--duration", "12", "--record",
+                     "--out", str(tmp_path / "run")])
+    finally:
+        bench.close()
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["detected"] and summary["detection_time_s"] > 2.0
+    capsys.readouterr()
+    assert main(["replay", str(tmp_path / "run"), "--out", str(tmp_path / "replay")]) == 0
+    assert f"ld3 detects at {summary['detection_time_s']:.2f} s" in capsys.readouterr().out
