@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator, Sequence
-from contextlib import suppress
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -49,12 +49,30 @@ class LocalBackend(CampaignBackend):
     name = "local"
     help = "worker processes on this machine (default 2; 1: every run in this process)"
 
+    def __init__(self) -> None:
+        self._warm: list[_Worker] | None = None
+
     def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
         n_workers = DEFAULT_WORKERS if workers is None else workers
         if n_workers == 1:
             return _run_in_process(batch, out, execute, timeout)
-        return _run_in_workers(batch, out, execute, timeout, n_workers)
+        return _run_in_workers(batch, out, execute, timeout, n_workers, self._warm)
+
+    @contextmanager
+    def kept_warm(self) -> Iterator[None]:
+        """Workers started for one batch stay for the next (their imports and what they keep, such as the
+        controller's gain schedules, paid once), until the outermost `kept_warm` ends."""
+        if self._warm is not None:
+            yield
+            return
+        self._warm = []
+        try:
+            yield
+        finally:
+            warm, self._warm = self._warm, None
+            for worker in warm:
+                worker.stop()
 
 
 def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
@@ -183,11 +201,13 @@ class _Worker:
 
 
 def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
-                    n_workers: int) -> Iterator[RunOutcome]:
-    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced."""
+                    n_workers: int, warm: list[_Worker] | None = None) -> Iterator[RunOutcome]:
+    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced. With `warm`
+    (the workers kept between batches) idle workers are taken from it and left in it at the end; without,
+    every worker is stopped at the end."""
     ctx = mp.get_context("spawn")
     pending = list(reversed(batch))
-    pool: list[_Worker] = []
+    pool: list[_Worker] = [] if warm is None else warm
     try:
         while True:
             pool = [w for w in pool if w.job is not None or w.process.is_alive()]
@@ -209,5 +229,9 @@ def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecuto
                     worker.job = None
                     yield RunOutcome(job.run, error)
     finally:
+        kept = [w for w in pool if warm is not None and w.job is None and w.process.is_alive()]
         for worker in pool:
-            worker.stop()
+            if worker not in kept:
+                worker.stop()
+        if warm is not None:
+            warm[:] = kept
