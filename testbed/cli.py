@@ -133,6 +133,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_figures(args: argparse.Namespace) -> int:
+    from testbed.eval.run_figures import draw_later, run_folders
+
+    folders = run_folders(args.dir)
+    drawn = [d for d in folders if draw_later(d)]
+    print(f"figures drawn for {len(drawn)} of {len(folders)} run folders under {args.dir} (the others have "
+          f"birdseye.png already, or no believed.csv to draw it from)")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from testbed.eval.scenario import load_scenario, shipped_scenarios
 
@@ -401,6 +411,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("runs", nargs="+", type=Path, help="run folders (each with summary.json and trajectory.csv)")
     p.add_argument("--out", type=Path, default=Path("runs/compare"), help="where report.md and deviations.png go")
     p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("figures", help="draw birdseye.png and ar_fusion.png of the runs under a folder whose runs "
+                                       "left them for later (a search's trials), from their files")
+    p.add_argument("dir", type=Path, help="a run folder, or a campaign or search folder holding run folders")
+    p.set_defaults(func=cmd_figures)
 
     p = sub.add_parser("components", help="every registered defense, lane detector, localization, attack and "
                                           "campaign, with what it needs (markdown)")

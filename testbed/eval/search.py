@@ -32,7 +32,7 @@ from testbed.eval.campaign import (
     RunExecutor,
     campaign_backend,
     load_summary,
-    run_and_write,
+    run_and_write_data,
     run_campaign,
 )
 from testbed.eval.scenario import Scenario, check_needs
@@ -208,9 +208,9 @@ class AttackSearch:
 
     def __init__(self, spec: SearchSpec, out: Path, *, workers: int | None = None, backend: str = "local",
                  address: str | None = None, timeout: float | None = None, progress: bool = True,
-                 execute: RunExecutor = run_and_write) -> None:
+                 execute: RunExecutor = run_and_write_data) -> None:
         """`execute` runs one trial's scenario into its folder (the campaign executor; the default writes the
-        standard run outputs)."""
+        standard run outputs but the figures, which `ld3 figures` draws later)."""
         self.spec, self.out, self.execute = spec, out, execute
         self.workers, self.backend, self.address, self.timeout = workers, backend, address, timeout
         self.progress = progress
