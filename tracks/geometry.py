@@ -24,6 +24,12 @@ _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-poin
 _MEMO_SIZE = 16  # recent projections kept: a control tick asks about the same few points several times
 _KERNEL_REACH = 1e9  # m: coordinates the compiled kernel takes (beyond, and for NaN, the pure-Python path answers)
 _KERNELS = compiled_module("tracks.reference_kernels")
+try:
+    from numpy._core.umath import clip as _clip
+except ImportError:  # numpy 1.x
+    from numpy.core.umath import clip as _clip
+"""The ufunc `np.clip` ends in, without its per-call argument handling: the same values, called thousands of
+times a second by the vectorised point queries."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +109,9 @@ class ReferenceLine:
         for seg, ln in zip(self.segments, lengths, strict=True):
             heading0.append(heading0[-1] + 0.5 * (seg.k0 + seg.k1) * ln)
         self._seg_h0 = heading0[:-1]
+        self._seg_arrays = tuple(np.array(v, dtype=float) for v in (self._seg_s0, self._seg_h0, self._seg_k0,
+                                                                      self._seg_dk))
+        """The segment lists as arrays, for the vectorised formulas (converted once, not per call)."""
 
         n = max(1, math.ceil(self.length / step))
         self.ds = self.length / n
@@ -155,19 +164,15 @@ class ReferenceLine:
         return self._seg_k0[i] + self._seg_dk[i] * (s - self._seg_s0[i])
 
     def _heading_array(self, s: np.ndarray) -> np.ndarray:
-        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
-        u = s - np.asarray(self._seg_s0)[idx]
-        return (
-            np.asarray(self._seg_h0)[idx]
-            + np.asarray(self._seg_k0)[idx] * u
-            + (0.5 * np.asarray(self._seg_dk)[idx] * u * u)
-        )
+        s0, h0, k0, dk = self._seg_arrays
+        idx = _clip(s0.searchsorted(s, side="right") - 1, 0, len(self.segments) - 1)
+        u = s - s0[idx]
+        return h0[idx] + k0[idx] * u + (0.5 * dk[idx] * u * u)
 
     def _curvature_array(self, s: np.ndarray) -> np.ndarray:
-        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
-        return np.asarray(self._seg_k0)[idx] + np.asarray(self._seg_dk)[idx] * (
-            s - np.asarray(self._seg_s0)[idx]
-        )
+        s0, _, k0, dk = self._seg_arrays
+        idx = _clip(s0.searchsorted(s, side="right") - 1, 0, len(self.segments) - 1)
+        return k0[idx] + dk[idx] * (s - s0[idx])
 
     def _integrate_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Integrate cos/sin(heading) over sub-intervals split at segment joins (heading is smooth inside)."""
@@ -223,7 +228,7 @@ class ReferenceLine:
 
     def points(self, s: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
         """Vectorised `point` for s in [0, length]: (N, 2) world points."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        s = _clip(np.asarray(s, dtype=float), 0.0, self.length)
         i = np.minimum((s / self.ds).astype(int), len(self.s) - 1)
         d = s - self.s[i]
         h_mid = self._heading_array(s - 0.5 * d)
