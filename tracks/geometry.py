@@ -32,6 +32,12 @@ except ImportError:  # numpy 1.x
 times a second by the vectorised point queries."""
 
 
+def _cos_sin_one(h: float) -> tuple[float, float]:
+    """numpy's cos and sin of `h` as a one-element array, as `ReferenceLine.points` computes them."""
+    a = np.array([h])
+    return float(np.cos(a)[0]), float(np.sin(a)[0])
+
+
 @dataclass(frozen=True)
 class Straight:
     """A straight segment of `length` metres."""
@@ -122,6 +128,7 @@ class ReferenceLine:
         self._xs, self._ys, self._curv = self.x.tolist(), self.y.tolist(), self.curvature.tolist()
         self._cos, self._sin = np.cos(self.heading).tolist(), np.sin(self.heading).tolist()
         self._last_sample = len(self._xs) - 1
+        self._s_list = self.s.tolist()
         self._seg_coeffs = list(zip(self._seg_s0, self._seg_h0, self._seg_k0, self._seg_dk, strict=True))
         """(s0, heading, curvature, curvature rate) at the start of each segment."""
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
@@ -237,6 +244,19 @@ class ReferenceLine:
         x = self.x[i] + chord * np.cos(h_mid) - t * np.sin(h)
         y = self.y[i] + chord * np.sin(h_mid) + t * np.cos(h)
         return np.column_stack([x, y])
+
+    def points_one(self, s: float, t: float = 0.0) -> tuple[float, float]:
+        """`points` of the one-element array [s] to the bit, for a finite s, without its array overhead: the
+        same operations in the same order on Python floats, and numpy's cos and sin on one-element arrays as
+        `points` calls them (the only steps whose last bit could depend on how they are computed)."""
+        sc = min(max(s, 0.0), self.length)
+        i = min(int(sc / self.ds), self._last_sample)
+        d = sc - self._s_list[i]
+        k = self._curv[i]
+        chord = d * (1.0 - k * k * d * d / 24.0)
+        cos_mid, sin_mid = _cos_sin_one(self._heading_at(sc - 0.5 * d))
+        cos_h, sin_h = _cos_sin_one(self._heading_at(sc))
+        return self._xs[i] + chord * cos_mid - t * sin_h, self._ys[i] + chord * sin_mid + t * cos_h
 
     # ---- projection -------------------------------------------------------------------------
     def project(self, x: float, y: float, max_offset: float = 20.0) -> tuple[float, float]:

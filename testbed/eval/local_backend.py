@@ -71,8 +71,7 @@ class LocalBackend(CampaignBackend):
             yield
         finally:
             warm, self._warm = self._warm, None
-            for worker in warm:
-                worker.stop()
+            _stop_all(warm)
 
 
 def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
@@ -187,17 +186,30 @@ class _Worker:
         self.process.join()
         self.conn.close()
 
-    def stop(self) -> None:
-        """End the worker; a busy one is killed and its temporary folder removed."""
+    def ask_to_stop(self) -> None:
+        """Tell an idle worker to exit (`wait_stopped` waits for it); a busy one is killed and its temporary folder
+        removed at once."""
         if self.job is not None:
             self.kill()
             remove_path(self.job.tmp)
+            self.job = None
             return
         with suppress(OSError):  # already gone
             self.conn.send(None)
+
+    def wait_stopped(self) -> None:
+        """Wait up to 5 s for a worker told to stop to exit, then kill it."""
         self.process.join(5.0)
         if self.process.is_alive():
             self.kill()
+
+
+def _stop_all(workers: Sequence[_Worker]) -> None:
+    """Stop the workers together: each is told first, so that they wind down at the same time."""
+    for worker in workers:
+        worker.ask_to_stop()
+    for worker in workers:
+        worker.wait_stopped()
 
 
 def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
@@ -230,8 +242,6 @@ def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecuto
                     yield RunOutcome(job.run, error)
     finally:
         kept = [w for w in pool if warm is not None and w.job is None and w.process.is_alive()]
-        for worker in pool:
-            if worker not in kept:
-                worker.stop()
+        _stop_all([w for w in pool if w not in kept])
         if warm is not None:
             warm[:] = kept
