@@ -239,7 +239,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
                            backend=args.backend or "local", address=args.address, attacks=args.attack,
-                           budget=args.budget, maps=args.maps)
+                           budget=args.budget, maps=args.maps, figures=not args.figures_later)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -256,7 +256,7 @@ def _campaign_list(args: argparse.Namespace) -> int:
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
                                        ("--address", args.address), ("--budget", args.budget),
-                                       ("--maps", args.maps))
+                                       ("--maps", args.maps), ("--figures-later", args.figures_later))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -535,6 +535,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
     p.add_argument("--maps", nargs="+", default=[], metavar="DIR|FILE",
                    help="campaign maps: the OpenDRIVE files, or folders of them, whose default routes it drives")
+    p.add_argument("--figures-later", action="store_true",
+                   help="runs write believed.csv in place of birdseye.png and ar_fusion.png, which `ld3 figures "
+                        "OUT` draws later (campaigns whose runs write the standard outputs)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

@@ -198,6 +198,8 @@ OTHER_COMMANDS = [
     Case("campaign-workers-zero", ("campaign", "table4", "--workers", "0", "--out", "{ws}/c"), "workers"),
     Case("campaign-backend", ("campaign", "table4", "--backend", "slurm", "--out", "{ws}/c"), "slurm"),
     Case("campaign-budget", ("campaign", "table4", "--budget", "3", "--out", "{ws}/c"), "budget"),
+    Case("campaign-figures-later", ("campaign", "roc", "--figures-later", "--out", "{ws}/c"), "--figures-later"),
+    Case("campaign-list-figures-later", ("campaign", "list", "--figures-later"), "--figures-later"),
     Case("campaign-timeout", ("campaign", "table4", "--timeout", "-1", "--out", "{ws}/c"), "timeout"),
     Case("campaign-set", ("campaign", "table4", "--set", "speed=fast", "--out", "{ws}/c"), "speed must be a number"),
     Case("campaign-attack", ("campaign", "table4", "--attack", "laser", "--out", "{ws}/c"), "laser"),

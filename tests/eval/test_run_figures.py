@@ -46,3 +46,14 @@ def test_deferred_figures_are_drawn_later_from_the_folder(tmp_path, capsys):
         assert a.shape == b.shape and (a != b).any(axis=2).mean() < 0.01, name  # trajectory.csv's rounding only
     assert main(["figures", str(later)]) == 0  # drawn already: nothing to draw
     assert "drawn for 0 of 1" in capsys.readouterr().out
+
+
+def test_ld3_campaign_figures_later_runs_the_executor_without_figures(tmp_path, monkeypatch):
+    from testbed.eval import campaigns
+    from testbed.eval.campaign import run_and_write, run_and_write_data
+
+    seen = []
+    monkeypatch.setattr(campaigns, "run_campaign", lambda runs, out, **kwargs: seen.append(kwargs["execute"]) or [])
+    argv = ["campaign", "table4", "--runs", "ld3-start6", "--out", str(tmp_path), "--workers", "1"]
+    assert main([*argv, "--figures-later"]) == 0 and main(argv) == 0
+    assert seen == [run_and_write_data, run_and_write]
