@@ -134,7 +134,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_figures(args: argparse.Namespace) -> int:
-    from testbed.eval.run_figures import draw_later, run_folders
+    from testbed.eval.figures_later import draw_later, run_folders
 
     folders = run_folders(args.dir)
     drawn = [d for d in folders if draw_later(d)]
