@@ -2,7 +2,8 @@
 
 With workers > 1, runs go to spawned worker processes (one OpenMP thread each, as on Ray) that die with the
 campaign process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so killing the campaign
-leaves at most temporary folders; a worker over its time limit is killed and replaced. With workers = 1 runs
+leaves at most temporary folders; a worker over its time limit is killed and replaced. Within `kept_warm` the
+idle workers outlive a batch and take the next one's runs (a search's batches). With workers = 1 runs
 execute in this process, one after the other, under an alarm (so that a script without a `__main__` guard, a
 debugger or a notebook work as they are).
 """
