@@ -133,6 +133,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_figures(args: argparse.Namespace) -> int:
+    from testbed.eval.figures_later import draw_later, run_folders
+
+    folders = run_folders(args.dir)
+    drawn = [d for d in folders if draw_later(d)]
+    print(f"figures drawn for {len(drawn)} of {len(folders)} run folders under {args.dir} (the others have "
+          f"birdseye.png already, or no believed.csv to draw it from)")
+    return 0
+
+
 def cmd_scenarios(args: argparse.Namespace) -> int:
     from testbed.eval.scenario import load_scenario, shipped_scenarios
 
@@ -229,7 +239,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         report = run_named(args.name, out, detector=args.detector, workers=args.workers,
                            progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
                            backend=args.backend or "local", address=args.address, attacks=args.attack,
-                           budget=args.budget, maps=args.maps)
+                           budget=args.budget, maps=args.maps, figures=not args.figures_later)
     except CampaignBusyError as exc:
         raise UserError(str(exc)) from None
     print(report.read_text())
@@ -246,7 +256,7 @@ def _campaign_list(args: argparse.Namespace) -> int:
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
                                        ("--address", args.address), ("--budget", args.budget),
-                                       ("--maps", args.maps))
+                                       ("--maps", args.maps), ("--figures-later", args.figures_later))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -402,6 +412,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("runs/compare"), help="where report.md and deviations.png go")
     p.set_defaults(func=cmd_compare)
 
+    p = sub.add_parser("figures", help="draw birdseye.png and ar_fusion.png of the runs under a folder whose runs "
+                                       "left them for later (a search's trials), from their files")
+    p.add_argument("dir", type=Path, help="a run folder, or a campaign or search folder holding run folders")
+    p.set_defaults(func=cmd_figures)
+
     p = sub.add_parser("components", help="every registered defense, lane detector, localization, attack and "
                                           "campaign, with what it needs (markdown)")
     p.set_defaults(func=cmd_components)
@@ -520,6 +535,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
     p.add_argument("--maps", nargs="+", default=[], metavar="DIR|FILE",
                    help="campaign maps: the OpenDRIVE files, or folders of them, whose default routes it drives")
+    p.add_argument("--figures-later", action="store_true",
+                   help="runs write believed.csv in place of birdseye.png and ar_fusion.png, which `ld3 figures "
+                        "OUT` draws later (campaigns whose runs write the standard outputs)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

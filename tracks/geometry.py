@@ -24,6 +24,18 @@ _COARSE_SPACING = 5.0  # m between the samples of the global (cold) nearest-poin
 _MEMO_SIZE = 16  # recent projections kept: a control tick asks about the same few points several times
 _KERNEL_REACH = 1e9  # m: coordinates the compiled kernel takes (beyond, and for NaN, the pure-Python path answers)
 _KERNELS = compiled_module("tracks.reference_kernels")
+try:
+    from numpy._core.umath import clip as _clip
+except ImportError:  # numpy 1.x
+    from numpy.core.umath import clip as _clip
+"""The ufunc `np.clip` ends in, without its per-call argument handling: the same values, called thousands of
+times a second by the vectorised point queries."""
+
+
+def _cos_sin_one(h: float) -> tuple[float, float]:
+    """numpy's cos and sin of `h` as a one-element array, as `ReferenceLine.points` computes them."""
+    a = np.array([h])
+    return float(np.cos(a)[0]), float(np.sin(a)[0])
 
 
 @dataclass(frozen=True)
@@ -103,6 +115,9 @@ class ReferenceLine:
         for seg, ln in zip(self.segments, lengths, strict=True):
             heading0.append(heading0[-1] + 0.5 * (seg.k0 + seg.k1) * ln)
         self._seg_h0 = heading0[:-1]
+        self._seg_arrays = tuple(np.array(v, dtype=float) for v in (self._seg_s0, self._seg_h0, self._seg_k0,
+                                                                      self._seg_dk))
+        """The segment lists as arrays, for the vectorised formulas (converted once, not per call)."""
 
         n = max(1, math.ceil(self.length / step))
         self.ds = self.length / n
@@ -113,6 +128,7 @@ class ReferenceLine:
         self._xs, self._ys, self._curv = self.x.tolist(), self.y.tolist(), self.curvature.tolist()
         self._cos, self._sin = np.cos(self.heading).tolist(), np.sin(self.heading).tolist()
         self._last_sample = len(self._xs) - 1
+        self._s_list = self.s.tolist()
         self._seg_coeffs = list(zip(self._seg_s0, self._seg_h0, self._seg_k0, self._seg_dk, strict=True))
         """(s0, heading, curvature, curvature rate) at the start of each segment."""
         self._coarse_stride = max(1, round(_COARSE_SPACING / self.ds))
@@ -155,19 +171,15 @@ class ReferenceLine:
         return self._seg_k0[i] + self._seg_dk[i] * (s - self._seg_s0[i])
 
     def _heading_array(self, s: np.ndarray) -> np.ndarray:
-        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
-        u = s - np.asarray(self._seg_s0)[idx]
-        return (
-            np.asarray(self._seg_h0)[idx]
-            + np.asarray(self._seg_k0)[idx] * u
-            + (0.5 * np.asarray(self._seg_dk)[idx] * u * u)
-        )
+        s0, h0, k0, dk = self._seg_arrays
+        idx = _clip(s0.searchsorted(s, side="right") - 1, 0, len(self.segments) - 1)
+        u = s - s0[idx]
+        return h0[idx] + k0[idx] * u + (0.5 * dk[idx] * u * u)
 
     def _curvature_array(self, s: np.ndarray) -> np.ndarray:
-        idx = np.clip(np.searchsorted(self._seg_s0, s, side="right") - 1, 0, len(self.segments) - 1)
-        return np.asarray(self._seg_k0)[idx] + np.asarray(self._seg_dk)[idx] * (
-            s - np.asarray(self._seg_s0)[idx]
-        )
+        s0, _, k0, dk = self._seg_arrays
+        idx = _clip(s0.searchsorted(s, side="right") - 1, 0, len(self.segments) - 1)
+        return k0[idx] + dk[idx] * (s - s0[idx])
 
     def _integrate_positions(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Integrate cos/sin(heading) over sub-intervals split at segment joins (heading is smooth inside)."""
@@ -223,7 +235,7 @@ class ReferenceLine:
 
     def points(self, s: np.ndarray, t: float | np.ndarray = 0.0) -> np.ndarray:
         """Vectorised `point` for s in [0, length]: (N, 2) world points."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        s = _clip(np.asarray(s, dtype=float), 0.0, self.length)
         i = np.minimum((s / self.ds).astype(int), len(self.s) - 1)
         d = s - self.s[i]
         h_mid = self._heading_array(s - 0.5 * d)
@@ -232,6 +244,19 @@ class ReferenceLine:
         x = self.x[i] + chord * np.cos(h_mid) - t * np.sin(h)
         y = self.y[i] + chord * np.sin(h_mid) + t * np.cos(h)
         return np.column_stack([x, y])
+
+    def points_one(self, s: float, t: float = 0.0) -> tuple[float, float]:
+        """`points` of the one-element array [s] to the bit, for a finite s, without its array overhead: the
+        same operations in the same order on Python floats, and numpy's cos and sin on one-element arrays as
+        `points` calls them (the only steps whose last bit could depend on how they are computed)."""
+        sc = min(max(s, 0.0), self.length)
+        i = min(int(sc / self.ds), self._last_sample)
+        d = sc - self._s_list[i]
+        k = self._curv[i]
+        chord = d * (1.0 - k * k * d * d / 24.0)
+        cos_mid, sin_mid = _cos_sin_one(self._heading_at(sc - 0.5 * d))
+        cos_h, sin_h = _cos_sin_one(self._heading_at(sc))
+        return self._xs[i] + chord * cos_mid - t * sin_h, self._ys[i] + chord * sin_mid + t * cos_h
 
     # ---- projection -------------------------------------------------------------------------
     def project(self, x: float, y: float, max_offset: float = 20.0) -> tuple[float, float]:

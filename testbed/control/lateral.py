@@ -17,6 +17,7 @@ tests/test_figure_backend.py).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -28,6 +29,8 @@ from testbed.control.plan import Plan
 SCHEDULE_MIN_SPEED = 1.0
 SCHEDULE_MAX_SPEED = 40.0
 SCHEDULE_STEP = 1.0
+GAIN_SCHEDULES_KEPT = 16
+"""Gain schedules `gain_schedule` keeps (one per vehicle, control rate and tuning met in a process)."""
 
 
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -65,6 +68,25 @@ def rate_lqr(ad: np.ndarray, bd: np.ndarray, q: np.ndarray, r: float, step_weigh
     return dlqr(a_aug, b_aug, q_aug, np.array([[r + step_weight]]), cross).ravel()
 
 
+@functools.lru_cache(maxsize=GAIN_SCHEDULES_KEPT)
+def gain_schedule(model: LateralModel, dt: float, q: tuple[float, ...], r: float, steer_rate_weight: float
+                  ) -> np.ndarray:
+    """The LQR gain rows at the schedule's speeds (`LqrLateralController`'s law), kept per design: every run of
+    a campaign worker with the same vehicle, rate and tuning reuses the 40 Riccati solutions (seconds to
+    compute) instead of solving them again. Read-only; the same bits as a fresh computation."""
+    q_mat, r_mat = np.diag(q), np.array([[r]])
+    gains = []
+    for v in np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP):
+        ad, bd = discretise(*model.error_dynamics(float(v)), dt)
+        if steer_rate_weight > 0.0:
+            gains.append(rate_lqr(ad, bd, q_mat, r, steer_rate_weight / (dt * dt)))
+        else:
+            gains.append(dlqr(ad, bd, q_mat, r_mat).ravel())
+    table = np.array(gains)
+    table.setflags(write=False)
+    return table
+
+
 class LqrLateralController:
     """Steer command (rad, + left) from a `Plan`; LQR gains scheduled on speed, feed-forward on curvature."""
 
@@ -86,15 +108,7 @@ class LqrLateralController:
         self.speeds = np.arange(SCHEDULE_MIN_SPEED, SCHEDULE_MAX_SPEED + 1e-9, SCHEDULE_STEP)
         self.steer_rate_weight = steer_rate_weight
         self.max_lat_accel = max_lat_accel
-        q_mat, r_mat = np.diag(q), np.array([[r]])
-        gains = []
-        for v in self.speeds:
-            ad, bd = discretise(*model.error_dynamics(float(v)), dt)
-            if steer_rate_weight > 0.0:
-                gains.append(rate_lqr(ad, bd, q_mat, r, steer_rate_weight / (dt * dt)))
-            else:
-                gains.append(dlqr(ad, bd, q_mat, r_mat).ravel())
-        self.gains = np.array(gains)
+        self.gains = gain_schedule(model, dt, tuple(q), r, steer_rate_weight).copy()
         self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
         self._kv = model.understeer_gradient
         self._last = 0.0

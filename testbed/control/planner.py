@@ -59,8 +59,9 @@ class LanePlanner:
         compiled = getattr(smap, "compiled", None)
         self._kernel = None if _KERNELS is None or compiled is None else _KERNELS.PathKernel(compiled, lane,
                                                                                                PREVIEW_STEP)
-        """The path terms compiled over the map's compiled queries (testbed/control/planner_kernels.pyx), where
-        both are built; None: the pure-Python `_path_terms` answers, the reference the kernel is tested equal to."""
+        """The path terms and the curves ahead compiled over the map's compiled queries
+        (testbed/control/planner_kernels.pyx), where both are built; None: the pure-Python `_path_terms` and
+        `_curves_ahead` answer, the references the kernel is tested equal to."""
 
     @property
     def stopping(self) -> bool:
@@ -138,6 +139,9 @@ class LanePlanner:
         """(distance ahead along the centreline, a_lat/|κ| there) every CURVE_STEP up to the distance needed to
         slow from the cruise speed (or to where the lane ends), where the lane curves."""
         horizon = self.cruise_speed**2 / (2.0 * CURVE_DECEL) + CURVE_STEP
+        if self._kernel is not None:
+            ds, v2 = self._kernel.curves_ahead(pose, horizon, CURVE_STEP, self.lateral_accel)
+            return np.array(ds), np.array(v2)
         ds, v2 = [], []
         try:
             point, heading = self.map.lane_point(pose, self.lane)

@@ -1,6 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
 """`LanePlanner.plan`'s path terms compiled over the semantic map's kernel: the pose's lane coordinates, the lane
-heading and curvature at its projection, and the curvature at the preview point walked along the centreline.
+heading and curvature at its projection, and the curvature at the preview point walked along the centreline; and
+the curves ahead of its curve speed limit, walked along the centreline in fixed steps.
 
 The same map questions as the pure-Python planner in `testbed/control/planner.py`, asked in the same order
 (so the map's memo and the reference line's walk see the same history), and the same arithmetic operation for
@@ -8,7 +9,7 @@ operation (the build turns off multiply-add contraction; the heading error is wr
 does), so the plans are the same to the bit; `tests/control/test_planner_kernels.py` holds them to it.
 """
 
-from libc.math cimport cos, sin
+from libc.math cimport cos, fabs, sin
 
 from tracks.angles cimport wrap_angle
 from tracks.map_kernels cimport NO_LANE, PLACED, MapKernel
@@ -56,3 +57,34 @@ cdef class PathKernel:
         if smap._place(px, py, h, lane, &on, &s, &l, &t) != PLACED:
             return None
         return lateral, wrap_angle(yaw - heading), smap._curvature(on, s), local
+
+    def curves_ahead(self, pose, double horizon, double step, double lateral_accel):
+        """`LanePlanner._curves_ahead` with the same map questions in the same order: (distances ahead,
+        a_lat/|κ| there) as lists, every `step` m along the centreline up to `horizon`, where the lane curves; the
+        walk stops where the map cannot place it (as the Python method stops at its OffMapError)."""
+        cdef MapKernel smap = self.smap
+        cdef Py_ssize_t lane = self.lane_key, on
+        cdef double x, y, yaw, s = 0.0, l, t = 0.0, heading, d = 0.0, kappa
+        cdef int placed
+        ds, v2 = [], []
+        x, y, yaw = pose
+        placed = smap._place(x, y, yaw, lane, &on, &s, &l, &t)
+        if placed == PLACED:
+            smap._centre(on, s, &x, &y, &heading)
+        while placed == PLACED:
+            placed = smap._place(x, y, heading, lane, &on, &s, &l, &t)
+            if placed != PLACED:
+                break
+            kappa = fabs(smap._curvature(on, s))
+            if kappa > 1e-9:
+                ds.append(d)
+                v2.append(lateral_accel / kappa)
+            if d >= horizon:
+                return ds, v2
+            placed = smap._place(x + step * cos(heading), y + step * sin(heading), heading, lane, &on, &s, &l, &t)
+            if placed == PLACED:
+                smap._centre(on, s, &x, &y, &heading)
+                d = d + step
+        if placed == NO_LANE:
+            raise smap._error(placed, pose, self.lane, x, y, s, t)
+        return ds, v2

@@ -62,6 +62,14 @@ def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
     return run_into(run.scenario, run_dir).summary
 
 
+def run_and_write_data(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+    """The executor of runs whose figures are drawn on demand (a search's trials): the standard outputs with
+    believed.csv in place of birdseye.png and ar_fusion.png (`ld3 figures` draws them from the folder)."""
+    from testbed.eval.runner import run_into
+
+    return run_into(run.scenario, run_dir, figures=False).summary
+
+
 def load_summary(run_dir: Path) -> dict[str, Any] | str:
     """The run's summary, or why there is none (summary.json missing, unreadable or not a JSON object)."""
     try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import ClassVar, NamedTuple
 
@@ -48,6 +49,12 @@ class CampaignBackend(ABC):
         the campaign takes its folder, so that nothing is written. Must return within seconds. The base class
         has nothing to check."""
         return None
+
+    @contextmanager
+    def kept_warm(self) -> Iterator[None]:
+        """Within it, what the backend starts for one batch (worker processes, a cluster connection) may serve
+        the next batches too (a search asks for its trials in batches); the base class keeps nothing."""
+        yield
 
     @abstractmethod
     def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from testbed.errors import UserError
 from testbed.eval.ablation import ablation_runs, ablation_table
 from testbed.eval.adaptive import adaptive_runs, adaptive_table, run_cells, with_budget
-from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_campaign
+from testbed.eval.campaign import CampaignRun, RunExecutor, run_and_write, run_and_write_data, run_campaign
 from testbed.eval.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_table
 from testbed.eval.drp_response import drp_runs, drp_table
@@ -514,18 +514,25 @@ def _where(spec: CampaignSpec) -> str:
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
               backend: str = "local", address: str | None = None, attacks: Sequence[str] = (),
-              budget: int | None = None, maps: Sequence[str] = ()) -> Path:
+              budget: int | None = None, maps: Sequence[str] = (), figures: bool = True) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
     run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
     `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
-    `address` as `run_campaign`'s."""
+    `address` as `run_campaign`'s. Without `figures` the runs leave their figures to `ld3 figures`
+    (`run_and_write_data`; only for a campaign whose runs write the standard outputs)."""
     spec = CAMPAIGNS.get(name)
+    execute = spec.execute
+    if not figures:
+        if spec.execute is not run_and_write or spec.searches is not None:
+            raise UserError(f"--figures-later: campaign {name}'s runs do not write the standard run outputs "
+                            f"(a search's trials leave their figures for later anyway); drop it")
+        execute = run_and_write_data
     runs = selected_runs(name, detector, select, settings, attacks, budget, maps)
     if spec.searches is not None:
         done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
                              progress=progress)
     else:
-        done = run_campaign(runs, out, workers=workers, progress=progress, execute=spec.execute, timeout=timeout,
+        done = run_campaign(runs, out, workers=workers, progress=progress, execute=execute, timeout=timeout,
                             backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"

@@ -2,7 +2,8 @@
 
 With workers > 1, runs go to spawned worker processes (one OpenMP thread each, as on Ray) that die with the
 campaign process (PR_SET_PDEATHSIG on Linux, else a watchdog on the parent's pid), so killing the campaign
-leaves at most temporary folders; a worker over its time limit is killed and replaced. With workers = 1 runs
+leaves at most temporary folders; a worker over its time limit is killed and replaced. Within `kept_warm` the
+idle workers outlive a batch and take the next one's runs (a search's batches). With workers = 1 runs
 execute in this process, one after the other, under an alarm (so that a script without a `__main__` guard, a
 debugger or a notebook work as they are).
 """
@@ -17,7 +18,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator, Sequence
-from contextlib import suppress
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -49,12 +50,29 @@ class LocalBackend(CampaignBackend):
     name = "local"
     help = "worker processes on this machine (default 2; 1: every run in this process)"
 
+    def __init__(self) -> None:
+        self._warm: list[_Worker] | None = None
+
     def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
         n_workers = DEFAULT_WORKERS if workers is None else workers
         if n_workers == 1:
             return _run_in_process(batch, out, execute, timeout)
-        return _run_in_workers(batch, out, execute, timeout, n_workers)
+        return _run_in_workers(batch, out, execute, timeout, n_workers, self._warm)
+
+    @contextmanager
+    def kept_warm(self) -> Iterator[None]:
+        """Workers started for one batch stay for the next (their imports and what they keep, such as the
+        controller's gain schedules, paid once), until the outermost `kept_warm` ends."""
+        if self._warm is not None:
+            yield
+            return
+        self._warm = []
+        try:
+            yield
+        finally:
+            warm, self._warm = self._warm, None
+            _stop_all(warm)
 
 
 def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
@@ -169,25 +187,40 @@ class _Worker:
         self.process.join()
         self.conn.close()
 
-    def stop(self) -> None:
-        """End the worker; a busy one is killed and its temporary folder removed."""
+    def ask_to_stop(self) -> None:
+        """Tell an idle worker to exit (`wait_stopped` waits for it); a busy one is killed and its temporary folder
+        removed at once."""
         if self.job is not None:
             self.kill()
             remove_path(self.job.tmp)
+            self.job = None
             return
         with suppress(OSError):  # already gone
             self.conn.send(None)
+
+    def wait_stopped(self) -> None:
+        """Wait up to 5 s for a worker told to stop to exit, then kill it."""
         self.process.join(5.0)
         if self.process.is_alive():
             self.kill()
 
 
+def _stop_all(workers: Sequence[_Worker]) -> None:
+    """Stop the workers together: each is told first, so that they wind down at the same time."""
+    for worker in workers:
+        worker.ask_to_stop()
+    for worker in workers:
+        worker.wait_stopped()
+
+
 def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
-                    n_workers: int) -> Iterator[RunOutcome]:
-    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced."""
+                    n_workers: int, warm: list[_Worker] | None = None) -> Iterator[RunOutcome]:
+    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced. With `warm`
+    (the workers kept between batches) idle workers are taken from it and left in it at the end; without,
+    every worker is stopped at the end."""
     ctx = mp.get_context("spawn")
     pending = list(reversed(batch))
-    pool: list[_Worker] = []
+    pool: list[_Worker] = [] if warm is None else warm
     try:
         while True:
             pool = [w for w in pool if w.job is not None or w.process.is_alive()]
@@ -209,5 +242,7 @@ def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecuto
                     worker.job = None
                     yield RunOutcome(job.run, error)
     finally:
-        for worker in pool:
-            worker.stop()
+        kept = [w for w in pool if warm is not None and w.job is None and w.process.is_alive()]
+        _stop_all([w for w in pool if w not in kept])
+        if warm is not None:
+            warm[:] = kept

@@ -19,12 +19,11 @@ from testbed.attacks.compose import threat_model_of
 from testbed.attacks.threat import threat_label
 from testbed.chassis import ChassisPort
 from testbed.defense.base import Defense
-from testbed.eval.birdseye import save_birdseye
 from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
-from testbed.eval.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.recording import ego_lane_lines
 from testbed.eval.run_build import RunOptions, build_run
+from testbed.eval.run_figures import BELIEVED, FigureInputs, fusion_title, save_run_figures, write_believed
 from testbed.eval.run_folder import run_folder
 from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError
 from testbed.eval.summary import HitVehicle, RunSummary
@@ -258,26 +257,26 @@ class SimRun:
             "hit_vehicle": self.hit,
         })
 
-    def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "") -> None:
-        """summary.json, trajectory.csv, traffic.csv (with traffic), birdseye.png (and camera.mp4, run.mcap when
-        recorded) of a finished run."""
+    def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "", figures: bool = True) -> None:
+        """summary.json, trajectory.csv, traffic.csv (with traffic), birdseye.png and ar_fusion.png (and camera.mp4,
+        run.mcap when recorded) of a finished run; without `figures`, believed.csv instead of the figures, which
+        `ld3 figures` draws from the folder later."""
         sc, traffic = self.sc, self.parts.traffic
         write_trajectory(out_dir / "trajectory.csv", result.rows)
         if self.parts.traffic is not None:
             self.traffic_log.write(out_dir / "traffic.csv")
         result.record.write(out_dir / "summary.json")
-        save_birdseye(out_dir / "birdseye.png", self.parts.track, result.rows, lane_width=self.parts.lane_width,
-                      straddle_dev=self.monitor.straddle_dev, believed_xy=result.believed_xy,
-                      detection_t=result.summary["detection_time_s"], stop_t=result.stop_t,
-                      title=f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}"
-                            + title_suffix,
-                      attack_t=self.parts.attack.start_time if self.parts.attack is not None else None,
-                      threshold=self.parts.defense.alarm_threshold,
-                      traffic=self.traffic_log.paths() if traffic is not None else None,
-                      traffic_size=(traffic.length, traffic.width) if traffic is not None else (0, 0))
-        if self.parts.attack is not None and has_fusion(result.rows):
-            save_fusion_plot(out_dir / "ar_fusion.png", result.rows, straddle_dev=self.monitor.straddle_dev,
-                             title=f"{sc.name} · {sc.track} · {self.parts.attack.name} · attack response")
+        if not figures:
+            write_believed(out_dir / BELIEVED, result.believed_xy)
+        else:
+            attack = self.parts.attack
+            save_run_figures(out_dir, result.rows, FigureInputs(
+                self.parts.track, self.parts.lane_width, self.monitor.straddle_dev, result.believed_xy,
+                result.summary["detection_time_s"], result.stop_t,
+                f"{sc.name} · {sc.track} · defense {sc.defense} · {result.summary['consequence']}" + title_suffix,
+                fusion_title(sc.name, sc.track, attack), attack.start_time if attack is not None else None,
+                self.parts.defense.alarm_threshold, self.traffic_log.paths() if traffic is not None else None,
+                (traffic.length, traffic.width) if traffic is not None else (0, 0)))
         if self.parts.video is not None:
             self.parts.video.write(out_dir / "camera.mp4")
         if self.parts.recording is not None:
@@ -317,14 +316,16 @@ def run_scenario(sc: Scenario, out_dir: Path | None, *, video: bool = False, rec
 
 
 def run_into(sc: Scenario, out_dir: Path | None, *, video: bool = False, record: bool = False,
-             progress: bool = False, render: bool | None = None, tracking: bool | None = None) -> RunResult:
+             progress: bool = False, render: bool | None = None, tracking: bool | None = None,
+             figures: bool = True) -> RunResult:
     """Run `sc` and write its outputs into `out_dir`, a folder the caller made and owns (a campaign's
-    temporary run folder), or nowhere."""
+    temporary run folder), or nowhere; without `figures`, believed.csv instead of the figures
+    (`SimRun.write_outputs`)."""
     sim = SimRun(sc, render=render, video=video, record=record, tracking=tracking)
     try:
         result = sim.run(progress=progress)
         if out_dir is not None:
-            sim.write_outputs(out_dir, result)
+            sim.write_outputs(out_dir, result, figures=figures)
         return result
     finally:
         sim.close()

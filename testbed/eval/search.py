@@ -27,7 +27,14 @@ from testbed.attacks.registry import ATTACKS
 from testbed.attacks.space import START, ChoiceDim, FloatDim, IntDim
 from testbed.attacks.threat import ThreatCapability, threat_label, within_ld3_threat_model
 from testbed.errors import UserError
-from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
+from testbed.eval.campaign import (
+    CampaignRun,
+    RunExecutor,
+    campaign_backend,
+    load_summary,
+    run_and_write_data,
+    run_campaign,
+)
 from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.registry import FIXES, Component, missing_needs
@@ -201,9 +208,9 @@ class AttackSearch:
 
     def __init__(self, spec: SearchSpec, out: Path, *, workers: int | None = None, backend: str = "local",
                  address: str | None = None, timeout: float | None = None, progress: bool = True,
-                 execute: RunExecutor = run_and_write) -> None:
+                 execute: RunExecutor = run_and_write_data) -> None:
         """`execute` runs one trial's scenario into its folder (the campaign executor; the default writes the
-        standard run outputs)."""
+        standard run outputs but the figures, which `ld3 figures` draws later)."""
         self.spec, self.out, self.execute = spec, out, execute
         self.workers, self.backend, self.address, self.timeout = workers, backend, address, timeout
         self.progress = progress
@@ -243,8 +250,9 @@ class AttackSearch:
         return self.spec.victim.replace(name=trial_id(number), attack=attack)
 
     def run(self) -> list[TrialOutcome]:
-        """Run trials until `budget` have been told; write trials.csv after every batch."""
-        with warnings.catch_warnings():
+        """Run trials until `budget` have been told; write trials.csv after every batch. The backend's workers
+        stay from batch to batch (`kept_warm`)."""
+        with warnings.catch_warnings(), campaign_backend(self.backend, self.address).kept_warm():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             study = self._study(0)
             self._read_told(study)

@@ -26,7 +26,7 @@ from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
 from testbed.eval.adaptive import Victim
 from testbed.eval.bound_table import bound_rows, bound_setting
-from testbed.eval.campaign import RunExecutor, load_summary, run_and_write
+from testbed.eval.campaign import RunExecutor, campaign_backend, load_summary, run_and_write_data
 from testbed.eval.scenario import Scenario, load_scenario
 from testbed.eval.search import AttackSearch, SearchSpec, attack_spec, csv_cell
 from testbed.eval.search_report import write_search_report
@@ -123,7 +123,7 @@ def cell_summary(cell: Cell, search: AttackSearch) -> dict[str, Any]:
             "replay": shlex.join(["ld3", "run", str(search.out / "best.toml")]) if worst else None}
 
 
-def run_cell(cell: Cell, out: Path, execute: RunExecutor = run_and_write, **options: Any) -> dict[str, Any]:
+def run_cell(cell: Cell, out: Path, execute: RunExecutor = run_and_write_data, **options: Any) -> dict[str, Any]:
     """The cell's figures: read back when it completed its budget, else searched (resuming) and recorded; a
     threat model no family can act under on the road is recorded as not applicable."""
     folder = out / cell.folder
@@ -259,7 +259,7 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def security_margin(cells: Sequence[Cell], out: Path, *, execute: RunExecutor = run_and_write,
+def security_margin(cells: Sequence[Cell], out: Path, *, execute: RunExecutor = run_and_write_data,
                     announce: Callable[[str], None] = lambda line: None,
                     bound: Callable[[Cell], float | None] = cell_bound, **options: Any) -> Path:
     """Run (or resume) every cell, then write the table; `options` go to each `AttackSearch`."""
@@ -267,11 +267,12 @@ def security_margin(cells: Sequence[Cell], out: Path, *, execute: RunExecutor = 
         raise UserError(f"--out {out} is a file; name a folder")
     out.mkdir(parents=True, exist_ok=True)
     done = []
-    for i, cell in enumerate(cells, 1):
-        summary = run_cell(cell, out, execute, **options)
-        done.append((cell, summary))
-        announce(f"[{i}/{len(cells)}] {cell.folder.as_posix()}: "
-                 + (summary["not_applicable"] if "not_applicable" in summary else
-                    f"{summary['losses']} losses in {summary['trials']} trials, worst max |D| "
-                    f"{_m(summary['worst_max_dev_m'])} m"))
+    with campaign_backend(options.get("backend", "local"), options.get("address")).kept_warm():
+        for i, cell in enumerate(cells, 1):
+            summary = run_cell(cell, out, execute, **options)
+            done.append((cell, summary))
+            announce(f"[{i}/{len(cells)}] {cell.folder.as_posix()}: "
+                     + (summary["not_applicable"] if "not_applicable" in summary else
+                        f"{summary['losses']} losses in {summary['trials']} trials, worst max |D| "
+                        f"{_m(summary['worst_max_dev_m'])} m"))
     return write_table(out, table_rows(done, bound))

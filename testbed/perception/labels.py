@@ -198,11 +198,11 @@ def _at_car(ref, t: float, pose: Pose, s: np.ndarray, x: np.ndarray) -> tuple[fl
     si = float(s[i] + (s[i + 1] - s[i]) * (0.0 - x[i]) / (x[i + 1] - x[i]))
     c, sn = math.cos(pose.yaw), math.sin(pose.yaw)
     for _ in range(3):
-        px, py = ref.points(np.array([si]), t)[0]
+        px, py = ref.points_one(si, t)
         xi = c * (px - pose.x) + sn * (py - pose.y)
         rel = wrap_angle(ref.heading_at(si) - pose.yaw)
         si = min(max(si - xi / max(math.cos(rel), 0.1), 0.0), ref.length)
-    px, py = ref.points(np.array([si]), t)[0]
+    px, py = ref.points_one(si, t)
     rel = wrap_angle(ref.heading_at(si) - pose.yaw)
     if abs(rel) >= 0.5 * math.pi - 0.05:
         return None

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from testbed.control.lateral import LqrLateralController, discretise
+from testbed.control.lateral import LqrLateralController, discretise, gain_schedule
 from testbed.control.lateral_model import LateralModel
 from testbed.control.plan import Plan
 from tests.control.closed_loop import DT, controller_model, shared_lateral
@@ -116,3 +116,16 @@ def test_from_vehicle_reads_attributes_and_fills_defaults() -> None:
     model = LateralModel.from_vehicle(custom)
     assert (model.lf, model.lr, model.cf) == (0.9, pytest.approx(1.1), 5e4)
     assert model.cr == pytest.approx(16.0 * 900.0 * 9.81 * 0.9 / 2.0)
+
+
+@pytest.mark.parametrize("weight", [0.0, 0.03])
+def test_a_kept_gain_schedule_is_a_fresh_computation_to_the_bit(weight: float) -> None:
+    model = LateralModel.from_geometry(2.85, 1800.0)
+    first = LqrLateralController(model, 0.6, DT, steer_rate_weight=weight)
+    again = LqrLateralController(model, 0.6, DT, steer_rate_weight=weight)
+    fresh = gain_schedule.__wrapped__(model, DT, (0.5, 0.0, 1.0, 0.0), 25.0, weight)
+    assert first.gains.tobytes() == again.gains.tobytes() == fresh.tobytes()
+    first.gains[3, 0] = 0.0  # a controller's copy: changing it leaves the kept schedule alone
+    assert again.gains.tobytes() == LqrLateralController(model, 0.6, DT, steer_rate_weight=weight).gains.tobytes()
+    other = LqrLateralController(model, 0.6, 2.0 * DT, steer_rate_weight=weight)
+    assert other.gains.tobytes() != fresh.tobytes()

@@ -69,3 +69,13 @@ def test_a_lane_the_road_does_not_have_is_refused_as_in_python():
     for m in (smap, pure):
         with pytest.raises(ValueError, match="lane 9 not on highway"):
             LanePlanner(m, 9, 20.0).plan(Pose(100.0, 0.0, 0.0), 20.0, 0.0)
+
+
+@compiled
+@pytest.mark.parametrize("spec", [*PRESETS, "urban-curvy@101"])
+def test_the_compiled_curves_ahead_are_the_python_ones(spec):
+    for lane in range(len(load_track(spec).lanes)):
+        fast, slow = LanePlanner(TrackMap(load_track(spec)), lane, 20.0), LanePlanner(pure_map(spec), lane, 20.0)
+        for pose, _, _ in drive(spec, lane, seed=3)[::20]:
+            (d_fast, v_fast), (d_slow, v_slow) = fast._curves_ahead(pose), slow._curves_ahead(pose)
+            assert (d_fast.tobytes(), v_fast.tobytes()) == (d_slow.tobytes(), v_slow.tobytes()), pose

@@ -190,3 +190,30 @@ def test_warnings_a_run_logs_go_to_its_run_log_not_the_console(tmp_path, capfd, 
             f"WARNING testbed.defense.faults: t=1.000 no-lane-lines: w{i}\n")
     out, err = capfd.readouterr()
     assert "no-lane-lines" not in out + err
+
+
+def test_workers_kept_warm_serve_every_batch_and_a_dead_one_is_replaced(tmp_path):
+    from testbed.eval.campaign import campaign_backend
+
+    sc = load_scenario("slr")
+
+    def batch(name: str, n: int, **tags) -> list[int]:
+        runs = [CampaignRun(f"{name}{i}", sc, dict(tags)) for i in range(n)]
+        done = run_campaign(runs, tmp_path / name, workers=2, progress=False, execute=process_probe)
+        return sorted(s["pid"] for _, s in done)
+
+    cold = [batch("cold-a", 4), batch("cold-b", 4)]
+    assert not set(cold[0]) & set(cold[1])  # without: each batch starts its own workers
+    with campaign_backend("local", None).kept_warm():
+        first, second = set(batch("a", 4)), set(batch("b", 4))
+        assert first == second and len(first) == 2 and os.getpid() not in first
+        died = run_campaign([CampaignRun("die", sc, {"die": True})], tmp_path / "c", workers=2, progress=False,
+                            execute=slow_writer)
+        assert died == []
+        third = set(batch("d", 4))
+        assert len(third) == 2 and len(third & first) == 1  # the survivor stays; the dead one is replaced
+    for pid in third:
+        with pytest.raises(ProcessLookupError):
+            for _ in range(50):  # stopped when the outermost kept_warm ends
+                os.kill(pid, 0)
+                time.sleep(0.1)

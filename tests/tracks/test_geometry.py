@@ -87,3 +87,17 @@ def test_beyond_the_end_extends_straight(circle_line):
     s, t = circle_line.project(x_end + 5.0 * math.cos(h_end), y_end + 5.0 * math.sin(h_end))
     assert s == pytest.approx(circle_line.length + 5.0, abs=1e-6)
     assert t == pytest.approx(0.0, abs=1e-6)
+
+
+@pytest.mark.parametrize("preset", ["highway", "urban-curvy", "local", "two-way"])
+def test_one_point_is_the_vectorised_point_of_a_one_element_array_to_the_bit(preset):
+    from testbed.presets import build_track
+
+    line = build_track(preset).reference
+    rng = np.random.default_rng(7)
+    s_values = [*rng.uniform(-20.0, line.length + 20.0, 400), 0.0, -0.0, line.length, *line.s[:50].tolist(),
+                *[float(v) for v in line._seg_s0]]
+    for s in s_values:
+        for t in (0.0, -1.875, float(rng.uniform(-9.0, 9.0))):
+            x, y = line.points(np.array([s]), t)[0]
+            assert line.points_one(float(s), t) == (x, y), (s, t)
