@@ -48,9 +48,10 @@ def read_inputs(path: Path) -> Iterator[tuple[LaneDetection, LocalizationEstimat
         raise UserError("replaying run.mcap needs the mcap package: pip install 'ld3-testbed[record]'") from None
     with path.open("rb") as stream:
         found = False
-        messages = make_reader(stream).iter_messages(topics=[TOPIC])
+        messages = None
         while True:
             try:
+                messages = messages or make_reader(stream).iter_messages(topics=[TOPIC])
                 message = next(messages, None)
                 if message is None:
                     break

@@ -170,9 +170,17 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
         missing = missing_needs(component, provided)
         _check(not missing, f"{family} {component.name!r} has no effect with detector = {sc.detector!r} and "
                             f"localization = {sc.localization!r}: it needs {FIXES[missing[0]] if missing else ''}")
+    reads_lines = Capability.LANE_DETECTOR in DEFENSES.get(sc.defense).needs
+    for _, component in users[1:]:
+        _check(reads_lines or not component.capabilities & LD_SIDE,
+               f"attack {component.name!r} tampers with the lane detection, which defense {sc.defense!r} does not "
+               f"read (nothing else steers by it): it has no effect; use a defense that reads the lines, e.g. "
+               f"--defense ld3")
     return provided
 
 
+LD_SIDE = frozenset({"ld-output", "road-paint"})
+"""Attack capabilities that act on the lane detection (`testbed.attacks.threat.ThreatCapability` values)."""
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
 _SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig, "control": ControlConfig}
 """The scenario's typed tables, by name."""
