@@ -37,12 +37,27 @@ def check_out_dir(out: Path, force: bool, marker: str = SUMMARY, what: str = "a 
         raise UserError(f"--out {out} holds a finished {what.removeprefix('a ')}; {replace}choose another folder")
 
 
+def _alive(pid_text: str) -> bool:
+    """Whether the process `pid_text` names still runs (False for text that is no process id)."""
+    try:
+        os.kill(int(pid_text), 0)
+    except (ValueError, ProcessLookupError):
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
 @contextmanager
 def claimed_out_dir(out: Path, force: bool) -> Iterator[Path]:
-    """`out` as an empty folder for a run that writes in place as it goes (a CAN log, a vehicle drive), for
-    the body that starts the run: refused as `check_out_dir` refuses; with `force` a finished run there is moved
-    aside and removed only once the body returns; if the body raises, the new folder goes and the earlier run
-    comes back."""
+    """`out` as an empty folder for a run that writes in place as it goes (a CAN log, a vehicle drive), for the
+    body that runs it: refused as `check_out_dir` refuses; with `force` a finished run there is moved aside and
+    removed only once the body returns; if the body raises, the new folder goes and the earlier run comes back.
+    An earlier run set aside by a command that was killed (`kill -9`) is named, never overwritten."""
+    for stale in sorted(out.parent.glob(f".{out.name}.old-*")):
+        if not _alive(stale.name.rpartition("-")[2]):
+            raise UserError(f"an earlier run of --out {out} was set aside by a command that died before it finished: "
+                            f"it is in {stale}; move it back to {out} or remove it, then start again")
     check_out_dir(out, force)
     old = out.parent / f".{out.name}.old-{os.getpid()}"
     moved = (out / SUMMARY).is_file()

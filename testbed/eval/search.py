@@ -30,6 +30,7 @@ from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun, RunExecutor, load_summary, run_and_write, run_campaign
 from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
+from testbed.eval.study_log import check_study_log
 from testbed.registry import FIXES, Component, missing_needs
 
 OBJECTIVES = ("loss", "undetected", "overall")
@@ -228,6 +229,7 @@ class AttackSearch:
             if stored != json.loads(json.dumps(identity)):
                 raise UserError(f"{self.out} holds a different search (victim, threat, seed, batch or objective); "
                                 f"choose another --out")
+            check_study_log(self.out / "study.log")
         elif any(self.out.iterdir()):
             raise UserError(f"--out {self.out} is not empty and holds no search; choose an empty or new folder")
         else:

@@ -160,9 +160,12 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _average(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_file
     from testbed.perception.weight_mean import mean_checkpoint
 
-    print(f"wrote {mean_checkpoint(args.checkpoints, args.out)}")
+    with output_file(args.out, ".pt") as tmp:
+        mean_checkpoint(args.checkpoints, tmp)
+    print(f"wrote {args.out}")
     return 0
 
 
@@ -207,12 +210,14 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def _export_onnx(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_file
     from testbed.perception.neural import load_model
     from testbed.perception.onnx_detector_graph import export_detector_onnx
     from testbed.perception.onnx_runtime import export_onnx
 
     export = export_onnx if args.network_only else export_detector_onnx
-    data = export(load_model(args.weights), args.out)
+    with output_file(args.out, ".onnx") as tmp:
+        data = export(load_model(args.weights), tmp)
     print(f"wrote {args.out} ({len(data) / 1024:.0f} KiB)")
     return 0
 
@@ -220,15 +225,18 @@ def _export_onnx(args: argparse.Namespace) -> int:
 def _closed_loop(args: argparse.Namespace) -> int:
     from testbed.conditions import CONDITIONS
     from testbed.errors import UserError
+    from testbed.eval.run_folder import check_out_dir, output_folder
     from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 
     if args.detector == "none":
         raise UserError("closed-loop needs a lane detector: --detector neural, classical or oracle")
+    check_out_dir(args.out, True, "closed_loop.csv", "a closed-loop report")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
                               lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check")
-    paths = write_report(results, args.out)
+    with output_folder(args.out, True, "closed_loop.csv", "a closed-loop report") as tmp:
+        paths = {k: args.out / p.name for k, p in write_report(results, tmp).items()}
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))
     return 0
