@@ -11,6 +11,7 @@ freshness and MAC signals, the lengths, the freshness window and where the key c
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -212,10 +213,15 @@ class _Builder:
         self.dbc_path = root / doc.dbc
         if not self.dbc_path.is_file():
             raise self.error("dbc", f"file not found: {self.dbc_path}")
+        log = logging.getLogger("cantools")  # its warnings (a repeated frame id) are refused below, in one line
+        level = log.level
+        log.setLevel(logging.ERROR)
         try:
             self.db = cantools.database.load_file(str(self.dbc_path), strict=True)
         except Exception as exc:  # cantools raises several parse error types
             raise self.error("dbc", f"cannot load {self.dbc_path.name}: {exc}") from None
+        finally:
+            log.setLevel(level)
         self.check_dbc()
 
     def check_dbc(self) -> None:

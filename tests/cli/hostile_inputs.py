@@ -259,6 +259,13 @@ VALUES = [
                                  "drp-trace:start=0", "--out", "{ws}/out"), "drp-trace"),
 ]
 
+def _grey_png() -> bytes:
+    import cv2
+    import numpy as np
+
+    return cv2.imencode(".png", np.full((160, 320, 3), 90, np.uint8))[1].tobytes()
+
+
 OUTPUT_PLACES = [
     Case("paper-onto-campaign", ("paper", "--quick", "--out", "{ws}/camp"), "camp",
          {"camp/runs.csv": "run_id\n", "camp/report.md": "mine", "camp/slr-0/summary.json": "{}"}),
@@ -266,8 +273,8 @@ OUTPUT_PLACES = [
     Case("replay-out-foreign", ("replay", "{ws}/e.mcap", "--out", "{ws}/foreign"), "foreign", {"e.mcap": b"x"}),
     Case("ld-eval-out-foreign", ("ld", "eval", "--data", "{ws}/nodata", "--out", "{ws}/foreign"), "foreign"),
     Case("demo-out-foreign", ("demo", "--out", "{ws}/foreign"), "foreign"),
-    Case("ld-detect-out-foreign", ("ld", "detect", "--camera", "images:{ws}/f.png", "--out", "{ws}/foreign"),
-         "foreign"),
+    Case("ld-detect-out-foreign", ("ld", "detect", "--camera", "images:{ws}/f.png", "--detector", "classical",
+                                   "--out", "{ws}/foreign"), "foreign", {"f.png": _grey_png}),
     Case("ld-closed-loop-out-foreign", ("ld", "closed-loop", "--presets", "slr", "--out", "{ws}/foreign"), "foreign"),
     Case("ld-export-onnx-out-dir", ("ld", "export-onnx", "--out", "{ws}/foreign"), "foreign"),
     Case("ld-average-out-suffix", ("ld", "average", "--out", "{ws}/m.txt", "{ws}/a.pt", "{ws}/b.pt"), ".pt"),

@@ -93,7 +93,7 @@ class Format:
 
 
 FORMATS = [
-    Format("opendrive", lambda: xodr().encode(), "r.xodr", ("tracks", "routes", "{ws}/r.xodr")),
+    Format("opendrive", lambda: xodr().encode(), "r.xodr", ("tracks", "routes", "xodr:{ws}/r.xodr")),
     Format("profile-dbc", lambda: (PROFILE / "chassis.dbc").read_bytes(), "p/chassis.dbc",
            ("ecu", "--profile", "{ws}/p", "--duration", "0.2"), (("p/profile.toml", (PROFILE / "profile.toml")
                                                                  .read_bytes()),)),
