@@ -405,9 +405,11 @@ def _load(root: Path) -> ChassisProfile:
         shipped = ", ".join(sorted(p.name for p in PROFILES_DIR.iterdir() if p.is_dir()))
         raise ProfileError(f"no chassis profile at {root} (profile.toml missing); shipped profiles: {shipped}")
     try:
-        data = tomllib.loads(toml_path.read_text())
-    except tomllib.TOMLDecodeError as exc:
+        data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"profile {root.name}: profile.toml: {exc}") from None
+    except RecursionError:
+        raise ProfileError(f"profile {root.name}: profile.toml: arrays or tables nested too deep") from None
     return _Builder(root.name, root, _document(root.name, data)).build()
 
 
