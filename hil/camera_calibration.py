@@ -71,8 +71,8 @@ class CameraCalibration:
     def load(cls, path: Path) -> CameraCalibration:
         """Read the TOML file; a missing or malformed key is a one-line UserError naming it."""
         try:
-            table = tomllib.loads(Path(path).read_text())
-        except (OSError, tomllib.TOMLDecodeError) as exc:
+            table = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as exc:
             raise UserError(f"camera calibration {path}: {exc}") from None
         try:
             intr, extr = table["intrinsics"], table["extrinsics"]

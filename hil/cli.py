@@ -39,7 +39,7 @@ from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
 from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
-from testbed.cli import OneLineParser
+from testbed.cli import OneLineParser, seconds
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
 from testbed.eval.run_folder import check_out_dir
@@ -47,6 +47,7 @@ from testbed.extras import require_modules
 
 PlantFactory = Callable[..., ChassisPort]
 REPLAY = "replay"
+POSITIVE_PLANT_ARGS = frozenset({"wheelbase", "substep"})  # the kinematic plant's lengths and steps
 EXIT_USAGE, EXIT_CHASSIS_FAULT, EXIT_LINK = 2, 3, 4
 
 
@@ -97,12 +98,23 @@ def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plant", default="kinematic", help="'kinematic', 'pybullet' or 'package.module:factory'")
     parser.add_argument("--plant-arg", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--scenario", help="use the PyBullet car of this scenario (name or .toml) as the plant")
-    parser.add_argument("--max-steer-deg", type=float, default=math.degrees(EcuLimits.max_steer))
-    parser.add_argument("--max-steer-rate-deg", type=float, default=math.degrees(EcuLimits.max_steer_rate))
-    parser.add_argument("--estop-decel", type=float, default=EcuLimits.estop_decel)
+    parser.add_argument("--max-steer-deg", type=positive, default=math.degrees(EcuLimits.max_steer))
+    parser.add_argument("--max-steer-rate-deg", type=positive, default=math.degrees(EcuLimits.max_steer_rate))
+    parser.add_argument("--estop-decel", type=positive, default=EcuLimits.estop_decel)
     parser.add_argument(
-        "--duration", type=float, default=None, help="wall seconds to run (default: until SIGTERM)"
+        "--duration", type=seconds, default=None, help="wall seconds to run (default: until SIGTERM)"
     )
+
+
+def positive(text: str) -> float:
+    """A limit for argparse: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
 
 
 def ecu_parser() -> argparse.ArgumentParser:
@@ -116,6 +128,14 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
         kwargs = dict(item.split("=", 1) for item in args.plant_arg)
     except ValueError:
         raise UserError(f"--plant-arg takes KEY=VALUE, got {args.plant_arg}") from None
+    for key, value in kwargs.items():
+        try:
+            number = float(value)
+        except ValueError:
+            continue
+        if not math.isfinite(number) or (key in POSITIVE_PLANT_ARGS and number <= 0):
+            raise UserError(f"--plant-arg {key}={value}: must be a finite number"
+                            + (" > 0" if key in POSITIVE_PLANT_ARGS else ""))
     if args.scenario:
         from hil.plants import plant_args_for, pybullet_plant
         from testbed.eval.scenario import load_scenario
@@ -225,7 +245,11 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
         if args.interface != "virtual":
             raise UserError("--drill needs the in-process ECU emulator (--interface virtual)")
-        drill = {"prepare": drill_installer(*parse_drill(args.drill)), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
+        kind, at = parse_drill(args.drill)
+        if at >= sc.duration:
+            raise UserError(f"--drill {args.drill}: at {at:g} s it would never fire in a {sc.duration:g} s run; "
+                            f"choose a time before the end")
+        drill = {"prepare": drill_installer(kind, at), "reply_timeout": DRILL_REPLY_TIMEOUT_S}
     try:
         result = run_hil_scenario(sc, out, config, log_path=args.can_log, progress=sys.stderr.isatty(),
                                   record=args.record, sensors=args.sensors, force=args.force, **drill)

@@ -40,6 +40,7 @@ def add_detect_parser(ld: argparse.ArgumentParser) -> None:
 def _detect(args: argparse.Namespace) -> int:
     from hil.camera_detect import DetectConfig, run_detect
     from testbed.errors import UserError
+    from testbed.eval.run_folder import check_out_dir, output_folder
     from testbed.perception.registry import DETECTORS, make_detector
     from testbed.registry import Capability
     from vehicles.camera_rig import CameraRig
@@ -54,10 +55,12 @@ def _detect(args: argparse.Namespace) -> int:
     params = {"weights": args.weights} if args.weights else {}
     rig = CameraRig(get_vehicle("sedan").camera)
     detector = make_detector(args.detector, track=None, rig=rig, params=params)
-    config = DetectConfig(camera=args.camera, out=args.out, calibration=args.calibration, detector=args.detector,
-                          weights=args.weights, fps=args.fps, speed=args.speed, tracking=args.tracking,
-                          overlay=args.overlay, limit=args.frames)
-    s = run_detect(config, detector, rig)
+    check_out_dir(args.out, True, "detections.csv", "a detection pass")
+    with output_folder(args.out, True, "detections.csv", "a detection pass") as tmp:
+        config = DetectConfig(camera=args.camera, out=tmp, calibration=args.calibration, detector=args.detector,
+                              weights=args.weights, fps=args.fps, speed=args.speed, tracking=args.tracking,
+                              overlay=args.overlay, limit=args.frames)
+        s = run_detect(config, detector, rig)
     step = s["dev_m_p95_step"]
     print(f"{s['frames']} frames, both lines on {s['both_lines']} ({s['both_share']:.0%}); p95 frame-to-frame "
           f"change of dev_m {'-' if step is None else f'{step:.3f} m'}; wrote {args.out}/detections.csv, report.md")

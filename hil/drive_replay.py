@@ -48,9 +48,19 @@ def read_inputs(path: Path) -> Iterator[tuple[LaneDetection, LocalizationEstimat
         raise UserError("replaying run.mcap needs the mcap package: pip install 'ld3-testbed[record]'") from None
     with path.open("rb") as stream:
         found = False
-        for _, _, message in make_reader(stream).iter_messages(topics=[TOPIC]):
+        messages = None
+        while True:
+            try:
+                messages = messages or make_reader(stream).iter_messages(topics=[TOPIC])
+                message = next(messages, None)
+                if message is None:
+                    break
+                inputs = ld3_input_from_message(json.loads(message[2].data))
+            except Exception as exc:  # the mcap reader, its decompressors and the JSON decoder raise their own types
+                problem = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+                raise UserError(f"{path}: not a readable run.mcap ({problem})") from None
             found = True
-            yield ld3_input_from_message(json.loads(message.data))
+            yield inputs
     if not found:
         raise UserError(f"{path} has no {TOPIC} channel: record the drive with `ld3 run ... --record`")
 
@@ -60,7 +70,12 @@ def drive_settings(path: Path) -> dict[str, Any]:
     summary = path.parent / "summary.json"
     if not summary.is_file():
         return {}
-    data = json.loads(summary.read_text())
+    try:
+        data = json.loads(summary.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{summary} is not readable JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{summary} is not a run's summary (not a JSON object)")
     return {"track": data.get("track"), "defense": data.get("defense"),
             "defense_params": data.get("defense_params") or {}}
 

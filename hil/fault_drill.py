@@ -127,9 +127,12 @@ def parse_drill(text: str) -> tuple[str, float]:
     if kind not in EXPECTED:
         raise UserError(f"unknown fault drill {kind!r}; choose one of {', '.join(EXPECTED)}")
     try:
-        return kind, float(at) if at else 1.5
+        when = float(at) if at else 1.5
     except ValueError:
         raise UserError(f"--drill takes KIND@SECONDS, got {text!r}") from None
+    if not (math.isfinite(when) and when >= 0):
+        raise UserError(f"--drill {text}: the time must be a finite number of seconds >= 0, got {at}")
+    return kind, when
 
 
 def drill_installer(kind: str, at: float) -> Callable[[HilLink], None]:

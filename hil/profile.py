@@ -11,6 +11,7 @@ freshness and MAC signals, the lengths, the freshness window and where the key c
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -212,10 +213,41 @@ class _Builder:
         self.dbc_path = root / doc.dbc
         if not self.dbc_path.is_file():
             raise self.error("dbc", f"file not found: {self.dbc_path}")
+        log = logging.getLogger("cantools")  # its warnings (a repeated frame id) are refused below, in one line
+        level = log.level
+        log.setLevel(logging.ERROR)
         try:
             self.db = cantools.database.load_file(str(self.dbc_path), strict=True)
         except Exception as exc:  # cantools raises several parse error types
             raise self.error("dbc", f"cannot load {self.dbc_path.name}: {exc}") from None
+        finally:
+            log.setLevel(level)
+        self.check_dbc()
+
+    def check_dbc(self) -> None:
+        """Refuse a DBC whose frame ids repeat or whose signals have a zero scale (no value could be decoded)."""
+        seen: dict[int, str] = {}
+        for message in self.db.messages:
+            if message.frame_id in seen:
+                raise self.error("dbc", f"frame id {message.frame_id} (0x{message.frame_id:X}) is used by both "
+                                 f"{seen[message.frame_id]} and {message.name} in {self.dbc_path.name}")
+            seen[message.frame_id] = message.name
+            for signal in message.signals:
+                if not (math.isfinite(signal.scale) and signal.scale != 0 and math.isfinite(signal.offset)):
+                    raise self.error("dbc", f"signal {message.name}.{signal.name} has scale {signal.scale:g} "
+                                     f"and offset {signal.offset:g}; the scale must be a finite number other than 0")
+
+    def check_enum(self, where: str, message_name: str, signal_name: str, values: dict[str, int]) -> None:
+        """Refuse enum values (gears, modes) the signal cannot carry: outside its DBC range or its bits."""
+        signal = self.db.get_message_by_name(message_name).get_signal_by_name(signal_name)
+        low = signal.minimum if signal.minimum is not None else signal.conversion.raw_to_scaled(
+            -(1 << (signal.length - 1)) if signal.is_signed else 0, decode_choices=False)
+        high = signal.maximum if signal.maximum is not None else signal.conversion.raw_to_scaled(
+            (1 << (signal.length - 1)) - 1 if signal.is_signed else (1 << signal.length) - 1, decode_choices=False)
+        for key, value in values.items():
+            if not low <= value <= high:
+                raise self.error(f"{where}.{key}", f"{value} does not fit signal {message_name}.{signal_name} "
+                                 f"({low:g} to {high:g})")
 
     def error(self, where: str, problem: str) -> ProfileError:
         return ProfileError(f"profile {self.name}: {where}: {problem}")
@@ -249,8 +281,14 @@ class _Builder:
                             math.radians(st.max_rate_deg_s))
         integrity = self.integrity()
         reports = self.reports()
+        commands = self.commands()
+        self.check_enum("gears", commands.drive, commands.gear, dict(doc.gears))
+        for key, table in (("gear", doc.gears), ("mode", doc.modes)):
+            if key in reports.quantities:
+                ref = reports.quantities[key]
+                self.check_enum(f"{key}s", ref.message, ref.signal, dict(table))
         return ChassisProfile(doc.name or self.name, doc.description, self.root, self.dbc_path, self.db, timing,
-                              longitudinal, steering, self.commands(), dict(doc.gears), dict(doc.modes),
+                              longitudinal, steering, commands, dict(doc.gears), dict(doc.modes),
                               reports, integrity, self.simulation(),
                               self.secoc(integrity) if doc.secoc is not None else None,
                               self.report_cycles(reports, timing))
@@ -367,15 +405,21 @@ def _load(root: Path) -> ChassisProfile:
         shipped = ", ".join(sorted(p.name for p in PROFILES_DIR.iterdir() if p.is_dir()))
         raise ProfileError(f"no chassis profile at {root} (profile.toml missing); shipped profiles: {shipped}")
     try:
-        data = tomllib.loads(toml_path.read_text())
-    except tomllib.TOMLDecodeError as exc:
+        data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"profile {root.name}: profile.toml: {exc}") from None
+    except RecursionError:
+        raise ProfileError(f"profile {root.name}: profile.toml: arrays or tables nested too deep") from None
     return _Builder(root.name, root, _document(root.name, data)).build()
 
 
 def load_profile(spec: str | Path = DEFAULT_PROFILE) -> ChassisProfile:
     """The profile named `spec` (shipped) or found in folder `spec`; raises ProfileError."""
-    return _load(profile_dir(spec).resolve())
+    try:
+        root = profile_dir(spec).resolve()
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop
+        raise ProfileError(f"profile {spec}: cannot open the folder: {exc}") from None
+    return _load(root)
 
 
 def default_profile() -> ChassisProfile:

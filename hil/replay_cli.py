@@ -8,6 +8,8 @@ from pathlib import Path
 
 from testbed.errors import UserError
 
+REPLAY_MARKER = "replay.csv"  # what marks a folder as an earlier replay, replaced by the next
+
 
 def add_replay_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="run LD3's detection open loop over a recorded drive (run.mcap)",
@@ -27,10 +29,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
     import tomllib
 
     from hil.drive_replay import drive_settings, replay_drive, write_replay
+    from testbed.eval.run_folder import check_out_dir, output_folder
 
     path = args.drive / "run.mcap" if args.drive.is_dir() else args.drive
     if not path.is_file():
         raise FileNotFoundError(f"no recorded drive at {path}")
+    out = args.out or path.parent / "replay"
+    check_out_dir(out, True, REPLAY_MARKER, "a replay")
     settings = drive_settings(path)
     track = args.track or settings.get("track")
     if track is None:
@@ -43,8 +48,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         params[key.removeprefix("defense.")] = tomllib.loads(f"v = {value}")["v"]
     defense = args.defense or settings.get("defense") or "ld3"
     result = replay_drive(path, track, defense, params)
-    out = args.out or path.parent / "replay"
-    written = write_replay(out, result, f"replay of {path} · {track} · {defense}")
+    with output_folder(out, force=True, marker=REPLAY_MARKER, what="a replay") as tmp:
+        written = write_replay(tmp, result, f"replay of {path} · {track} · {defense}")
     t = result.detection_time_s
     verdict = f"detects at {t:.2f} s" if t is not None else "never alarms"
     print(f"{path}: {len(result.rows)} camera frames, {defense} {verdict}; "

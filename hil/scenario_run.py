@@ -181,7 +181,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
     before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
     through the real readers (`hil.sensor_io`; the link's `sensor_io` then). A finished run in `out_dir` is
-    replaced only with `force`, and only once the run has started (`claimed_out_dir`)."""
+    replaced only with `force`, and only once this run is written (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
@@ -189,10 +189,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
     if out_dir is not None:
         log_path = log_path or out_dir / "can.asc"
-    recorder: FrameRecorder | None = None
-    sim: SimRun | None = None
-    try:
-        with claimed_out_dir(out_dir, force) if out_dir is not None else contextlib.nullcontext():
+    with contextlib.ExitStack() as claim:
+        recorder: FrameRecorder | None = None
+        sim: SimRun | None = None
+        try:
+            if out_dir is not None:  # an earlier run there comes back unless this one finishes and is written
+                claim.enter_context(claimed_out_dir(out_dir, force))
             if log_path is not None:
                 recorder = FrameRecorder(log_path)
                 link.bridge.add_listener(recorder)
@@ -205,30 +207,31 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                          sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
             if sim.parts.recording is not None:
                 link.bridge.add_listener(CanToRecording(sim.parts.recording, link.profile.db, link.bridge.time))
-        with interruptible(link.bridge.interrupt):
-            link.engage()  # last before the run: a realtime bridge starts its clock here
-            result = _drive(sim, link.bridge, progress)
-    finally:
-        link.close()
-        if link.sensor_io is not None:
-            link.sensor_io.close()
-        if recorder is not None:
-            recorder.stop()
-        if sim is not None:
-            sim.close()
-        elif link.world is not None:
-            link.world.close()
-    bridge = link.bridge
-    result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
-        "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
-        "profile": link.profile.name, "pose_source": "odometry", "yaw_rate_source": yaw_rate_source(link.profile),
-        "odometry_error_max_m": bridge.odometry_error_max_m, "odometry_error_final_m": bridge.odometry_error_last_m,
-        "can_log": str(log_path) if log_path is not None else None,
-        "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
-        "can_frames_rejected": sum(bridge.rejected.values()),
-        "can_frames_logged": recorder.frames if recorder is not None else 0,
-        "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
-    }))
-    if out_dir is not None:
-        sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
+            with interruptible(link.bridge.interrupt):
+                link.engage()  # last before the run: a realtime bridge starts its clock here
+                result = _drive(sim, link.bridge, progress)
+        finally:
+            link.close()
+            if link.sensor_io is not None:
+                link.sensor_io.close()
+            if recorder is not None:
+                recorder.stop()
+            if sim is not None:
+                sim.close()
+            elif link.world is not None:
+                link.world.close()
+        bridge = link.bridge
+        result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
+            "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
+            "profile": link.profile.name, "pose_source": "odometry",
+            "yaw_rate_source": yaw_rate_source(link.profile), "odometry_error_max_m": bridge.odometry_error_max_m,
+            "odometry_error_final_m": bridge.odometry_error_last_m,
+            "can_log": str(log_path) if log_path is not None else None,
+            "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
+            "can_frames_rejected": sum(bridge.rejected.values()),
+            "can_frames_logged": recorder.frames if recorder is not None else 0,
+            "sensors": sensors, **(link.sensor_io.counts() if link.sensor_io is not None else {}),
+        }))
+        if out_dir is not None:
+            sim.write_outputs(out_dir, result, title_suffix=f" · CAN {config.interface}")
     return result

@@ -73,18 +73,15 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
     if args.out is None:
         args.out = Path("runs") / f"vehicle-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
-        with claimed_out_dir(args.out, args.force):
+        with claimed_out_dir(args.out, args.force):  # an earlier drive comes back if this one fails to finish
             run = VehicleRun(config, bus_from_args(args), args.out)
+            try:
+                summary = run.run()
+            finally:
+                run.close()
     except LINK_ERRORS as exc:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
-    try:
-        summary = run.run()
-    except LINK_ERRORS as exc:
-        print(link_error_line(exc), file=sys.stderr)
-        return EXIT_LINK
-    finally:
-        run.close()
     print(f"vehicle on {config.map}: consequence {summary['consequence']}, {summary['sim_time_s']:.1f} s, "
           f"detected {summary['detected']}; {summary['nmea_fixes']} GNSS fixes, {summary['camera_frames']} frames; "
           f"outputs in {args.out}")

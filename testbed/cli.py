@@ -8,20 +8,34 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
+import signal
 import sys
+import threading
 from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import NoReturn
 
-from testbed.errors import UserError
+from testbed.errors import UserError, one_line
 
 EXIT_USAGE = 2
 PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcommands here; testbed imports none
 
 
 DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
+
+
+def seconds(text: str) -> float:
+    """A time limit for argparse: a finite number of seconds > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
+    return value
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -119,15 +133,21 @@ def cmd_schema(args: argparse.Namespace) -> int:
     if args.out is None:
         sys.stdout.write(text)
     else:
-        args.out.write_text(text)
+        from testbed.eval.run_folder import output_file
+
+        with output_file(args.out) as tmp:
+            tmp.write_text(text)
         print(f"wrote {args.out}")
     return 0
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from testbed.eval.report import compare_runs
+    from testbed.eval.run_folder import output_folder
 
-    report = compare_runs(args.runs, args.out)
+    with output_folder(args.out, force=True, marker="report.md", what="a comparison") as tmp:
+        compare_runs(args.runs, tmp)
+    report = args.out / "report.md"
     print(report.read_text())
     print(f"report: {report} (plot: {args.out / 'deviations.png'})")
     return 0
@@ -153,6 +173,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def cmd_tracks(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_file
     from testbed.presets import TRACKS, build_track
     from tracks.plot import save_track_png
 
@@ -172,11 +193,13 @@ def cmd_tracks(args: argparse.Namespace) -> int:
         from tracks.opendrive.write import write_xodr
 
         out = args.out or Path(f"{stem}.xodr")
-        write_xodr(track, out)
+        with output_file(out) as tmp:
+            write_xodr(track, tmp)
         print(f"wrote {out} ({track.description})")
         return 0
     out = args.out or Path(f"{stem}.png")
-    save_track_png(track, out)
+    with output_file(out, ".png") as tmp:
+        save_track_png(track, tmp)
     print(f"wrote {out}")
     return 0
 
@@ -184,9 +207,11 @@ def cmd_tracks(args: argparse.Namespace) -> int:
 def cmd_patch_figure(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_spec_to_dict
     from testbed.eval.drp_figure import drp_before_after
+    from testbed.eval.run_folder import output_file
 
-    clean, patched = drp_before_after(args.out, attack_spec_to_dict(args.attack), args.track, args.detector,
-                                      args.ahead)
+    with output_file(args.out, ".png") as tmp:
+        clean, patched = drp_before_after(tmp, attack_spec_to_dict(args.attack), args.track, args.detector,
+                                          args.ahead)
     dev = ["none" if v.ld_dev is None else f"{v.ld_dev:+.3f} m" for v in (clean, patched)]
     print(f"D_LD clean {dev[0]}, with the patch {dev[1]}; wrote {args.out}")
     return 0
@@ -222,9 +247,11 @@ def format_bench(result: dict, indent: str = "") -> str:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from testbed.eval.demo import run_demo
+    from testbed.eval.run_folder import output_folder
 
-    report = run_demo(args.out, progress=sys.stderr.isatty())
-    print(f"demo report: {report}")
+    with output_folder(args.out, force=True, marker="report.md", what="a demo") as tmp:
+        run_demo(tmp, progress=sys.stderr.isatty())
+    print(f"demo report: {args.out / 'report.md'}")
     return 0
 
 
@@ -472,7 +499,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="parallel runs (as `ld3 campaign --workers`)")
     p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
     p.add_argument("--address", help="ray: the cluster to connect to")
-    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.add_argument("--timeout", type=seconds, metavar="SECONDS", help="time limit of each trial's run")
     p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("bound", help="the largest lateral deviation an attacker reaches before LD3 alarms (a linear "
@@ -508,7 +535,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="parallel runs per search (as `ld3 campaign --workers`)")
     p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
     p.add_argument("--address", help="ray: the cluster to connect to")
-    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each trial's run")
+    p.add_argument("--timeout", type=seconds, metavar="SECONDS", help="time limit of each trial's run")
     p.set_defaults(func=cmd_security_margin)
 
     p = sub.add_parser("campaign", help="reproduce one of the paper's experiments (`ld3 campaign list`)")
@@ -523,7 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "pip install '.[ray]')")
     p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto, or ray://HEAD:10001); without it "
                                      "a local Ray instance is started")
-    p.add_argument("--timeout", type=float, metavar="SECONDS",
+    p.add_argument("--timeout", type=seconds, metavar="SECONDS",
                    help="time limit of each run (default 120 s + 10 × its simulated duration); a run over it is "
                         "stopped and listed in failures.txt")
     p.add_argument("--runs", metavar="GLOB", help="only the runs whose id matches GLOB (or one of comma-separated "
@@ -548,8 +575,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                                     "report.md and figures (default ./paper)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (1: every run in this process)")
     p.add_argument("--detector", default="neural", help="camera lane detector of the experiments that use one")
-    p.add_argument("--timeout", type=float, metavar="SECONDS", help="time limit of each run (default 120 s + 10 × its "
-                                                                     "simulated duration)")
+    p.add_argument("--timeout", type=seconds, metavar="SECONDS",
+                   help="time limit of each run (default 120 s + 10 × its simulated duration)")
     p.add_argument("--backend", choices=backends, default="local", help="where the runs execute: local (default) or "
                                                                         "ray (needs pip install '.[ray]')")
     p.add_argument("--address", help="ray: the cluster to connect to (e.g. auto); without it a local Ray instance")
@@ -605,11 +632,26 @@ EXIT_INTERNAL = 70
 def _user_message(exc: BaseException) -> str:
     """One line for the user: a path error names the path and what is wrong with it."""
     if isinstance(exc, OSError) and exc.filename is not None:
-        return f"cannot use {exc.filename}: {exc.strerror} (check --out and the paths given)"
-    return str(exc)
+        return one_line(f"cannot use {exc.filename}: {exc.strerror} (check --out and the paths given)")
+    return one_line(str(exc))
+
+
+def _terminate_as_interrupt(signum: int, frame: object) -> None:
+    """SIGTERM ends a command as Ctrl-C does: the output being written is removed, an earlier one kept."""
+    raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
@@ -624,8 +666,8 @@ def main(argv: list[str] | None = None) -> int:
         print("ld3: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
-        print(f"ld3: internal error (a bug, not your input): {type(exc).__name__}: {exc}; rerun with --debug for "
-              f"the traceback", file=sys.stderr)
+        print(f"ld3: internal error (a bug, not your input): {type(exc).__name__}: {one_line(str(exc))}; rerun "
+              f"with --debug for the traceback", file=sys.stderr)
         return EXIT_INTERNAL
 
 

@@ -134,3 +134,61 @@ def test_type_checking_imports_and_relative_imports_are_read_as_python_runs_them
 def test_no_import_cycle_among_the_first_party_packages():
     cycle = find_cycle(import_graph(module_files(first_party_packages())))
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+LAYERS: dict[str, int] = {
+    # 0 geometry and the car: know nothing of testbed
+    "tracks": 0, "vehicles": 0,
+    # 1 the core a chassis computer runs (no PyBullet, no torch): contracts, localization, defense, control, loop
+    "testbed": 1, "testbed.errors": 1, "testbed.registry": 1, "testbed.params": 1, "testbed.rates": 1,
+    "testbed.lane_detection": 1, "testbed.localization": 1, "testbed.defense": 1, "testbed.control": 1,
+    "testbed.attacks": 1, "testbed.chassis": 1, "testbed.loop": 1, "testbed.assembly": 1, "testbed.presets": 1,
+    "testbed.extras": 1,
+    # 2 the simulation: world, camera, detectors, traffic
+    "testbed.world": 2, "testbed.ground": 2, "testbed.camera": 2, "testbed.conditions": 2,
+    "testbed.perception": 2, "testbed.traffic": 2, "testbed.direct_chassis": 2,
+    # 3 evaluation (runs, campaigns, search, reports) and the CAN link and vehicle beside it
+    "testbed.eval": 3, "testbed.api": 3, "testbed.gym_env": 3, "hil": 3,
+    # 4 the commands
+    "testbed.cli": 4, "testbed.perception.commands": 4, "hil.cli": 4, "hil.vehicle_cli": 4, "hil.replay_cli": 4,
+    "hil.detect_cli": 4, "hil.__main__": 4,
+}
+"""Module prefix -> layer (the longest prefix decides); a module imports only from its own layer or lower ones."""
+
+KNOWN_UPWARD = {
+    ("testbed.loop", "testbed.perception.tracker"): "the tracker is pure logic of the core; its file moves to the "
+                                                     "core with the rooms by concern",
+    ("testbed.assembly", "testbed.perception.tracker"): "as above",
+    ("testbed.control.car_following", "testbed.traffic.idm"): "the IDM is a control law; its file moves to "
+                                                               "testbed/control/ with the rooms by concern",
+    ("testbed.perception.closed_loop", "testbed.eval.runner"): "a lab tool that runs scenarios; its file moves "
+                                                               "to the evaluation with the rooms by concern",
+    ("testbed.perception.closed_loop", "testbed.eval.scenario"): "as above",
+    ("testbed.perception.traffic_drive", "testbed.eval.scenario"): "as above",
+}
+"""Imports that run up the layers today, each waiting for a file move (moves are commits of their own)."""
+
+
+def layer_of(module: str, layers: dict[str, int]) -> int:
+    prefix = max((p for p in layers if module == p or module.startswith(p + ".")), key=len, default=None)
+    assert prefix is not None, f"{module} has no layer: add its package to LAYERS"
+    return layers[prefix]
+
+
+def upward_imports(graph: dict[str, set[str]], layers: dict[str, int]) -> set[tuple[str, str]]:
+    """(importer, imported) for every import of a module from a higher layer."""
+    return {(m, e) for m, edges in graph.items() for e in edges if layer_of(e, layers) > layer_of(m, layers)}
+
+
+def test_an_upward_import_is_found():
+    graph = {"low.a": {"high.b"}, "high.b": {"low.c"}, "low.c": set()}
+    assert upward_imports(graph, {"low": 0, "high": 1}) == {("low.a", "high.b")}
+
+
+def test_no_import_runs_up_the_layers():
+    found = upward_imports(import_graph(module_files(first_party_packages())), LAYERS)
+    new = sorted(found - set(KNOWN_UPWARD))
+    assert not new, "imports from a higher layer (see docs/architecture.md): " + ", ".join(f"{a} -> {b}"
+                                                                                            for a, b in new)
+    gone = sorted(set(KNOWN_UPWARD) - found)
+    assert not gone, f"fixed, so drop from KNOWN_UPWARD: {gone}"

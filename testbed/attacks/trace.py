@@ -37,8 +37,11 @@ class Trace:
         """Read a CSV with header `t,dev` (s, m); raises ValueError naming the file and line on bad input."""
         if not path.is_file():
             raise UserError(f"trace file not found: {path}")
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
+        try:
+            with path.open(newline="") as fh:
+                rows = list(csv.reader(fh))
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise UserError(f"{path}: not a text CSV trace ({exc})") from None
         if not rows or [c.strip() for c in rows[0]] != ["t", "dev"]:
             raise UserError(f"{path}: malformed trace CSV, the first line must be the header 't,dev'")
         ts: list[float] = []

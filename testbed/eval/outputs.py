@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from testbed.errors import UserError
 from testbed.eval.summary import SCHEMA_VERSION
 from testbed.loop import TickRecord
 
@@ -63,9 +64,22 @@ def read_trajectory(run_dir: Path, columns: Sequence[str]) -> dict[str, np.ndarr
     unknown = [c for c in columns if c not in TRAJECTORY_COLUMNS]
     if unknown:
         raise ValueError(f"trajectory.csv has no column(s) {unknown}")
-    with (run_dir / "trajectory.csv").open() as fh:
-        rows = list(csv.DictReader(fh))
-    return {c: np.array([float(r[c]) if r[c] else math.nan for r in rows]) for c in columns}
+    path = run_dir / "trajectory.csv"
+    out: dict[str, list[float]] = {c: [] for c in columns}
+    line = 1
+    try:
+        with path.open(newline="") as fh:
+            reader = csv.DictReader(fh)
+            missing = [c for c in columns if c not in (reader.fieldnames or ())]
+            for row in () if missing else reader:
+                line = reader.line_num
+                for c in columns:
+                    out[c].append(float(row[c]) if row[c] else math.nan)
+    except (UnicodeDecodeError, csv.Error, ValueError, TypeError) as exc:
+        raise UserError(f"{path}:{line}: not a trajectory's numbers ({' '.join(str(exc).split())[:120]})") from None
+    if missing:
+        raise UserError(f"{path}: no column(s) {', '.join(missing)} in its header")
+    return {c: np.array(v) for c, v in out.items()}
 
 
 def chassis_faults(summary: dict[str, Any]) -> list[dict[str, Any]]:

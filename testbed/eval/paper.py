@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun, load_summary
 from testbed.eval.campaigns import CAMPAIGNS, run_named, selected_runs
 from testbed.eval.paper_report import CampaignResult, write_paper_report
@@ -136,8 +137,27 @@ def run_experiment(exp: Experiment, options: PaperOptions) -> CampaignResult:
     return CampaignResult(exp.campaign, folder, campaign_command(exp, options), planned, done)
 
 
+PAPER_FILES = ("report.md",)
+PAPER_FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def check_paper_out(out: Path) -> None:
+    """A UserError when `out` holds anything a paper run did not write (a campaign's runs.csv, a folder other than
+    an experiment's campaign, a file other than the report and its figures): resuming never writes into it."""
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file, not a folder; choose a folder")
+    campaigns = {exp.campaign for exp in EXPERIMENTS}
+    for entry in sorted(out.iterdir()) if out.is_dir() else ():
+        ours = (entry.name in campaigns and entry.is_dir()) or (entry.is_file() and (
+            entry.name in PAPER_FILES or entry.suffix in PAPER_FIGURE_SUFFIXES))
+        if not ours:
+            raise UserError(f"--out {out} holds {entry.name}, which a paper run does not write: choose a new or empty "
+                            f"folder, or the folder of an earlier `ld3 paper`")
+
+
 def run_paper(options: PaperOptions, announce: Callable[[str], None] = print) -> Path:
     """Run every experiment (resuming) and write `OUT/report.md` with its figures; returns the report path."""
+    check_paper_out(options.out)
     plan = planned_runs(options)
     announce(announce_plan(plan, options))
     results = {}

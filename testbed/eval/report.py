@@ -5,6 +5,7 @@ of the physical deviation of each run against time.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -86,6 +87,35 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
     return path
 
 
+REPORT_NUMBERS = ("lane_width_m", "lane_straddle_dev_m", "detection_time_s", "detection_dev_m", "ar_max_dev_m",
+                  "ar_stop_dev_m", "max_abs_dev_m")
+REPORT_TEXTS = ("defense", "consequence")
+
+
+def read_summary(path: Path) -> dict:
+    """A run's summary.json with the fields a report reads checked (numbers finite or null, names text); a file
+    that is not one is a UserError naming it and the field."""
+    try:
+        summary = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path} is not readable JSON: {exc}") from None
+    if not isinstance(summary, dict):
+        raise UserError(f"{path} is not a run's summary (a JSON object)")
+    for key in REPORT_NUMBERS:
+        value = summary.get(key)
+        if key not in summary or not (value is None or (isinstance(value, int | float) and not isinstance(value, bool)
+                                                          and math.isfinite(value))):
+            raise UserError(f"{path}: {key} must be a finite number or null, got {value!r}")
+    for key in REPORT_TEXTS:
+        if not isinstance(summary.get(key), str):
+            raise UserError(f"{path}: {key} must be text, got {summary.get(key)!r}")
+    if not isinstance(summary.get("detected"), bool):
+        raise UserError(f"{path}: detected must be true or false, got {summary.get('detected')!r}")
+    if summary["lane_width_m"] is None or summary["lane_straddle_dev_m"] is None:
+        raise UserError(f"{path}: lane_width_m and lane_straddle_dev_m must be numbers")
+    return summary
+
+
 def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
     """report.md and deviations.png comparing any finished runs (folders with summary.json and trajectory.csv);
     each run is labelled by its folder. ValueError names a folder that is not a finished run."""
@@ -94,11 +124,8 @@ def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
         summary_path = run_dir / "summary.json"
         if not summary_path.is_file() or not (run_dir / "trajectory.csv").is_file():
             raise UserError(f"{run_dir} is not a finished run (no summary.json and trajectory.csv)")
-        try:
-            summary = json.loads(summary_path.read_text())
-        except json.JSONDecodeError as exc:
-            raise UserError(f"{summary_path} is not readable JSON: {exc}") from None
-        rows.append(ReportRow(str(run_dir), run_dir, summary))
+        rows.append(ReportRow(str(run_dir), run_dir, read_summary(summary_path)))
+        read_trajectory(run_dir, ("t", "phys_dev"))  # a trajectory the plot cannot read is refused before writing
     if not rows:
         raise UserError("name at least one run folder to compare")
     out_dir.mkdir(parents=True, exist_ok=True)

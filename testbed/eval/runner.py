@@ -26,12 +26,12 @@ from testbed.eval.run_build import RunOptions, build_run
 from testbed.eval.run_figures import BELIEVED, FigureInputs, fusion_title, save_run_figures, write_believed
 from testbed.eval.run_folder import run_folder
 from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError
-from testbed.eval.summary import HitVehicle, RunSummary
+from testbed.eval.summary import RunSummary
 from testbed.eval.video import FrameSignals
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.loop import SensorPorts, TickRecord
 from testbed.traffic.fleet import EgoOnRoad
-from testbed.traffic.record import RECORD_HZ, TrafficLog, vehicle_hit
+from testbed.traffic.record import RECORD_HZ, HitVehicle, TrafficLog, vehicle_hit
 from testbed.world import PhysicsWorld
 from tracks.map_api import OffMapError
 from tracks.pose import Pose

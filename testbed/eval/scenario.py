@@ -4,6 +4,7 @@ localization, attack and defense of one run. A few ship with the package, one pe
 
 from __future__ import annotations
 
+import re
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -169,9 +170,17 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
         missing = missing_needs(component, provided)
         _check(not missing, f"{family} {component.name!r} has no effect with detector = {sc.detector!r} and "
                             f"localization = {sc.localization!r}: it needs {FIXES[missing[0]] if missing else ''}")
+    reads_lines = Capability.LANE_DETECTOR in DEFENSES.get(sc.defense).needs
+    for _, component in users[1:]:
+        _check(reads_lines or not component.capabilities & LD_SIDE,
+               f"attack {component.name!r} tampers with the lane detection, which defense {sc.defense!r} does not "
+               f"read (nothing else steers by it): it has no effect; use a defense that reads the lines, e.g. "
+               f"--defense ld3")
     return provided
 
 
+LD_SIDE = frozenset({"ld-output", "road-paint"})
+"""Attack capabilities that act on the lane detection (`testbed.attacks.threat.ThreatCapability` values)."""
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
 _SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig, "control": ControlConfig}
 """The scenario's typed tables, by name."""
@@ -206,7 +215,7 @@ def _toml_value(raw: str) -> Any:
     """A `--set` value as TOML reads it (numbers, booleans, quoted strings); anything else as a bare string."""
     try:
         return tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         return raw
 
 
@@ -227,6 +236,8 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
         key, eq, raw = item.partition("=")
         key = key.strip()
         _check(bool(eq) and bool(key), f"--set {item!r}: expected KEY=VALUE, e.g. defense.b=0.45")
+        _check("\n" not in item and "\r" not in item,
+               f"--set {item!r}: a value holds a newline; give each KEY=VALUE as its own --set")
         value = _toml_value(raw.strip())
         section, dot, name = key.partition(".")
         if not dot:
@@ -294,7 +305,7 @@ def load_scenario(name_or_path: str) -> Scenario:
     if path.suffix == ".toml" or path.exists():
         _check(path.is_file(), f"scenario file not found: {path}")
         try:
-            text, name = path.read_text(encoding="utf-8"), path.stem
+            text, name = path.read_text(encoding="utf-8"), _name_of_stem(path.stem)
         except (UnicodeDecodeError, OSError) as exc:
             raise ScenarioError(f"scenario file {path} is not a text TOML file: {exc}") from None
     else:
@@ -306,4 +317,13 @@ def load_scenario(name_or_path: str) -> Scenario:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"malformed TOML in {name_or_path}: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(f"malformed TOML in {name_or_path}: arrays or tables nested too deep") from None
     return scenario_from_dict(data, name)
+
+
+def _name_of_stem(stem: str) -> str:
+    """A scenario file's stem as a run name (`NAME_PATTERN`): each run of other characters becomes '-', leading
+    dots and dashes go (`my scen ário.toml` -> my-scen-rio, `.hidden.toml` -> hidden); 'scenario' if none is left."""
+    name = re.sub(r"[^A-Za-z0-9_.@+=,-]+", "-", stem).lstrip(".-")[:120]
+    return name or "scenario"

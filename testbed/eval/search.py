@@ -37,6 +37,7 @@ from testbed.eval.campaign import (
 )
 from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
+from testbed.eval.study_log import check_study_log
 from testbed.registry import FIXES, Component, missing_needs
 
 OBJECTIVES = ("loss", "undetected", "overall")
@@ -235,6 +236,7 @@ class AttackSearch:
             if stored != json.loads(json.dumps(identity)):
                 raise UserError(f"{self.out} holds a different search (victim, threat, seed, batch or objective); "
                                 f"choose another --out")
+            check_study_log(self.out / "study.log")
         elif any(self.out.iterdir()):
             raise UserError(f"--out {self.out} is not empty and holds no search; choose an empty or new folder")
         else:

@@ -11,6 +11,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
+from testbed.traffic.record import HitVehicle
+
 SCHEMA_VERSION = 6
 """Version of summary.json's layout; raised when a key is added, changes meaning or goes away."""
 
@@ -26,17 +28,6 @@ class FaultRecord(BaseModel):
     detail: str
     last_time: float | None = None
     count: int | None = None
-
-
-class HitVehicle(BaseModel):
-    """The ego's first contact with a traffic car: its id and lane, when, and the ego's speed relative to it."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    id: int
-    lane: int
-    time_s: float
-    relative_speed_mps: float
 
 
 class RunSummary(BaseModel):

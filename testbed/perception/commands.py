@@ -115,10 +115,26 @@ def _cars(text: str) -> int:
     return n
 
 
+def _at_least(value: float | None, low: float, flag: str) -> None:
+    """A UserError naming `flag` unless `value` (when given) is a finite number >= `low`."""
+    import math
+
+    from testbed.errors import UserError
+
+    if value is not None and not (math.isfinite(value) and value >= low):
+        raise UserError(f"{flag} must be a finite number >= {low:g}, got {value}")
+
+
 def _dataset(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_folder
     from testbed.perception.dataset import build_dataset
 
-    n = build_dataset(args.out, args.frames, args.split, args.seed, args.frames_per_episode,
+    for flag, value, low in (("--frames", args.frames, 1), ("--seed", args.seed, 0),
+                             ("--frames-per-episode", args.frames_per_episode, 1), ("--workers", args.workers, 1),
+                             ("--label-draws", args.label_draws, 0)):
+        _at_least(value, low, flag)
+    with output_folder(args.out, marker="dataset.json", what="a dataset", can_force=False) as tmp:
+        n = build_dataset(tmp, args.frames, args.split, args.seed, args.frames_per_episode,
                       workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws,
                       traffic=args.traffic, presets=args.presets)
     print(f"wrote {n} {args.split} frames to {args.out}")
@@ -126,21 +142,30 @@ def _dataset(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_folder
     from testbed.perception.train import TrainConfig, train
 
+    for flag, value, low in (("--epochs", args.epochs, 1), ("--threads", args.threads, 1), ("--limit", args.limit, 1)):
+        _at_least(value, low, flag)
+    for flag, value in (("--lr", args.lr), ("--minutes", args.minutes)):
+        _at_least(value, 1e-12, flag)
     cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr,
                       input_rows=args.input_rows)
-    res = train(args.data, args.out, cfg, val_dir=args.val, limit=args.limit, progress=True, init=args.init)
-    print(f"checkpoint {res.checkpoint}, curve {res.curve}")
+    with output_folder(args.out, True, "lanenet.pt", "a training run") as tmp:
+        res = train(args.data, tmp, cfg, val_dir=args.val, limit=args.limit, progress=True, init=args.init)
+    print(f"checkpoint {args.out / res.checkpoint.name}, curve {args.out / res.curve.name}")
     if res.history:
         print({k: round(v, 4) if isinstance(v, float) else v for k, v in res.history[-1].items()})
     return 0
 
 
 def _average(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_file
     from testbed.perception.weight_mean import mean_checkpoint
 
-    print(f"wrote {mean_checkpoint(args.checkpoints, args.out)}")
+    with output_file(args.out, ".pt") as tmp:
+        mean_checkpoint(args.checkpoints, tmp)
+    print(f"wrote {args.out}")
     return 0
 
 
@@ -158,6 +183,7 @@ def _existence_refit(args: argparse.Namespace) -> int:
 
 
 def _eval(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import check_out_dir, output_folder
     from testbed.perception.classical import ClassicalLaneDetector
     from testbed.perception.dataset import load_frames
     from testbed.perception.evaluate import evaluate, markdown_table, write_report
@@ -165,6 +191,8 @@ def _eval(args: argparse.Namespace) -> int:
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
 
+    _at_least(args.limit, 1, "--limit")
+    check_out_dir(args.out, True, "ld_eval.json", "a lane-detector evaluation")
     rig = CameraRig(get_vehicle("sedan").camera)
     frames = load_frames(args.data, args.limit)
     reports, grid = [], None
@@ -174,19 +202,22 @@ def _eval(args: argparse.Namespace) -> int:
         reports.append(rep)
         if grid is None:
             grid = (frames, dets, rig)
-    paths = write_report(reports, grid, args.out)
+    with output_folder(args.out, True, "ld_eval.json", "a lane-detector evaluation") as tmp:
+        paths = write_report(reports, grid, tmp)
     print(markdown_table(reports))
-    print(", ".join(str(p) for p in paths.values()))
+    print(", ".join(str(args.out / p.name) for p in paths.values()))
     return 0
 
 
 def _export_onnx(args: argparse.Namespace) -> int:
+    from testbed.eval.run_folder import output_file
     from testbed.perception.neural import load_model
     from testbed.perception.onnx_detector_graph import export_detector_onnx
     from testbed.perception.onnx_runtime import export_onnx
 
     export = export_onnx if args.network_only else export_detector_onnx
-    data = export(load_model(args.weights), args.out)
+    with output_file(args.out, ".onnx") as tmp:
+        data = export(load_model(args.weights), tmp)
     print(f"wrote {args.out} ({len(data) / 1024:.0f} KiB)")
     return 0
 
@@ -194,15 +225,18 @@ def _export_onnx(args: argparse.Namespace) -> int:
 def _closed_loop(args: argparse.Namespace) -> int:
     from testbed.conditions import CONDITIONS
     from testbed.errors import UserError
+    from testbed.eval.run_folder import check_out_dir, output_folder
     from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 
     if args.detector == "none":
         raise UserError("closed-loop needs a lane detector: --detector neural, classical or oracle")
+    check_out_dir(args.out, True, "closed_loop.csv", "a closed-loop report")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
                               lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check")
-    paths = write_report(results, args.out)
+    with output_folder(args.out, True, "closed_loop.csv", "a closed-loop report") as tmp:
+        paths = {k: args.out / p.name for k, p in write_report(results, tmp).items()}
     print(markdown_table(results))
     print(", ".join(str(p) for p in paths.values()))
     return 0

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -280,12 +281,43 @@ def iter_shards(directory: Path, limit: int | None = None) -> Iterator[FrameSet]
     for shard in shards:
         if left is not None and left <= 0:
             return
-        with np.load(shard) as z:
-            cat = {k: z[k][:left] for k in ("images", *LABEL_KEYS)}
-            meta = [json.loads(m) for m in z["meta"][:left]]
+        cat, meta = read_shard(shard, left)
         if left is not None:
             left -= len(meta)
         yield FrameSet(meta=meta, **cat)
+
+
+SHARD_SHAPES = {"images": (4, 3), "left": (2, 4), "right": (2, 4), "left_exists": (1, None), "right_exists": (1, None),
+                "lane_width": (1, None), "deviation": (1, None), "meta": (1, None)}
+"""Each shard array's dimensions and last size (None: any); all hold one row per frame, numbers (images uint8)."""
+
+
+def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndarray], list[dict]]:
+    """The label arrays (and images) and the per-frame metadata of one shard, at most `limit` frames; a shard that
+    is not one `write_shard` wrote (not a zip of arrays, a missing key, an object array, rows that differ, a
+    number that is not finite) is a UserError naming it."""
+    try:
+        with np.load(shard, allow_pickle=False) as z:
+            missing = [k for k in SHARD_SHAPES if k not in z.files]
+            if missing:
+                raise UserError(f"{shard}: not a dataset shard: no {', '.join(missing)} (write one with `ld3 ld "
+                                f"dataset`)")
+            arrays = {k: z[k][:limit] for k in SHARD_SHAPES}
+            meta = [json.loads(m) for m in arrays.pop("meta")]
+    except UserError:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:  # truncated, pickled, bad JSON
+        problem = " ".join(str(exc).split())[:200]
+        raise UserError(f"{shard}: cannot read the dataset shard: {problem}") from None
+    rows = {len(a) for a in arrays.values()} | {len(meta)}
+    for key, array in arrays.items():
+        ndim, last = SHARD_SHAPES[key]
+        if (array.ndim != ndim or (last is not None and array.shape[-1] != last) or array.dtype.kind not in "biuf"
+                or (key == "images" and array.dtype != np.uint8)):
+            raise UserError(f"{shard}: array {key!r} is {array.dtype} of shape {array.shape}, not a dataset's")
+    if len(rows) != 1 or not all(isinstance(m, dict) for m in meta):
+        raise UserError(f"{shard}: the arrays hold different numbers of frames")
+    return arrays, meta
 
 
 def load_frames(directory: Path, limit: int | None = None) -> FrameSet:

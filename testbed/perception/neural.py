@@ -46,6 +46,7 @@ CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
 INPUT_WIDTH = 160  # network input columns: the frame's halved
+MAX_WIDTH = 512  # channels: a checkpoint cannot make the loader build a larger network
 INPUT_ROWS = (56, 112)  # network input rows a LaneNet can be built for: the ground crop's halved, or all kept
 N_COLS = 40  # column cells; cell j covers full-resolution columns [8j, 8j + 8)
 DEFAULT_WEIGHTS = "lanenet.pt"
@@ -261,8 +262,23 @@ def load_model(path: str | Path | None = None) -> LaneNet:
             ckpt = read_checkpoint(p)
     else:
         ckpt = read_checkpoint(path)
-    model = LaneNet(int(ckpt["width"]), int(ckpt.get("input_rows", INPUT_ROWS[0])))  # older checkpoints: 56 rows
-    model.load_state_dict(ckpt["state_dict"])
+    return model_from_checkpoint(ckpt, path or DEFAULT_WEIGHTS)
+
+
+def model_from_checkpoint(ckpt: dict, path: str | Path) -> LaneNet:
+    """The LaneNet a read checkpoint describes, in eval mode; a UserError naming `path` when its width is out of
+    range or its tensors do not fit that network."""
+    width, rows = ckpt["width"], ckpt.get("input_rows", INPUT_ROWS[0])  # older checkpoints: 56 rows
+    if not (isinstance(width, int) and 1 <= width <= MAX_WIDTH and rows in INPUT_ROWS):
+        raise UserError(f"{path}: a LaneNet checkpoint's width is an integer 1 to {MAX_WIDTH} and "
+                        f"its input_rows one of {INPUT_ROWS}, got width {width!r}, input_rows {rows!r}")
+    model = LaneNet(width, rows)
+    try:
+        model.load_state_dict(ckpt["state_dict"])
+    except (RuntimeError, TypeError, AttributeError) as exc:  # missing or unexpected keys, shapes that differ
+        problem = " ".join(str(exc).split())[:300]
+        raise UserError(f"{path}: the weights do not fit a LaneNet of width {width}: "
+                        f"{problem}") from None
     return model.eval()
 
 

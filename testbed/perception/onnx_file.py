@@ -29,7 +29,11 @@ class OnnxFileLaneDetector(LaneDetector):
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
-        self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+        try:
+            self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own error types for a missing, empty or garbled file
+            problem = " ".join(str(exc).split())[:200]
+            raise UserError(f"cannot load ONNX detector graph {path}: {problem}") from None
         inputs = [i.name for i in self.session.get_inputs()]
         meta = self.session.get_modelmeta().custom_metadata_map
         if inputs != [FRAME_INPUT] or METADATA_X_MAX not in meta:

@@ -11,7 +11,7 @@ from pathlib import Path
 import torch
 
 from testbed.errors import UserError
-from testbed.perception.neural import read_checkpoint
+from testbed.perception.neural import model_from_checkpoint, read_checkpoint
 
 
 def mean_checkpoint(paths: Sequence[Path], out: Path) -> Path:
@@ -20,6 +20,8 @@ def mean_checkpoint(paths: Sequence[Path], out: Path) -> Path:
     if len(paths) < 2:
         raise UserError(f"averaging needs at least two checkpoints, got {len(paths)}")
     loaded = [read_checkpoint(path) for path in paths]
+    for path, ckpt in zip(paths, loaded, strict=True):
+        model_from_checkpoint(ckpt, path)
     first = loaded[0]
     shape = _shape(first)
     for path, ckpt in zip(paths, loaded, strict=True):

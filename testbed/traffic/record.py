@@ -1,5 +1,5 @@
 """The traffic cars' trajectories as the run writes them (`traffic.csv`: t, id, lane, x, y, yaw, speed) and
-draws them (`birdseye.png`), and the ego's collision with one of them."""
+draws them (`birdseye.png`), and the ego's collision with one of them (`HitVehicle`, a field of summary.json)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,22 @@ import math
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict
 
-from testbed.eval.summary import HitVehicle
 from testbed.traffic.fleet import Fleet
 from tracks.pose import Pose
+
+
+class HitVehicle(BaseModel):
+    """The ego's first contact with a traffic car: its id and lane, when, and the ego's speed relative to it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: int
+    lane: int
+    time_s: float
+    relative_speed_mps: float
+
 
 REENTRY_JUMP_M = 20.0
 """A step between two rows of one car longer than this is a re-entry (a recycled oncoming car), not a drive."""

@@ -3,19 +3,10 @@ files it needs, and a piece of the one line it must be refused with."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from tests.cli.case import Case
+from tests.cli.hostile_inputs import HOSTILE
 
 GOOD = 'track = "slr"\nduration = 2.0\n'
-
-
-@dataclass(frozen=True)
-class Case:
-    id: str
-    argv: tuple[str, ...]
-    says: str
-    """A piece of the one-line refusal (case-insensitive)."""
-    files: dict[str, str | bytes] = field(default_factory=dict)
-    """Files to create in the workspace first (path -> content)."""
 
 
 def _png(width: int, height: int) -> bytes:
@@ -322,4 +313,4 @@ OTHER_COMMANDS = [
          "--steer-rate-weight"),
 ]
 
-CASES = [*SCENARIO_FILES, *SETTINGS, *FLAGS, *OUTPUTS, *OTHER_COMMANDS]
+CASES = [*SCENARIO_FILES, *SETTINGS, *FLAGS, *OUTPUTS, *OTHER_COMMANDS, *HOSTILE]

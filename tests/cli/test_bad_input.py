@@ -12,6 +12,7 @@ import pytest
 
 from testbed.cli import main
 from tests.cli.bad_inputs import CASES
+from tests.cli.case import Case, make_files
 
 PREVIOUS_RUN = {"summary.json": '{"scenario": "earlier"}', "trajectory.csv": "t\n0.0\n", "birdseye.png": "png"}
 FOREIGN = {"notes.txt": "mine", "slr-0/keep.txt": "a folder named like a run id"}
@@ -21,16 +22,9 @@ def _snapshot(root: Path) -> dict[str, bytes | None]:
     return {str(p.relative_to(root)): (p.read_bytes() if p.is_file() else None) for p in sorted(root.rglob("*"))}
 
 
-def _workspace(root: Path, files: dict[str, str | bytes]) -> None:
-    contents = {**{f"prev/{k}": v for k, v in PREVIOUS_RUN.items()}, **{f"foreign/{k}": v for k, v in FOREIGN.items()},
-                "afile": "keep", **files}
-    for name, content in contents.items():
-        path = root / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(content, bytes):
-            path.write_bytes(content)
-        else:
-            path.write_text(content)
+def _workspace(root: Path, case: Case) -> None:
+    make_files(root, {**{f"prev/{k}": v for k, v in PREVIOUS_RUN.items()},
+                      **{f"foreign/{k}": v for k, v in FOREIGN.items()}, "afile": "keep", **case.files}, case.links)
 
 
 def test_the_table_covers_every_subcommand_with_over_a_hundred_cases():
@@ -46,7 +40,7 @@ def test_the_table_covers_every_subcommand_with_over_a_hundred_cases():
 def test_bad_input_is_refused_in_one_line_and_touches_nothing(case, tmp_path, monkeypatch):
     ws, cwd = tmp_path / "ws", tmp_path / "cwd"
     cwd.mkdir()
-    _workspace(ws, case.files)
+    _workspace(ws, case)
     monkeypatch.chdir(cwd)
     before = _snapshot(tmp_path)
     err, out = io.StringIO(), io.StringIO()

@@ -11,6 +11,7 @@ import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from tracks.opendrive.limits import check_road
 from tracks.opendrive.model import (
     Connection,
     Geometry,
@@ -100,6 +101,7 @@ def parse_root(root: ET.Element, where: _Where) -> OpenDrive:
         road = _road(elem, where)
         if road.id in od.roads:
             raise where.fail(f"road {road.id}", "the id is used twice")
+        check_road(road, where.source)
         od.roads[road.id] = road
     if not od.roads:
         raise where.fail("<OpenDRIVE>", "no <road>")

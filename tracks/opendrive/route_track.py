@@ -26,6 +26,7 @@ from tracks.geometry import ReferenceLine
 from tracks.layout import Edge, RoadsideBody
 from tracks.opendrive.centreline import fit_segments
 from tracks.opendrive.cross_section import CrossSection, cross_section
+from tracks.opendrive.limits import MAX_ROUTE_LENGTH
 from tracks.opendrive.model import OpenDriveError, Road
 from tracks.opendrive.plan_view import PlanView
 from tracks.opendrive.route import Leg, driving_side
@@ -142,6 +143,10 @@ class _Sampler:
 def route_track(legs: list[Leg], name: str, source: str) -> Track:
     """The track `name` of a route (its legs in driving order) through the file at `source`; OpenDriveError
     where the roads cannot make one."""
+    length = sum(leg.road.length for leg in legs)
+    if length > MAX_ROUTE_LENGTH:
+        raise OpenDriveError(f"{source}: the route {name} is {length:g} m long, longer than {MAX_ROUTE_LENGTH:g} m; "
+                             f"choose a shorter route (#ROAD,...)")
     sampler = _Sampler(legs, source)
     roads = ",".join(leg.road.id for leg in legs)
     per_leg = _knots(legs)

@@ -1,0 +1,64 @@
+"""Outputs survive hostile ends: SIGTERM cleans up as Ctrl-C does (no temporary folder left, an earlier run kept
+under --force), and inputs that only look hostile (odd file names, a CAN log stamped hours ahead) run."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from testbed.cli import main
+from tests.cli.case import make_files
+from tests.cli.hostile_inputs import ACCEPTED
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("case", ACCEPTED, ids=[c.id for c in ACCEPTED])
+def test_valid_input_that_looks_hostile_runs(case, tmp_path, monkeypatch):
+    make_files(tmp_path, case.files, case.links)
+    monkeypatch.chdir(tmp_path)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        started = time.monotonic()
+        code = main([a.replace("{ws}", str(tmp_path)) for a in case.argv])
+    assert code == 0, err.getvalue()
+    assert case.says in out.getvalue()
+    assert time.monotonic() - started < 60
+
+
+def test_sigterm_leaves_no_temporary_folder_and_keeps_the_earlier_run(tmp_path):
+    out = tmp_path / "run"
+    make_files(out, {"summary.json": '{"scenario": "earlier"}', "trajectory.csv": "t\n0.0\n"})
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "testbed.cli", "run", "slr", "--duration", "60", "--out", str(out),
+                             "--force"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    deadline = time.monotonic() + 120
+    while not list(tmp_path.glob(".run.tmp-*")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    assert list(tmp_path.glob(".run.tmp-*")), "the run never started writing"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert (out / "summary.json").read_text() == '{"scenario": "earlier"}'
+
+
+def test_a_run_set_aside_by_a_killed_command_is_named_not_overwritten(tmp_path):
+    from testbed.errors import UserError
+    from testbed.eval.run_folder import claimed_out_dir
+
+    out, aside = tmp_path / "run", tmp_path / ".run.old-999999999"
+    make_files(tmp_path, {"run/can.asc": "partial", ".run.old-999999999/summary.json": "{}"})
+    with pytest.raises(UserError, match="set aside by a command that died"), claimed_out_dir(out, force=True):
+        pass
+    assert (aside / "summary.json").read_text() == "{}"
