@@ -59,6 +59,7 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
                               facecolors=[GROUND_COLOUR[track.right.ground], GROUND_COLOUR[track.left.ground],
                                           GROUND_COLOUR["asphalt"]])
     ax.add_collection(surfaces)  # one collection: a patch per polygon updates the limits segment by segment
+    labelled = False
     for a, b in track.intersections:
         if b > s0 and a < s1:
             band = np.linspace(max(a, s0), min(b, s1), 20)
@@ -70,8 +71,9 @@ def draw_track(ax: Axes, track: Track, s_range: tuple[float, float] | None = Non
                 hatch="//",
                 lw=0.8,
                 zorder=4,
-                label="intersection",
+                label=None if labelled else "intersection",  # one legend entry for every zone
             )
+            labelled = True
     for boundary in track.boundaries:
         for run in boundary.runs:
             if run.kind == "none" or run.s1 <= s0 or run.s0 >= s1:

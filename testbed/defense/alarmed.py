@@ -19,7 +19,7 @@ from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
-from testbed.defense.fused_heading import line_relative_heading
+from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -30,18 +30,19 @@ logger = logging.getLogger(__name__)
 
 
 class Ld3AlarmedDefense(LatchingDefense):
-    """LD3 detection; once alarmed, mode "ar" and a stop at `response_decel`."""
+    """LD3 detection; once alarmed, mode "ar" and a stop at `response_decel`. `lever` is the pose's reference point
+    ahead of the rear axle (m), which the odometry-carried poses move by."""
 
-    def __init__(self, config: DefenseConfig) -> None:
+    def __init__(self, config: DefenseConfig, lever: float = 0.0) -> None:
         self.config = config
         self.faults = FaultLog(logger)
         self.monitor = LaneConsistencyMonitor(config.b, config.tau, config.existence_threshold, self.faults,
                                               fail_closed=config.fail_closed,
                                               heading=Cusum(config.heading_b, config.heading_tau),
                                               along=Cusum(config.along_b, config.along_tau),
-                                              along_gain=config.along_gain)
+                                              along_gain=config.along_gain, lever=lever)
         self.detection_time: float | None = None
-        self.checked = DeadReckoning()
+        self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""
 
     @property
@@ -73,14 +74,15 @@ class Ld3AlarmedDefense(LatchingDefense):
         """The MSF pose just compared becomes the checked pose, its yaw within tolerance, if the map can place it
         (else a fault)."""
         try:
-            heading = smap.lane_point(pose, None)[1] if pose.is_finite() else None
+            lane = smap.project(pose).lane if pose.is_finite() else None
+            heading = None if lane is None else smap.lane_point(pose, lane)[1]
         except OffMapError:
             heading = None
         if heading is None:
             self.faults.report("unchecked-msf", ld.timestamp, f"MSF pose {pose} cannot be placed; the last checked "
                                                               f"pose carried on by odometry")
             return
-        psi = line_relative_heading(ld, self.config.existence_threshold)
+        psi = station_relative_heading(ld, self.config.existence_threshold, smap, pose, lane)
         reckoned = self.monitor.reckoned
         ref = heading + psi if psi is not None else reckoned.yaw if reckoned is not None else None
         if ref is not None:

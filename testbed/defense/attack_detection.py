@@ -35,7 +35,7 @@ import math
 from collections.abc import Iterable
 
 from testbed.defense.faults import FaultLog
-from testbed.defense.fused_heading import line_relative_heading
+from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.defense.odometry import DeadReckoning
@@ -115,7 +115,7 @@ class LaneConsistencyMonitor:
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
-                 along_gain: float = 1.0) -> None:
+                 along_gain: float = 1.0, lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -125,7 +125,8 @@ class LaneConsistencyMonitor:
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
-        self.odometry = DeadReckoning()
+        self.odometry = DeadReckoning(lever)
+        """The dead-reckoned pose (`lever`: the pose's reference point ahead of the rear axle, m)."""
         self.d_msf: float | None = None
         self.d_ld: float | None = None
         self.fresh_d_ld: float | None = None
@@ -217,7 +218,7 @@ class LaneConsistencyMonitor:
             self._anchor(ld, pose, smap, lane, d_ld)
         elif reckoned is not None and abs(float(smap.lane_dev(reckoned, lane)) - d_ld) <= self.detector.cusum.b:
             self._anchor(ld, reckoned, smap, lane, d_ld)  # the lines agree with odometry: its own station kept
-        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True
         return self._update(d_msf, d_ld, lane)
@@ -243,7 +244,7 @@ class LaneConsistencyMonitor:
             g = self.along_gain
             pose = Pose(reckoned.x + g * (pose.x - reckoned.x), reckoned.y + g * (pose.y - reckoned.y), pose.yaw)
         point, heading = smap.lane_point(pose, lane)
-        psi = line_relative_heading(ld, self.ld_dev.existence_threshold)
+        psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         yaw = pose.yaw if psi is None else heading + psi
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
 

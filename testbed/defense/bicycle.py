@@ -21,13 +21,16 @@ LOG_COLUMNS = ("t", "x", "y", "yaw", "speed", "steer", "accel")
 
 @dataclass(frozen=True)
 class BicycleCoefficients:
-    """Fitted coefficients of the bicycle model; the defaults are the vanilla (uncorrected) model."""
+    """Fitted coefficients of the bicycle model; the defaults are the vanilla (uncorrected) model. `lever` is
+    geometry, not fitted: the vehicle pose's reference point ahead of the rear axle (m), which LD3's odometry
+    carries (0: the rear axle)."""
 
     wheelbase: float = 2.8
     rear_ratio: float = 0.5
     steer_gain: float = 1.0
     accel_gain: float = 1.0
     drag: float = 0.0
+    lever: float = 0.0
 
 
 class BicycleModel:

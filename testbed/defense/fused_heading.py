@@ -17,11 +17,17 @@ slope (which would hide a large heading error from the controller).
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 from testbed.defense.ld_deviation import line_distance
 from testbed.lane_detection import LaneDetection
-from tracks.pose import wrap_angle
+from tracks.map_api import OffMapError, SemanticMap
+from tracks.pose import Pose, wrap_angle
+
+CROSSING_ITERATIONS = 3
+"""Passes of `station_relative_heading`'s fixed point; each shrinks its error by |κ·c0 / (1 − κ·c0)| (0.3 on a
+corner of radius 6 m)."""
 
 
 def line_relative_heading(ld: LaneDetection, existence_threshold: float) -> float | None:
@@ -31,6 +37,36 @@ def line_relative_heading(ld: LaneDetection, existence_threshold: float) -> floa
     if not slopes:
         return None
     return -math.atan(sum(slopes) / len(slopes))
+
+
+def station_relative_heading(ld: LaneDetection, existence_threshold: float, smap: SemanticMap, pose: Pose,
+                             lane: int | None) -> float | None:
+    """The vehicle's heading relative to `lane` at the station of `pose` from the valid lines (rad, + left), or None.
+
+    A line's slope at x = 0 is its heading where it crosses the car's lateral axis, c0·sin ψ of road behind the
+    car's station for a line at offset c0 (ahead where c0·sin ψ < 0); on a curved lane the lane has turned by
+    −κ·c0·sin ψ / (1 − κ·c0) between the two. So ψ is the lines' ψ₀ (`line_relative_heading`) plus the mean over
+    the lines of the map's lane heading at the crossing less that at `pose`; the crossing is placed along the
+    lateral axis of the lane heading plus ψ, never of the pose's own yaw (the MSF's, which the check judges), by
+    fixed point from ψ₀. A crossing the map cannot place adds no turn."""
+    psi0 = line_relative_heading(ld, existence_threshold)
+    if psi0 is None:
+        return None
+    offsets = [float(c[0]) for c, p in ((ld.left, ld.left_prob), (ld.right, ld.right_prob))
+               if math.isfinite(line_distance(c, p, existence_threshold)) and len(c) > 1 and math.isfinite(c[1])]
+    if lane is None:
+        lane = smap.project(pose).lane
+    heading = smap.lane_point(pose, lane)[1]
+    psi = psi0
+    for _ in range(CROSSING_ITERATIONS):
+        c, s = math.cos(heading + psi), math.sin(heading + psi)
+        turn = 0.0
+        for c0 in offsets:
+            with contextlib.suppress(OffMapError):
+                turn += wrap_angle(smap.lane_point(Pose(pose.x - c0 * s, pose.y + c0 * c, heading + psi), lane)[1]
+                                   - heading)
+        psi = psi0 + turn / len(offsets)
+    return psi
 
 
 class FusedHeading:

@@ -52,8 +52,8 @@ class Ld3Defense(Ld3AlarmedDefense):
 
     name = "ld3"
 
-    def __init__(self, config: DefenseConfig) -> None:
-        super().__init__(config)
+    def __init__(self, config: DefenseConfig, lever: float = 0.0) -> None:
+        super().__init__(config, lever)
         self.fusion = SafetyDrivenFusion(config.window, config.lam, config.kf_q, config.kf_p0, config.r_power)
         self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold,
                                     own_yaw=config.fail_closed)
@@ -61,7 +61,7 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
         self._msf_disowned = False
-        self._reference = DeadReckoning()
+        self._reference = DeadReckoning(lever)
         """The response's reference: the dead-reckoned pose at the alarm, carried by odometry and re-anchored only at
         the lines' D_LD that passed the gate; the MSF never moves it."""
 

@@ -1,10 +1,13 @@
 """Dead reckoning of the vehicle pose from chassis odometry (wheel speed v, yaw rate ω).
 
-Unicycle model: between two odometry samples the reference point moves on the arc of constant speed and yaw
-rate, v and ω the means of the two samples' values. The pose exists once anchored (`anchor`); samples before
-that only set the clock. An anchor may correct the yaw only partly (a complementary filter: the gyro between
-anchors, the anchor's heading averaged over several). A sample with a non-finite value or a time that does not
-advance is refused (the pose holds) and reported to the caller.
+Rigid-body model: between two odometry samples the rear axle moves on the arc of constant speed and yaw rate,
+v and ω the means of the two samples' values, and the pose's reference point `lever` ahead of it follows (its
+body velocity (v, lever·ω), the kinematic sideslip the MSF models too: 1 m/s sideways at 5 m/s on a radius of
+7 m for the sedan's 1.4 m, where a unicycle at the reference point drifts out of the lane in a second).
+The pose exists once anchored (`anchor`); samples before that only set the clock. An anchor may correct the yaw
+only partly (a complementary filter: the gyro between anchors, the anchor's heading averaged over several). A
+sample with a non-finite value or a time that does not advance is refused (the pose holds) and reported to the
+caller.
 """
 
 from __future__ import annotations
@@ -14,23 +17,27 @@ import math
 from tracks.pose import Pose, wrap_angle
 
 
-def advance(pose: Pose, dt: float, speed: float, yaw_rate: float) -> Pose:
-    """`pose` moved for `dt` s along the arc of constant `speed` (m/s) and `yaw_rate` (rad/s)."""
+def advance(pose: Pose, dt: float, speed: float, yaw_rate: float, lever: float = 0.0) -> Pose:
+    """`pose` (of a reference point `lever` m ahead of the rear axle) moved for `dt` s, the rear axle along the
+    arc of constant `speed` (m/s) and `yaw_rate` (rad/s)."""
     turn = yaw_rate * dt
+    yaw = pose.yaw + turn
+    lx = lever * (math.cos(yaw) - math.cos(pose.yaw))
+    ly = lever * (math.sin(yaw) - math.sin(pose.yaw))
     if abs(turn) < 1e-9:
         dist = speed * dt
         heading = pose.yaw + 0.5 * turn
-        return Pose(pose.x + dist * math.cos(heading), pose.y + dist * math.sin(heading), wrap_angle(pose.yaw + turn))
+        return Pose(pose.x + dist * math.cos(heading) + lx, pose.y + dist * math.sin(heading) + ly, wrap_angle(yaw))
     radius = speed / yaw_rate
-    yaw = pose.yaw + turn
-    return Pose(pose.x + radius * (math.sin(yaw) - math.sin(pose.yaw)),
-                pose.y - radius * (math.cos(yaw) - math.cos(pose.yaw)), wrap_angle(yaw))
+    return Pose(pose.x + radius * (math.sin(yaw) - math.sin(pose.yaw)) + lx,
+                pose.y - radius * (math.cos(yaw) - math.cos(pose.yaw)) + ly, wrap_angle(yaw))
 
 
 class DeadReckoning:
-    """A pose carried by odometry from its last anchor."""
+    """A pose carried by odometry from its last anchor; `lever` is its reference point ahead of the rear axle (m)."""
 
-    def __init__(self) -> None:
+    def __init__(self, lever: float = 0.0) -> None:
+        self.lever = lever
         self.pose: Pose | None = None
         self.samples = 0
         """Odometry samples accepted so far (0: the pose, if anchored, has never moved)."""
@@ -47,7 +54,8 @@ class DeadReckoning:
         self.samples += 1
         if last is None or self.pose is None:
             return True
-        self.pose = advance(self.pose, t - last[0], 0.5 * (last[1] + speed), 0.5 * (last[2] + yaw_rate))
+        self.pose = advance(self.pose, t - last[0], 0.5 * (last[1] + speed), 0.5 * (last[2] + yaw_rate),
+                            self.lever)
         return True
 
     def anchor(self, pose: Pose, yaw_gain: float = 1.0) -> None:

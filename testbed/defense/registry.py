@@ -1,7 +1,8 @@
 """The defense registry: built-in defenses and the `ld3.defenses` entry points.
 
 A defense component's factory is `factory(config: DefenseConfig, bicycle: BicycleCoefficients | None)`,
-returning a `Defense`; `bicycle` carries the vehicle's wheelbase for model-based defenses. `reads` names
+returning a `Defense`; `bicycle` carries the vehicle's wheelbase for model-based defenses and the lever of its
+reference point for LD3's odometry. `reads` names
 the `[defense]` keys the defense uses; a scenario that sets any other is refused.
 """
 
@@ -23,11 +24,17 @@ _LD3 = _DETECTION | {"window", "lam", "p_msf", "p_ld", "r_power", "p_source", "h
 _SAVIOR = frozenset({"savior_b", "savior_tau", "savior_speed_std", "savior_accel_std", "savior_yaw_rate_std",
                      "ar_decel"})
 
+
+
+def _lever(bicycle: BicycleCoefficients | None) -> float:
+    return (bicycle or BicycleCoefficients()).lever
+
+
 DEFENSES: Registry[Component] = Registry("defense", Component, "ld3.defenses")
-DEFENSES.add(Component("ld3", lambda config, bicycle: Ld3Defense(config),
+DEFENSES.add(Component("ld3", lambda config, bicycle: Ld3Defense(config, _lever(bicycle)),
                        "LD3: CUSUM on MSF/LD deviation, in-lane stop on the safety-driven fusion",
                        needs=frozenset({Capability.LANE_DETECTOR}), reads=_LD3))
-DEFENSES.add(Component("ld3-naive-ar", lambda config, bicycle: NaiveArDefense(config),
+DEFENSES.add(Component("ld3-naive-ar", lambda config, bicycle: NaiveArDefense(config, _lever(bicycle)),
                        "LD3's detection, a maximum-deceleration stop steered on the MSF",
                        needs=frozenset({Capability.LANE_DETECTOR}), reads=_DETECTION | {"max_decel"}))
 DEFENSES.add(Component("savior", lambda config, bicycle: SaviorDefense(config, bicycle),

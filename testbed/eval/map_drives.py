@@ -17,7 +17,7 @@ from testbed.presets import TrackFileError, build_track
 
 CRUISE = 15.0  # m/s
 SLOWER = 1.6  # the simulated time allowed over the route's length at the cruise speed (curves, start, stop)
-ATTACK_AT = 10.0  # s: the trace injection's start, or a third of the drive on short routes
+ATTACK_AT = 10.0  # s: the trace injection's start, or a third of the route's time at the cruise speed on short routes
 
 
 def map_files(maps: Sequence[str]) -> list[Path]:
@@ -49,10 +49,11 @@ def map_runs(detector: str, maps: Sequence[str]) -> list[CampaignRun]:
         except TrackFileError as exc:
             print(f"maps: {exc}", file=sys.stderr)
             continue
-        duration = round(track.length / CRUISE * SLOWER + 10.0)
+        travel = track.length / CRUISE * SLOWER
+        duration = round(travel + 10.0)
         drive = base.with_overrides(track=spec, speed=CRUISE, duration=float(duration), localization="msf",
                                     defense="ld3", lane=None, name=f"maps-{path.stem}")
-        trace = {"kind": "trace", "trace": "default", "start": min(ATTACK_AT, duration / 3.0)}
+        trace = {"kind": "trace", "trace": "default", "start": round(min(ATTACK_AT, travel / 3.0), 2)}
         drives = [("benign", det, None) for det in dict.fromkeys(("oracle", detector))]
         for kind, det, attack in [*drives, ("attacked", detector, trace)]:
             runs.append(CampaignRun(f"{path.stem}-{kind}-{det}", drive.with_overrides(detector=det, attack=attack),

@@ -193,7 +193,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                             f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
     defense = o.defense if o.defense is not None else DEFENSES.get(sc.defense).factory(
-        defense_config, BicycleCoefficients(wheelbase=params.wheelbase))
+        defense_config, BicycleCoefficients(wheelbase=params.wheelbase, lever=-params.rear_axle_x))
     capture = None
     if camera is not None:
         def capture(t: float, pose: Pose):

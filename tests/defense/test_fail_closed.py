@@ -89,6 +89,25 @@ def test_dead_reckoning_on_a_straight_and_on_a_circle():
     assert odo.pose == pytest.approx((10.0, 10.0, math.pi / 2))
 
 
+def test_dead_reckoning_carries_a_reference_point_ahead_of_the_rear_axle_on_its_circle():
+    """The rear axle on a circle of radius R: a point `lever` ahead stays on the circle of radius
+    sqrt(R² + lever²) about the same centre (a unicycle at that point would leave it by lever·ω per second)."""
+    radius, lever, speed = 7.0, 1.4, 5.0
+    rate = speed / radius
+    odo, unicycle = DeadReckoning(lever), DeadReckoning()
+    start = Pose(lever, 0.0, 0.0)  # rear axle at the origin heading +x: the centre is (0, R)
+    for o in (odo, unicycle):
+        o.on_odometry(0.0, speed, rate)
+        o.anchor(start)
+    for i in range(1, 41):  # 1 s at 40 Hz
+        odo.on_odometry(i * 0.025, speed, rate)
+        unicycle.on_odometry(i * 0.025, speed, rate)
+    def off_circle(p):
+        return math.hypot(p.x, p.y - radius) - math.hypot(radius, lever)
+    assert abs(off_circle(odo.pose)) < 1e-9 and odo.pose.yaw == pytest.approx(rate)
+    assert abs(off_circle(unicycle.pose)) > 0.5  # the drift a lever removes
+
+
 def test_dead_reckoning_integrates_the_mean_of_two_samples_and_refuses_bad_ones():
     odo = DeadReckoning()
     assert odo.on_odometry(0.0, 10.0, 0.0) and odo.pose is None  # a clock, no pose before the anchor

@@ -3,8 +3,10 @@ import math
 import numpy as np
 import pytest
 
-from testbed.defense.fused_heading import FusedHeading, line_relative_heading
+from testbed.defense.fused_heading import FusedHeading, line_relative_heading, station_relative_heading
 from testbed.lane_detection import LaneDetection
+from tests.control.lane_map import PolylineLaneMap
+from tracks.pose import Pose
 
 
 def lines(slope_left, slope_right, prob=0.9, c0=1.75):
@@ -23,6 +25,35 @@ def test_relative_heading_from_the_lines_slope():
     assert line_relative_heading(lines(-0.01, None), 0.5) == pytest.approx(math.atan(0.01))
     assert line_relative_heading(lines(-0.01, -0.03, prob=0.3), 0.5) is None
     assert line_relative_heading(LaneDetection.empty(0.0), 0.5) is None
+
+
+def test_the_heading_at_the_cars_station_on_a_corner_with_one_line():
+    """On a right corner of radius 7 m, a car yawed 0.2 rad left of the lane: the left line crosses its lateral
+    axis behind its station, where the lane heads 0.04 rad further left; the station heading takes that out."""
+    radius, psi, width = 7.0, 0.2, 3.5
+    smap = PolylineLaneMap([(20.0, 0.0, 0.0), (30.0, -1.0 / radius, -1.0 / radius)], n_lanes=1, lane_width=width)
+    s = 35.0
+    x, y, h, _ = smap._at(s)
+    pose = Pose(x, y, h + psi)
+    # the left line (lane centre + w/2) where it crosses the car's lateral axis, by bisection on the arc
+    def along_car(t):
+        px, py, ph, _ = smap._at(t)
+        lx, ly = px - width / 2 * math.sin(ph), py + width / 2 * math.cos(ph)
+        return math.cos(pose.yaw) * (lx - x) + math.sin(pose.yaw) * (ly - y), ph, lx, ly
+    lo, hi = s - 3.0, s + 3.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if along_car(mid)[0] < 0.0 else (lo, mid)
+    _, ph, lx, ly = along_car(lo)
+    c0 = -math.sin(pose.yaw) * (lx - x) + math.cos(pose.yaw) * (ly - y)
+    left = np.array([c0, math.tan(ph - pose.yaw), 0.0, 0.0])
+    ld = LaneDetection(0.0, left, None, 0.9, 0.0, (0.0, 40.0))
+    assert abs(line_relative_heading(ld, 0.5) - psi) > 0.03  # the slope at x = 0: the crossing's heading
+    assert station_relative_heading(ld, 0.5, smap, pose, 0) == pytest.approx(psi, abs=2e-3)
+    # on a straight lane the two agree
+    straight = PolylineLaneMap([(60.0, 0.0, 0.0)], n_lanes=1, lane_width=width)
+    flat = LaneDetection(0.0, np.array([1.75, -math.tan(psi), 0.0, 0.0]), None, 0.9, 0.0, (0.0, 40.0))
+    assert station_relative_heading(flat, 0.5, straight, Pose(30.0, 0.0, psi), 0) == pytest.approx(psi)
 
 
 def test_msf_and_lane_sources():

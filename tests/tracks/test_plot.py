@@ -24,3 +24,10 @@ def test_draw_track_draws_on_the_given_axes():
     x0, x1 = ax.get_xlim()
     xs = track.reference.points(np.array([200.0, 400.0]))[:, 0]
     assert x0 <= xs.min() and x1 >= xs.max()
+
+
+def test_the_legend_names_the_intersections_once():
+    track = load_track("local")  # five zones
+    ax = Figure().subplots()
+    draw_track(ax, track)
+    assert ax.get_legend_handles_labels()[1].count("intersection") == 1
