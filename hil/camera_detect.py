@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from hil.camera_calibration import CameraCalibration, Rectifier, view_check
+from hil.camera_reader import OpenCvSource
 from hil.frame_stream import frame_stream
 from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection
@@ -75,6 +76,34 @@ def frame_fitter(calibration: CameraCalibration | None, rig: CameraRig, shape: t
         raise UserError(f"camera frames are {shape[1]}x{shape[0]}, the calibration's {calibration.width}x"
                         f"{calibration.height}")
     return Rectifier(calibration, rig)
+
+
+def source_fitter(source: OpenCvSource, calibration: CameraCalibration | None, rig: CameraRig):
+    """`frame_fitter` for an opened camera or video from the frame size it reports, before a frame is read (the
+    source is closed when refused); one that reports none is fitted on its first frame, in its reader."""
+    import cv2  # the [camera] extra, already imported by the source
+
+    shape = (int(source.capture.get(cv2.CAP_PROP_FRAME_HEIGHT)), int(source.capture.get(cv2.CAP_PROP_FRAME_WIDTH)))
+    if min(shape) <= 0:
+        return _FirstFrameFitter(calibration, rig)
+    try:
+        return frame_fitter(calibration, rig, shape)
+    except UserError:
+        source.close()
+        raise
+
+
+class _FirstFrameFitter:
+    """`frame_fitter` built on the first frame it is given (a UserError there ends the camera's stream)."""
+
+    def __init__(self, calibration: CameraCalibration | None, rig: CameraRig) -> None:
+        self.calibration, self.rig = calibration, rig
+        self.fit = None
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        if self.fit is None:
+            self.fit = frame_fitter(self.calibration, self.rig, image.shape)
+        return self.fit(image)
 
 
 class Overlay:

@@ -28,7 +28,8 @@ import numpy as np
 
 from hil.bridge import BridgeError, CanChassisBridge
 from hil.bus_config import BusConfig
-from hil.camera_calibration import CameraCalibration, Rectifier
+from hil.camera_calibration import CameraCalibration
+from hil.camera_detect import source_fitter
 from hil.camera_reader import CameraReader, OpenCvSource
 from hil.geodetic import LocalTangentPlane
 from hil.interruption import interruptible
@@ -206,8 +207,8 @@ class VehicleRun:
             self.readers.append(self.gnss)
             self.camera: CameraReader | None = None
             if config.camera is not None:
-                rectify = Rectifier(calibration, self.rig) if calibration else None
-                self.camera = CameraReader(OpenCvSource(config.camera), self.bridge.time, rectify)
+                source = OpenCvSource(config.camera)  # frames that do not fit the detector are refused here
+                self.camera = CameraReader(source, self.bridge.time, source_fitter(source, calibration, self.rig))
                 self.readers.append(self.camera)
         except BaseException:
             self.close()

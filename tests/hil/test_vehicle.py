@@ -101,6 +101,23 @@ def test_ld3_on_a_camera_that_ends_stops_as_a_fault(ecu, tmp_path, capsys):
     assert summary["defense"] == "ld3" and 20 <= summary["camera_frames"] <= 30
 
 
+def test_a_camera_whose_frames_do_not_fit_the_detector_is_refused_before_the_drive(ecu, tmp_path, capsys):
+    video = tmp_path / "camera.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 20.0, (960, 540))
+    for _ in range(3):
+        writer.write(np.full((540, 960, 3), 90, np.uint8))
+    writer.release()
+    feeder = NmeaFeeder(speed=0.0)
+    try:
+        code = _vehicle(ecu, feeder, tmp_path / "run", "--camera", f"video:{video}", "--detector", "classical")
+    finally:
+        feeder.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "camera frames are 960x540 but the detector reads the 320x160 view" in err[0], err
+    assert "give --calibration" in err[0] and not (tmp_path / "run" / "summary.json").exists()
+
+
 def test_vehicle_refuses_what_cannot_run_on_a_vehicle(tmp_path, capsys):
     for extra, message in ((["--detector", "oracle"], "needs the simulator's true pose"),
                            (["--detector", "neural"], "reads a camera: give --camera"),
