@@ -4,6 +4,7 @@ localization, attack and defense of one run. A few ship with the package, one pe
 
 from __future__ import annotations
 
+import logging
 import re
 import tomllib
 from importlib import resources
@@ -159,7 +160,8 @@ def _check(cond: bool, msg: str) -> None:
 
 def check_needs(sc: Scenario) -> frozenset[Capability]:
     """What the scenario's detector and localization provide; ScenarioError, naming the fix, when its defense
-    or attack could not act with them (each component declares its needs in its registry)."""
+    or attack could not act with them (each component declares its needs in its registry); a warning for a
+    lane-detection attack under a defense that does not read the lines (it changes only the recorded D_LD)."""
     provided = DETECTORS.get(sc.detector).provides | LOCALIZATIONS.get(sc.localization).provides
     users = [("defense", DEFENSES.get(sc.defense))]
     try:
@@ -172,13 +174,14 @@ def check_needs(sc: Scenario) -> frozenset[Capability]:
                             f"localization = {sc.localization!r}: it needs {FIXES[missing[0]] if missing else ''}")
     reads_lines = Capability.LANE_DETECTOR in DEFENSES.get(sc.defense).needs
     for _, component in users[1:]:
-        _check(reads_lines or not component.capabilities & LD_SIDE,
-               f"attack {component.name!r} tampers with the lane detection, which defense {sc.defense!r} does not "
-               f"read (nothing else steers by it): it has no effect; use a defense that reads the lines, e.g. "
-               f"--defense ld3")
+        if not reads_lines and component.capabilities & LD_SIDE:
+            logger.warning("attack %r tampers with the lane detection, which defense %r does not read (nothing else "
+                           "steers by it): it changes only the recorded D_LD; use a defense that reads the lines, "
+                           "e.g. --defense ld3, for it to act on the drive", component.name, sc.defense)
     return provided
 
 
+logger = logging.getLogger(__name__)
 LD_SIDE = frozenset({"ld-output", "road-paint"})
 """Attack capabilities that act on the lane detection (`testbed.attacks.threat.ThreatCapability` values)."""
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}

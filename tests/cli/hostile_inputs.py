@@ -255,8 +255,6 @@ VALUES = [
     Case("ld-dataset-onto-dataset", ("ld", "dataset", "--out", "{ws}/ds", "--frames", "2"), "ds",
          {"ds/dataset.json": "{}", "ds/shard_00000.npz": b"keep"}),
     Case("ld-dataset-foreign", ("ld", "dataset", "--out", "{ws}/foreign", "--frames", "2"), "foreign"),
-    Case("attack-ld-no-reader", ("run", "slr", "--duration", "2", "--detector", "oracle", "--attack",
-                                 "drp-trace:start=0", "--out", "{ws}/out"), "drp-trace"),
 ]
 
 def _grey_png() -> bytes:
