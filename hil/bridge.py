@@ -100,6 +100,10 @@ class CanChassisBridge(ChassisPort):
         self._step_done_id = self.codec.frame_id(sim.step_done)
         self._foreign_ids = self.profile.command_ids | {self._step_request_id}
         self._report_ids = self.profile.report_ids
+        self._followed_ids = self._report_ids | {self._step_done_id} | {
+            self.codec.frame_id(name) for name in (sim.truth_position, sim.truth_motion) if name is not None}
+        """The frames the bridge reads: the profile's reports and the emulator's step and truth frames (a DBC may
+        hold messages the profile does not follow, e.g. PIX's reserved tyre pressures: those are not read)."""
         self._speed_message = self.profile.reports.quantities["speed"].message
         self._cycle_us = round(self.profile.timing.cycle_s * 1e6)
         self._commands = CommandCycle(self._cycle_us, self._cycle_us if clock is ClockMode.REALTIME else 0)
@@ -491,7 +495,7 @@ class CanChassisBridge(ChassisPort):
             return
         if frame_id in self._report_ids:
             self._note_report_arrival(frame_id)
-        if not self.codec.knows(frame_id):
+        if frame_id not in self._followed_ids or not self.codec.knows(frame_id):
             return
         try:
             decoded = self.codec.decode(frame)

@@ -318,3 +318,18 @@ def test_fuzz_bridge_accepts_exactly_the_valid_report_frames(name):
         bus.shutdown()
     assert sum(seen) >= 10_000
     assert any(accepted)  # valid frames were among them: both verdicts were exercised
+
+
+def test_a_dbc_message_the_profile_does_not_follow_is_not_read():
+    """PIX's DBC holds the reserved tyre-pressure report (0x540); a well-formed frame of it is not a report."""
+    profile = load_profile("pix-hooke")
+    bus = can.Bus(interface="virtual", channel=f"unfollowed-{uuid.uuid4().hex}")
+    try:
+        bridge = CanChassisBridge(bus, profile=profile, key=profile_key(profile))
+        bridge.close()
+        frame = can.Message(arbitration_id=0x540, is_extended_id=False, data=bytes(8))
+        assert bridge.codec.knows(0x540) and 0x540 not in profile.report_ids
+        bridge.handle(frame)
+        assert bridge.frames_accepted == 0 and not bridge.latched_faults()
+    finally:
+        bus.shutdown()
