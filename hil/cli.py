@@ -39,7 +39,7 @@ from hil.slcan_pty import SlcanPtyBus
 from hil.timing import ClockMode
 from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
-from testbed.cli import OneLineParser, seconds
+from testbed.cli import OneLineParser, positive, seconds
 from testbed.errors import UserError
 from testbed.eval.outputs import chassis_faults
 from testbed.eval.run_folder import check_out_dir
@@ -104,17 +104,6 @@ def add_ecu_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--duration", type=seconds, default=None, help="wall seconds to run (default: until SIGTERM)"
     )
-
-
-def positive(text: str) -> float:
-    """A limit for argparse: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
 
 
 def ecu_parser() -> argparse.ArgumentParser:

@@ -27,15 +27,20 @@ PLUGIN_GROUP = "ld3.commands"  # packages that build on testbed (hil) add subcom
 DEMO_PATCH = "drp-patch:at=62,offset=-0.8,width=2,length=30,darkness=0.8,angle=-0.05"
 
 
-def seconds(text: str) -> float:
-    """A time limit for argparse: a finite number of seconds > 0."""
+def positive(text: str, what: str = "number") -> float:
+    """A value for argparse: a finite number > 0 (`what` names it in the one-line error)."""
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be a {what}, got {text!r}") from None
     if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a finite {what} > 0, got {text!r}")
     return value
+
+
+def seconds(text: str) -> float:
+    """A time limit for argparse: a finite number of seconds > 0."""
+    return positive(text, "number of seconds")
 
 
 class OneLineParser(argparse.ArgumentParser):
