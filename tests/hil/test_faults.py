@@ -193,7 +193,9 @@ def test_a_stalled_loop_stops_the_commands_and_the_chassis_times_out_in_realtime
         state = bridge.read()
     finally:
         close()
-    assert len(sent_while_stalled) <= 3 and timed_out  # at most one cycle of the three commands
+    # the command's 30 ms life spans at most two cycle boundaries; a pacer woken late for the first sends it after
+    # the drain, so up to two cycles of the three commands can follow it, each still inside that life
+    assert len(sent_while_stalled) <= 6 and timed_out
     assert all(f.timestamp - last_given < 0.01 + 0.02 for f in sent_while_stalled)
     assert time.monotonic() - stalled >= 0.4
     assert "chassis_estop" in [f.kind for f in bridge.latched_faults()] and state.mode == "standby"
