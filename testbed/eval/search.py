@@ -35,10 +35,11 @@ from testbed.eval.campaign import (
     run_and_write_data,
     run_campaign,
 )
-from testbed.eval.scenario import Scenario, check_needs
+from testbed.eval.scenario import END_MARGIN_M, Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.eval.study_log import check_study_log
 from testbed.registry import FIXES, Component, missing_needs
+from tracks.presets import load_track
 
 OBJECTIVES = ("loss", "undetected", "overall")
 """`loss` (the default): any lane departure or contact, detected or not, ranked by how far the car got (the
@@ -82,8 +83,20 @@ class SearchSpec:
         if self.victim.duration < START.low + START_SLACK_S:
             raise UserError(f"the victim's run lasts {self.victim.duration} s; a search needs at least "
                             f"{START.low + START_SLACK_S} s so that its attacks start in time: --set duration=45")
+        if self.latest_start < MIN_LATEST_START_S:
+            raise UserError(f"the victim's drive reaches the road's end {self.latest_start + START_SLACK_S:.1f} s "
+                            f"in at {self.victim.speed:g} m/s; a search needs at least "
+                            f"{MIN_LATEST_START_S + START_SLACK_S:g} s: a lower start_s or speed")
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
+
+    @property
+    def latest_start(self) -> float:
+        """The latest attack start (s): `START_SLACK_S` before the victim's drive ends, at its duration or sooner at
+        the road's end, reached at the earliest at cruise speed (the car never drives faster)."""
+        track = load_track(self.victim.track)
+        to_end = (track.length - END_MARGIN_M - self.victim.start_s) / self.victim.speed
+        return min(self.victim.duration, to_end) - START_SLACK_S
 
     def identity(self) -> dict[str, Any]:
         """What must match for a search folder to be resumed (the budget may grow)."""
@@ -146,20 +159,25 @@ def families_for(threat: frozenset[ThreatCapability], victim: Scenario) -> list[
 
 
 START_SLACK_S = 5.0
-"""An attack starts at least this long before the victim's run ends (the search clips `start` ranges to it)."""
+"""An attack starts at least this long before the victim's drive ends (the search clips `start` ranges to it)."""
+MIN_LATEST_START_S = 2.0
+"""A victim whose drive leaves no attack start this late is refused."""
 
 
-def sample_attack(trial: Trial, families: Sequence[Component], duration: float) -> dict[str, Any]:
+def sample_attack(trial: Trial, families: Sequence[Component], latest_start: float) -> dict[str, Any]:
     """One attack table: the family, then each dimension of its space (named `family.parameter`); start times
-    end `START_SLACK_S` before the run's `duration`."""
+    end at `latest_start` and begin no later than half of it (a drive too short for the family's range)."""
     component = next(c for c in families
                      if c.name == trial.suggest_categorical("family", [f.name for f in families]))
     table: dict[str, Any] = {"kind": component.name}
     for dim in component.space:
         key = f"{component.name}.{dim.name}"
         if isinstance(dim, FloatDim):
-            high = min(dim.high, duration - START_SLACK_S) if dim.name == "start" else dim.high
-            table[dim.name] = round(trial.suggest_float(key, dim.low, max(high, dim.low), log=dim.log), 4)
+            low, high = dim.low, dim.high
+            if dim.name == "start":
+                high = min(high, latest_start)
+                low = min(low, high / 2)
+            table[dim.name] = round(trial.suggest_float(key, low, high, log=dim.log), 4)
         elif isinstance(dim, IntDim):
             table[dim.name] = trial.suggest_int(key, dim.low, dim.high)
         elif isinstance(dim, ChoiceDim):
@@ -258,6 +276,7 @@ class AttackSearch:
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             study = self._study(0)
             self._read_told(study)
+            latest_start = self.spec.latest_start
             bar = tqdm(total=self.spec.budget, initial=len(self.outcomes), desc="search", unit="trial",
                        disable=not self.progress)
             pending = [t for t in study.get_trials(deepcopy=False) if t.state == TrialState.RUNNING]
@@ -274,7 +293,7 @@ class AttackSearch:
                     asked = []
                     for _ in range(size):
                         trial = study.ask()
-                        attack = sample_attack(trial, self.families, self.spec.victim.duration)
+                        attack = sample_attack(trial, self.families, latest_start)
                         trial.set_user_attr("attack", attack)
                         asked.append((trial.number, attack))
                 finished = self._run_batch(study, asked)

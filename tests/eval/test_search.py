@@ -16,7 +16,7 @@ from testbed.errors import UserError
 from testbed.eval.scenario import load_scenario
 from testbed.eval.search import CRASH_BONUS_M, AttackSearch, SearchSpec, families_for, is_loss, outcome_of, score
 from testbed.eval.search_report import write_search_report
-from tests.eval.search_helpers import toy_search
+from tests.eval.search_helpers import toy_executor, toy_search
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -44,6 +44,19 @@ def test_the_same_seed_gives_the_same_trials_and_another_seed_others(tmp_path):
         s.run()
     attacks = [[r["attack"] for r in _rows(tmp_path / n)] for n in "abc"]
     assert attacks[0] == attacks[1] and attacks[0] != attacks[2]
+
+
+def test_attack_starts_follow_the_drive_when_the_road_ends_before_the_duration(tmp_path):
+    # parking-lot: 80 m, ended 30 m before its end, from s = 5 at 4 m/s: the drive lasts 11.25 s at the least
+    victim = load_scenario("parking-lot").replace(defense="ld3", localization="msf", duration=45.0)
+    spec = SearchSpec(victim, parse_threat("msf-output"), 24, batch=8)
+    assert spec.latest_start == pytest.approx(11.25 - 5.0)
+    outcomes = AttackSearch(spec, tmp_path / "s", workers=1, progress=False, execute=toy_executor).run()
+    starts = [float(o.attack["start"]) for o in outcomes if "start" in o.attack and o.family != "zone"]
+    assert len(starts) > 12 and all(6.25 / 2 <= t <= 6.25 for t in starts)  # START's 8–30 s, scaled
+    assert all(0.0 <= o.attack["start"] <= 6.25 for o in outcomes if o.family == "zone")  # its own 0–30 s
+    with pytest.raises(UserError, match="reaches the road's end 2.5 s in at 4 m/s"):
+        SearchSpec(victim.replace(start_s=40.0), parse_threat("msf-output"), 4)
 
 
 def test_a_killed_search_resumes_to_the_trials_of_an_uninterrupted_one(tmp_path):
