@@ -363,7 +363,7 @@ def cmd_bound(args: argparse.Namespace) -> int:
     if args.k_sigma < 0:
         raise UserError(f"--k-sigma must be >= 0, got {args.k_sigma:g}")
     setting = bound_setting(sc, None if sigma is None else (sigma[0], sigma[1]))
-    rows = bound_rows(setting, speeds, args.k_sigma)
+    rows = bound_rows(setting, speeds, args.k_sigma, on_car=sc if args.on_car else None)
     title = (f"deviation bound: {sc.track}, {sc.vehicle}, defense {sc.defense}"
              f"{' (paper mode)' if args.paper_mode else ''}, control {sc.rates.control_hz:g} Hz, "
              f"camera {sc.rates.camera_hz:g} Hz, detector {sc.detector}, k = {args.k_sigma:g}")
@@ -522,6 +522,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sigma", metavar="LAT,HEAD", help="benign residual std, lateral (m) and heading (rad) "
                                                       "(default: measured for the detector)")
     p.add_argument("--k-sigma", type=float, default=1.0, help="b_eff = b + k·σ (default 1)")
+    p.add_argument("--on-car", action="store_true", help="also solve it on the closed loop's responses identified "
+                                                         "on the car in simulation (three short runs a speed)")
     p.add_argument("--out", type=Path, help="write table.md, table.csv, bound.png here")
     p.add_argument("--force", action="store_true", help="replace a bound table already in --out")
     p.set_defaults(func=cmd_bound)

@@ -1,5 +1,5 @@
 """The largest physical lateral deviation an attacker reaches before LD3 alarms, as a linear program on the
-linear closed-loop lateral model.
+linear closed-loop lateral model, or on the closed loop's responses measured on the car (`MeasuredLoop`).
 
 Model. The loop is the discrete LQR loop on the path-error bicycle model (`LateralModel`, `LqrLateralController`)
 at one speed on a straight lane, state z = [e_y, ė_y, e_ψ, ė_ψ, δ_prev]. The attacker moves the pose the
@@ -86,6 +86,23 @@ class AttackedLoop:
 
 
 @dataclass(frozen=True)
+class MeasuredLoop:
+    """A loop known by its measured responses of y to a unit a and a unit ψ held over one camera period (the
+    detection at tick 0), ticks `dt` apart, a detection every `every` ticks: the car's own, where `AttackedLoop`
+    is the linear model's."""
+
+    offset_response: np.ndarray
+    yaw_response: np.ndarray
+    every: int
+    dt: float
+
+    def responses(self, ticks: int) -> tuple[np.ndarray, np.ndarray]:
+        if ticks > min(len(self.offset_response), len(self.yaw_response)):
+            raise ValueError(f"{ticks} ticks asked of responses measured over {len(self.offset_response)}")
+        return self.offset_response[:ticks], self.yaw_response[:ticks]
+
+
+@dataclass(frozen=True)
 class BoundResult:
     """The bound (m), the horizon it was solved to (s), the bound `CONVERGENCE_LOOKBACK_S` earlier, whether it
     converged, and the worst attack: a_i (m) and ψ_i (rad) per detection up to the tick where e_y peaks."""
@@ -142,7 +159,7 @@ def _solve(ra: np.ndarray, rpsi: np.ndarray, n: int, every: int, lateral: Budget
     return -float(res.fun), res.x[:m], res.x[m:2 * m]
 
 
-def deviation_bound(loop: AttackedLoop, lateral: Budget, heading: Budget, k_sigma: float = 1.0,
+def deviation_bound(loop: AttackedLoop | MeasuredLoop, lateral: Budget, heading: Budget, k_sigma: float = 1.0,
                     horizon_s: float = DEFAULT_HORIZON_S, one_signed: bool = False) -> BoundResult:
     """The largest |e_y| the loop reaches while both CUSUMs stay at or under τ (module docstring); inf when a
     budget is unlimited in a direction the loop responds to. `one_signed`: each input keeps one sign for the

@@ -17,11 +17,12 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from testbed.control.attack_bound import Budget, deviation_bound, lateral_loop
+from testbed.control.attack_bound import DEFAULT_HORIZON_S, Budget, deviation_bound, lateral_loop
 from testbed.control.lateral import LqrLateralController
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
+from testbed.eval.bound_on_car import identify
 from testbed.eval.run_folder import SUMMARY, run_folder
 from testbed.eval.scenario import Scenario
 from testbed.presets import build_track, vehicle
@@ -48,6 +49,8 @@ class BoundRow:
     one_signed_m: float
     straddle_m: float
     converged: bool
+    on_car_m: float | None = None
+    """The bound on the loop's responses identified on the car (`testbed.eval.bound_on_car`); None: not asked."""
 
     @property
     def margin_m(self) -> float:
@@ -92,19 +95,26 @@ def bound_setting(sc: Scenario, sigma: tuple[float, float] | None = None) -> Bou
                         Budget(config.heading_b, config.heading_tau, sigma[1], clamp=config.steer_yaw_tol), straddle)
 
 
-def bound_rows(setting: BoundSetting, speeds: Sequence[float], k_sigma: float = DEFAULT_K_SIGMA) -> list[BoundRow]:
-    """The bound per speed (inf in paper mode)."""
+def bound_rows(setting: BoundSetting, speeds: Sequence[float], k_sigma: float = DEFAULT_K_SIGMA,
+               on_car: Scenario | None = None) -> list[BoundRow]:
+    """The bound per speed (inf in paper mode); with `on_car`, also solved on that scenario's loop identified on
+    the car at each speed."""
     rows = []
     for v in speeds:
         if v <= 0:
             raise UserError(f"speeds must be > 0 m/s, got {v:g}")
         if setting.lateral is None or setting.heading is None:
-            rows.append(BoundRow(v, math.inf, math.inf, setting.straddle_m, True))
+            rows.append(BoundRow(v, math.inf, math.inf, setting.straddle_m, True,
+                                 None if on_car is None else math.inf))
             continue
         loop = lateral_loop(setting.controller, v, setting.every)
         free = deviation_bound(loop, setting.lateral, setting.heading, k_sigma)
         signed = deviation_bound(loop, setting.lateral, setting.heading, k_sigma, one_signed=True)
-        rows.append(BoundRow(v, free.bound_m, signed.bound_m, setting.straddle_m, free.converged))
+        car = None
+        if on_car is not None:
+            car = deviation_bound(identify(on_car, v, DEFAULT_HORIZON_S).loop, setting.lateral, setting.heading,
+                                  k_sigma).bound_m
+        rows.append(BoundRow(v, free.bound_m, signed.bound_m, setting.straddle_m, free.converged, car))
     return rows
 
 
@@ -113,11 +123,13 @@ def _m(v: float) -> str:
 
 
 def bound_markdown(rows: Sequence[BoundRow]) -> str:
-    """The rows as a markdown table."""
-    lines = ["| speed (m/s) | bound (m) | one-signed (m) | straddle (m) | margin (m) | converged |",
-             "|---|---|---|---|---|---|"]
-    lines += [f"| {r.speed:g} | {_m(r.bound_m)} | {_m(r.one_signed_m)} | {r.straddle_m:.3f} | {_m(r.margin_m)} | "
-              f"{'yes' if r.converged else 'no'} |" for r in rows]
+    """The rows as a markdown table (with the bound on the car where it was solved)."""
+    car = any(r.on_car_m is not None for r in rows)
+    lines = ["| speed (m/s) | bound (m) | one-signed (m) | " + ("on the car (m) | " if car else "")
+             + "straddle (m) | margin (m) | converged |", "|---|---|---|" + ("---|" if car else "") + "---|---|---|"]
+    lines += [f"| {r.speed:g} | {_m(r.bound_m)} | {_m(r.one_signed_m)} | "
+              + (f"{'–' if r.on_car_m is None else _m(r.on_car_m)} | " if car else "")
+              + f"{r.straddle_m:.3f} | {_m(r.margin_m)} | {'yes' if r.converged else 'no'} |" for r in rows]
     return "\n".join(lines)
 
 
@@ -127,6 +139,9 @@ def plot_bound(path: Path, rows: Sequence[BoundRow], title: str) -> None:
     speeds = [r.speed for r in rows]
     ax.plot(speeds, [r.bound_m for r in rows], "o-", label="bound (any attack)")
     ax.plot(speeds, [r.one_signed_m for r in rows], "s--", label="bound (one-signed attack)")
+    if any(r.on_car_m is not None for r in rows):
+        ax.plot(speeds, [math.nan if r.on_car_m is None else r.on_car_m for r in rows], "^-.",
+                label="bound on the car's identified loop")
     ax.plot(speeds, [r.straddle_m for r in rows], "r:", label="lane straddle deviation")
     ax.set_xlabel("speed (m/s)")
     ax.set_ylabel("largest |D| before the alarm (m)")
@@ -143,10 +158,12 @@ def write_bound(out: Path, rows: Sequence[BoundRow], title: str, force: bool = F
         (tmp / "table.md").write_text(f"# {title}\n\n{bound_markdown(rows)}\n")
         with (tmp / "table.csv").open("w", newline="") as fh:
             writer = csv.writer(fh)
-            writer.writerow(["speed_mps", "bound_m", "one_signed_m", "straddle_m", "margin_m", "converged"])
+            writer.writerow(["speed_mps", "bound_m", "one_signed_m", "straddle_m", "margin_m", "converged",
+                             "on_car_m"])
             for r in rows:
                 writer.writerow([f"{r.speed:g}", f"{r.bound_m:.4f}", f"{r.one_signed_m:.4f}", f"{r.straddle_m:.4f}",
-                                 f"{r.margin_m:.4f}", str(r.converged).lower()])
+                                 f"{r.margin_m:.4f}", str(r.converged).lower(),
+                                 "" if r.on_car_m is None else f"{r.on_car_m:.4f}"])
         plot_bound(tmp / "bound.png", rows, title)
         rows_json = [{k: None if isinstance(v, float) and math.isinf(v) else v
                       for k, v in {**asdict(r), "margin_m": r.margin_m}.items()} for r in rows]

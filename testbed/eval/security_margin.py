@@ -161,6 +161,7 @@ class Row:
     bound_m: float | None
     straddle_m: float | None
     note: str = ""
+    bound_on_car_m: float | None = None
 
     @property
     def in_threat_model(self) -> bool:
@@ -172,8 +173,10 @@ def _max(values: Sequence[float | None]) -> float | None:
     return max(kept) if kept else None
 
 
-def table_rows(done: Sequence[tuple[Cell, dict[str, Any]]], bound: Callable[[Cell], float | None]) -> list[Row]:
-    """Rows per road × defense × threat in cell order, the seeds' figures pooled; `bound` gives a cell's bound."""
+def table_rows(done: Sequence[tuple[Cell, dict[str, Any]]], bound: Callable[[Cell], float | None],
+               car_bound: Callable[[Cell], float | None] = lambda cell: None) -> list[Row]:
+    """Rows per road × defense × threat in cell order, the seeds' figures pooled; `bound` gives a cell's bound on
+    the model, `car_bound` on the car."""
     groups: dict[tuple[str, str, str], list[tuple[Cell, dict[str, Any]]]] = {}
     for cell, summary in done:
         groups.setdefault((cell.road, cell.defended.label, cell.threat), []).append((cell, summary))
@@ -186,7 +189,7 @@ def table_rows(done: Sequence[tuple[Cell, dict[str, Any]]], bound: Callable[[Cel
                         sum(s["losses"] for s in applicable) if applicable else None,
                         _max([s["worst_max_dev_m"] for s in applicable]),
                         _max([s["worst_dev_before_m"] for s in applicable]), bound(members[0][0]),
-                        _max([s["straddle_m"] for s in applicable]), note))
+                        _max([s["straddle_m"] for s in applicable]), note, car_bound(members[0][0])))
     return rows
 
 
@@ -205,19 +208,41 @@ def _road_bound(road: str, defended: Victim) -> float | None:
     return bound_rows(setting, [victim.speed])[0].bound_m
 
 
+def cell_bound_on_car(cell: Cell, cache: Path) -> float | None:
+    """The bound at the victim's speed on its loop identified on the car (`ld3 bound --on-car`), kept in
+    `cache`/<road>-<defense>.json; inf in paper mode, None for a defense without LD3's checks."""
+    path = cache / f"{cell.road}-{cell.defended.slug}.json"
+    if path.exists():
+        kept = json.loads(path.read_text())
+        return math.inf if kept["bound_on_car_m"] == "inf" else kept["bound_on_car_m"]
+    victim = cell.victim()
+    try:
+        setting = bound_setting(victim)
+    except UserError:
+        return None
+    value = bound_rows(setting, [victim.speed], on_car=victim)[0].on_car_m
+    cache.mkdir(parents=True, exist_ok=True)
+    _write_atomic(path, json.dumps({"road": cell.road, "defense": cell.defended.label, "speed_mps": victim.speed,
+                                    "bound_on_car_m": "inf" if value is not None and math.isinf(value) else value})
+                  + "\n")
+    return value
+
+
 def _m(v: float | None) -> str:
     return "–" if v is None else "unbounded" if math.isinf(v) else f"{v:.2f}"
 
 
 HEADER = ("| road | defense | threat | seeds × trials | losses | worst max \\|D\\| (m) "
-          "| worst \\|D\\| before detection (m) | bound (m) | straddle (m) |")
+          "| worst \\|D\\| before detection (m) | bound (m) | bound on the car (m) | straddle (m) |")
+RULE = "|---|---|---|---|---|---|---|---|---|---|"
 
 
 def _line(r: Row) -> str:
     losses = r.note or ("–" if r.losses is None else f"**{r.losses}**" if r.losses else "0")
     failed = f" ({r.failed} failed)" if r.failed else ""
     return (f"| {r.road} | {r.defense} | {r.threat} | {r.seeds} × {r.trials // max(r.seeds, 1)}{failed} | {losses} "
-            f"| {_m(r.worst_max_dev_m)} | {_m(r.worst_dev_before_m)} | {_m(r.bound_m)} | {_m(r.straddle_m)} |")
+            f"| {_m(r.worst_max_dev_m)} | {_m(r.worst_dev_before_m)} | {_m(r.bound_m)} | {_m(r.bound_on_car_m)} "
+            f"| {_m(r.straddle_m)} |")
 
 
 def table_markdown(rows: Sequence[Row]) -> str:
@@ -227,14 +252,15 @@ def table_markdown(rows: Sequence[Row]) -> str:
     lines = ["# Security margin", "",
              "Worst-case attack search per cell (objective `loss`: any lane departure or contact, detected or not; "
              "oracle lane detector; MSF localization). Losses over every trial of every sampler seed; worst |D| "
-             "over them; bound: `ld3 bound` at the road's speed (– for a defense without LD3's checks). Each "
+             "over them; bound: `ld3 bound` at the road's speed on the linear model, and on the car's loop identified "
+             "in simulation (`ld3 bound --on-car`; – for a defense without LD3's checks). Each "
              "cell's searches: `<road>/<defense>/<threat>/seed<N>/search/report.md`.", ""]
     if inside:
-        lines += [HEADER, "|---|---|---|---|---|---|---|---|---|", *map(_line, inside), ""]
+        lines += [HEADER, RULE, *map(_line, inside), ""]
     if outside:
         lines += ["## Beside the table: outside LD3's threat model", "",
                   "The attacker also controls the lane detector's output: measured, not a defeat of LD3's design.",
-                  "", HEADER, "|---|---|---|---|---|---|---|---|---|", *map(_line, outside), ""]
+                  "", HEADER, RULE, *map(_line, outside), ""]
     return "\n".join(lines)
 
 
@@ -242,7 +268,7 @@ def write_table(out: Path, rows: Sequence[Row]) -> Path:
     """table.md and table.csv in `out`, each replaced whole."""
     _write_atomic(out / "table.md", table_markdown(rows))
     fields = ["road", "defense", "threat", "in_threat_model", "seeds", "trials", "failed", "losses",
-              "worst_max_dev_m", "worst_dev_before_m", "bound_m", "straddle_m", "note"]
+              "worst_max_dev_m", "worst_dev_before_m", "bound_m", "bound_on_car_m", "straddle_m", "note"]
     tmp = out / f".table.csv.tmp-{os.getpid()}"
     with tmp.open("w", newline="") as fh:
         writer = csv.writer(fh)
@@ -261,8 +287,10 @@ def _write_atomic(path: Path, text: str) -> None:
 
 def security_margin(cells: Sequence[Cell], out: Path, *, execute: RunExecutor = run_and_write_data,
                     announce: Callable[[str], None] = lambda line: None,
-                    bound: Callable[[Cell], float | None] = cell_bound, **options: Any) -> Path:
-    """Run (or resume) every cell, then write the table; `options` go to each `AttackSearch`."""
+                    bound: Callable[[Cell], float | None] = cell_bound,
+                    car_bound: Callable[[Cell, Path], float | None] = cell_bound_on_car, **options: Any) -> Path:
+    """Run (or resume) every cell, then write the table (`car_bound` keeps its figures in OUT/bounds); `options`
+    go to each `AttackSearch`."""
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} is a file; name a folder")
     out.mkdir(parents=True, exist_ok=True)
@@ -275,4 +303,4 @@ def security_margin(cells: Sequence[Cell], out: Path, *, execute: RunExecutor = 
                      + (summary["not_applicable"] if "not_applicable" in summary else
                         f"{summary['losses']} losses in {summary['trials']} trials, worst max |D| "
                         f"{_m(summary['worst_max_dev_m'])} m"))
-    return write_table(out, table_rows(done, bound))
+    return write_table(out, table_rows(done, bound, lambda cell: car_bound(cell, out / "bounds")))

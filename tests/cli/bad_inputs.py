@@ -297,6 +297,7 @@ OTHER_COMMANDS = [
     Case("bound-speeds", ("bound", "local", "--speeds", "fast"), "--speeds"),
     Case("bound-speed-zero", ("bound", "local", "--speeds", "0"), "speeds must be > 0"),
     Case("bound-sigma", ("bound", "local", "--sigma", "0.1"), "--sigma"),
+    Case("bound-on-car-speed", ("bound", "local", "--on-car", "--speeds", "60"), "needs 5210 m of straight road"),
     Case("bound-k-sigma", ("bound", "local", "--k-sigma", "-1"), "--k-sigma"),
     Case("bound-out-file", ("bound", "local", "--out", "{ws}/afile"), "afile"),
     Case("bound-out-foreign", ("bound", "local", "--out", "{ws}/foreign"), "foreign"),

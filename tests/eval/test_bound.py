@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from testbed.control.attack_bound import AttackedLoop, Budget, deviation_bound, lateral_loop
+from testbed.control.attack_bound import AttackedLoop, Budget, MeasuredLoop, deviation_bound, lateral_loop
 from testbed.control.lateral import LqrLateralController
 from vehicles.params import SEDAN
 
@@ -97,3 +97,16 @@ def test_lqr_bound_grows_with_speed_and_converges(controller: LqrLateralControll
     heading_free = deviation_bound(lateral_loop(controller, 15.0, 2), Budget(0.2, 2.0), Budget(0.0, 0.0),
                                    k_sigma=0.0)
     assert heading_free.bound_m < results[1].bound_m
+
+
+def test_a_measured_loop_gives_the_bound_of_the_loop_it_was_measured_on(controller: LqrLateralController) -> None:
+    model = lateral_loop(controller, 15.0, 2)
+    measured = MeasuredLoop(*model.responses(round(10.0 / model.dt) + 1), model.every, model.dt)
+    lateral, heading = Budget(0.2, 2.0, 0.03), Budget(0.03, 0.3, 0.003, clamp=0.01)
+    assert deviation_bound(measured, lateral, heading).bound_m == pytest.approx(
+        deviation_bound(model, lateral, heading).bound_m, rel=1e-6)  # the solver's tolerance
+    halved = MeasuredLoop(*(r / 2 for r in model.responses(round(10.0 / model.dt) + 1)), model.every, model.dt)
+    assert deviation_bound(halved, lateral, heading).bound_m == pytest.approx(
+        deviation_bound(model, lateral, heading).bound_m / 2, rel=1e-6)  # linear in the responses
+    with pytest.raises(ValueError, match="ticks asked"):
+        deviation_bound(measured, lateral, heading, horizon_s=12.0)

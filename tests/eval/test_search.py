@@ -55,7 +55,7 @@ def test_attack_starts_follow_the_drive_when_the_road_ends_before_the_duration(t
     starts = [float(o.attack["start"]) for o in outcomes if "start" in o.attack and o.family != "zone"]
     assert len(starts) > 12 and all(6.25 / 2 <= t <= 6.25 for t in starts)  # START's 8–30 s, scaled
     assert all(0.0 <= o.attack["start"] <= 6.25 for o in outcomes if o.family == "zone")  # its own 0–30 s
-    with pytest.raises(UserError, match="reaches the road's end 2.5 s in at 4 m/s"):
+    with pytest.raises(UserError, match=r"reaches the road's end 2\.5 s in at 4 m/s"):
         SearchSpec(victim.replace(start_s=40.0), parse_threat("msf-output"), 4)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +11,7 @@ import pytest
 
 from testbed.errors import UserError
 from testbed.eval.campaign import CampaignRun
-from testbed.eval.security_margin import ROADS, cell_bound, plan_cells, security_margin
+from testbed.eval.security_margin import ROADS, cell_bound, cell_bound_on_car, plan_cells, security_margin
 from tests.eval.search_helpers import toy_executor
 
 
@@ -57,7 +58,8 @@ def test_the_table_pools_the_seeds_and_resumes(tmp_path: Path) -> None:
     cells = plan_cells(roads=["local"], defenses=["ld3", "savior"], threats=["msf-output", "msf-output,ld-output"],
                        seeds=[0, 1], budget=4)
     execute = Counting()
-    table = security_margin(cells, tmp_path, execute=execute, bound=lambda cell: 0.5, workers=1, progress=False)
+    table = security_margin(cells, tmp_path, execute=execute, bound=lambda cell: 0.5,
+                            car_bound=lambda cell, cache: 0.4, workers=1, progress=False)
     assert execute.runs == 8 * 4
     rows = _table(tmp_path)
     assert [(r["defense"], r["threat"]) for r in rows] == [("LD3 default", "msf-output"),
@@ -71,13 +73,16 @@ def test_the_table_pools_the_seeds_and_resumes(tmp_path: Path) -> None:
         assert int(r["losses"]) == sum(t["loss"] == "true" for t in mine)
         assert float(r["worst_max_dev_m"]) == pytest.approx(max(float(t["max_abs_dev_m"]) for t in mine), abs=1e-4)
         assert r["in_threat_model"] == str(r["threat"] == "msf-output").lower()
+    assert {float(r["bound_m"]) for r in rows} == {0.5} and {float(r["bound_on_car_m"]) for r in rows} == {0.4}
     text = table.read_text()
     assert text.index("| local | LD3 default | msf-output |") < text.index("outside LD3's threat model") < \
         text.index("| local | LD3 default | msf-output,ld-output |")
-    security_margin(cells, tmp_path, execute=execute, bound=lambda cell: 0.5, workers=1, progress=False)
+    security_margin(cells, tmp_path, execute=execute, bound=lambda cell: 0.5,
+                    car_bound=lambda cell, cache: 0.4, workers=1, progress=False)
     assert execute.runs == 8 * 4
     more = plan_cells(roads=["local"], defenses=["ld3"], threats=["msf-output"], seeds=[0], budget=6)
-    security_margin(more, tmp_path, execute=execute, bound=lambda cell: 0.5, workers=1, progress=False)
+    security_margin(more, tmp_path, execute=execute, bound=lambda cell: 0.5,
+                    car_bound=lambda cell, cache: 0.4, workers=1, progress=False)
     assert execute.runs == 8 * 4 + 2
 
 
@@ -85,3 +90,10 @@ def test_the_bound_column() -> None:
     savior, paper, default = plan_cells(roads=["local"], defenses=["savior", "ld3-paper", "ld3"], threats=["gnss"],
                                         seeds=[0])
     assert cell_bound(savior) is None and cell_bound(paper) == float("inf") and 0.2 < cell_bound(default) < 1.0
+
+
+def test_the_bound_on_the_car_is_kept_and_read_back(tmp_path: Path) -> None:
+    savior, paper = plan_cells(roads=["local"], defenses=["savior", "ld3-paper"], threats=["gnss"], seeds=[0])
+    assert cell_bound_on_car(savior, tmp_path) is None and cell_bound_on_car(paper, tmp_path) == float("inf")
+    assert cell_bound_on_car(paper, tmp_path) == float("inf")  # read back from the file it kept
+    assert json.loads((tmp_path / "local-ld3-paper.json").read_text())["bound_on_car_m"] == "inf"
