@@ -50,7 +50,3 @@ class SemanticMap(Protocol):
     def is_intersection(self, pose: Pose) -> bool:
         """True inside an intersection zone (no lane markings)."""
         ...
-
-    def line_painted(self, pose: Pose, lane: int | None = None) -> tuple[bool, bool]:
-        """Whether the lane's (left, right) line, as the lane is driven, is painted at the projection."""
-        ...

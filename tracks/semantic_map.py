@@ -126,10 +126,3 @@ class TrackMap:
 
     def is_intersection(self, pose: Pose) -> bool:
         return self.track.in_intersection(self.project(pose).s)
-
-    def line_painted(self, pose: Pose, lane: int | None = None) -> tuple[bool, bool]:
-        c = self.project(pose, lane)
-        right, left = self.track.boundaries[c.lane], self.track.boundaries[c.lane + 1]
-        if self._lanes[c.lane].direction < 0:
-            left, right = right, left
-        return left.kind_at(c.s) != "none", right.kind_at(c.s) != "none"

@@ -12,9 +12,9 @@ where no line is valid): a yaw bias the heading check lets through cannot steer 
 The paper mode steers on every MSF pose.
 
 Fail-closed mode reads a detection less the lines the map says the lines' model cannot follow from the dead-reckoned
-pose (`followable`, `testbed.defense.line_model`: a sharp corner ahead, where a line's offset at the car is an
-extrapolation metres off) and the lines the map leaves unpainted: such a line is neither compared nor used to
-anchor; with no line left the MSF is checked against odometry as where lines are absent."""
+pose (`followable`, `testbed.defense.line_model`: a sharp corner ahead): such a line's offset at the car is an
+extrapolation metres off, so it is neither compared nor used to anchor; with no line left the MSF is checked
+against odometry as where lines are absent."""
 
 from __future__ import annotations
 
@@ -76,8 +76,8 @@ class Ld3AlarmedDefense(LatchingDefense):
         except OffMapError:
             return ld
         if withheld:
-            self.faults.report("line-beyond-model", ld.timestamp, f"{', '.join(withheld)}: the map's line ahead is "
-                                                                  f"beyond the lines' model or unpainted; withheld",
+            self.faults.report("line-beyond-model", ld.timestamp, f"{', '.join(withheld)} from the line's model at "
+                                                                  f"the car (the map's lane ahead); withheld",
                                expected=True)
         return kept
 

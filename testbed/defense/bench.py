@@ -25,7 +25,7 @@ from tracks.pose import Pose
 class StraightRoadMap:
     """`lanes` lanes of width `width` along +x; lane 0's centreline is y = 0, lane i's is y = i·width.
     A pose more than width/2 + `margin` (default width/2) from its lane, or not finite, is off the map;
-    `intersections` are x intervals flagged by is_intersection; every line is painted."""
+    `intersections` are x intervals flagged by is_intersection."""
 
     def __init__(self, lanes: int = 2, width: float = 3.5, margin: float | None = None,
                  intersections: tuple[tuple[float, float], ...] = ()) -> None:
@@ -61,10 +61,6 @@ class StraightRoadMap:
     def is_intersection(self, pose: Pose) -> bool:
         self.project(pose)
         return any(lo <= pose.x <= hi for lo, hi in self.intersections)
-
-    def line_painted(self, pose: Pose, lane: int | None = None) -> tuple[bool, bool]:
-        self.project(pose, lane)
-        return True, True
 
 
 def _timings(call: Callable[[int], object], n: int) -> dict[str, float]:

@@ -7,10 +7,9 @@ extrapolation is metres off while the car is centred. `line_model_error` measure
 line is walked ahead of a pose, taken into the pose's frame, kept while it runs within `VIEW_ANGLE` of the car's
 heading, fitted over [`VIEW_NEAR`, the detection's far x] by the polynomial of `MODEL_DEGREE`, and the fit's value
 at x = 0 is compared with the line's own offset there. `followable_lines` withholds a line whose error exceeds a
-tolerance (a line that leaves the view before `MIN_SAMPLES` samples counts as unbounded error), and a line the map
-paints on fewer than half of those samples (an unmarked edge: what a detector reports there is a kerb or another
-road's paint, not the lane's line); it never changes a line it keeps. The pose is the caller's to choose: LD3
-passes its dead-reckoned pose, one no MSF attacker moves.
+tolerance (a line that leaves the view before `MIN_SAMPLES` samples counts as unbounded error); it never
+changes a line it keeps. The pose is the caller's to choose: LD3 passes its dead-reckoned pose, one no MSF
+attacker moves.
 """
 
 from __future__ import annotations
@@ -39,17 +38,15 @@ MIN_SAMPLES = MODEL_DEGREE + 2
 
 
 def _walk(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> np.ndarray:
-    """Rows (x, y, heading, width, left painted, right painted) of the lane centre from the station of `pose` forward
-    every `WALK_STEP`, while within `VIEW_ANGLE` of the pose's heading and up to `x_far` plus a lane width ahead (or
-    the map's end)."""
+    """Rows (x, y, heading, width) of the lane centre from the station of `pose` forward every `WALK_STEP`, while
+    within `VIEW_ANGLE` of the pose's heading and up to `x_far` plus a lane width ahead (or the map's end)."""
     rows = []
     point, heading = smap.lane_point(pose, lane)
     width = float(smap.lane_width(pose, lane))
-    painted = smap.line_painted(pose, lane)
     limit = x_far + width + WALK_STEP
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     while abs(wrap_angle(heading - pose.yaw)) <= VIEW_ANGLE:
-        rows.append((float(point[0]), float(point[1]), heading, width, *painted))
+        rows.append((float(point[0]), float(point[1]), heading, width))
         if (point[0] - pose.x) * c + (point[1] - pose.y) * s > limit:
             break
         step = Pose(float(point[0]) + WALK_STEP * math.cos(heading), float(point[1]) + WALK_STEP * math.sin(heading),
@@ -57,53 +54,44 @@ def _walk(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> np.ndarray:
         try:
             point, heading = smap.lane_point(step, lane)
             width = float(smap.lane_width(step, lane))
-            painted = smap.line_painted(step, lane)
         except OffMapError:
             break
-    return np.array(rows, dtype=float).reshape(-1, 6)
+    return np.array(rows, dtype=float).reshape(-1, 4)
 
 
 def line_model_error(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> tuple[float, float]:
     """(left, right): how far the lines' model, fitted to the map's line of `lane` as seen from `pose` over
     [VIEW_NEAR, x_far], puts the line at x = 0 from where it is (m); inf for a line in view over too few samples.
     OffMapError when the map cannot place `pose` on `lane`."""
-    return _lines_in_view(smap, pose, lane, x_far)[0]
-
-
-def _lines_in_view(smap: SemanticMap, pose: Pose, lane: int,
-                   x_far: float) -> tuple[tuple[float, float], tuple[bool, bool]]:
-    """((left, right) model errors as `line_model_error`, (left, right): painted on at least half the samples in
-    view)."""
     rows = _walk(smap, pose, lane, x_far)
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    errors, painted = [], []
-    for side, column in ((1.0, 4), (-1.0, 5)):
+    errors = []
+    for side in (1.0, -1.0):
         half = side * rows[:, 3] / 2.0
         gx = rows[:, 0] - half * np.sin(rows[:, 2]) - pose.x
         gy = rows[:, 1] + half * np.cos(rows[:, 2]) - pose.y
         x, y = c * gx + s * gy, -s * gx + c * gy
         seen = (x >= VIEW_NEAR) & (x <= x_far)
-        painted.append(bool(seen.any()) and 2.0 * float(rows[seen, column].sum()) >= float(seen.sum()))
         if int(seen.sum()) < MIN_SAMPLES:
             errors.append(math.inf)
             continue
         at_car = y[0] - x[0] * math.tan(wrap_angle(rows[0, 2] - pose.yaw))
         fit = np.polynomial.polynomial.polyfit(x[seen], y[seen], MODEL_DEGREE, w=1.0 / x[seen])
         errors.append(abs(float(fit[0]) - at_car))
-    return (errors[0], errors[1]), (painted[0], painted[1])
+    return errors[0], errors[1]
 
 
 def followable_lines(ld: LaneDetection, smap: SemanticMap, pose: Pose, lane: int,
                      tol: float) -> tuple[LaneDetection, list[str]]:
-    """`ld` less each present line whose model error from `pose` exceeds `tol` (m) or that the map leaves unpainted in
-    view, and the withheld sides with why ("left 1.42 m", "right unpainted"); `ld` itself when none is. OffMapError
-    when the map cannot place `pose`."""
+    """`ld` less each present line whose model error from `pose` exceeds `tol` (m), and the withheld sides with
+    their errors ("left 1.42 m"); `ld` itself when none is. OffMapError when the map cannot place `pose`."""
     if ld.left is None and ld.right is None:
         return ld, []
-    errors, painted = _lines_in_view(smap, pose, lane, ld.x_range[1])
+    x_far = ld.x_range[1]
+    left, right = line_model_error(smap, pose, lane, x_far)
     withheld, changes = [], {}
-    for name, coeffs, error, paint in zip(("left", "right"), (ld.left, ld.right), errors, painted, strict=True):
-        if coeffs is not None and not (error <= tol and paint):
-            withheld.append(f"{name} {error:.2f} m" if paint else f"{name} unpainted")
+    for name, coeffs, error in (("left", ld.left, left), ("right", ld.right, right)):
+        if coeffs is not None and not error <= tol:
+            withheld.append(f"{name} {error:.2f} m")
             changes |= {name: None, f"{name}_prob": 0.0, f"{name}_var": None}
     return (dataclasses.replace(ld, **changes) if changes else ld), withheld

@@ -103,13 +103,3 @@ def test_paper_mode_reads_every_line_as_before(corner):
 def test_the_tolerance_is_a_fail_closed_key():
     with pytest.raises(ValueError, match="fail_closed = false"):
         DefenseConfig(fail_closed=False, line_model_tol=0.2)
-
-
-def test_a_line_the_map_leaves_unpainted_is_withheld():
-    edge = Edge("shoulder", paved=1.0, ground="grass")
-    ref = ReferenceLine(Pose(0.0, 0.0, 0.0), [Straight(200.0)])
-    unmarked = TrackMap(Track("t", 0, "t", ref, [WIDTH, WIDTH], ["none", "dashed_white", "solid_white"], edge, edge,
-                              ego_lane=0))
-    assert unmarked.line_painted(_on_lane(50.0)) == (True, False)
-    kept, withheld = followable_lines(_lines(0.0, WIDTH / 2, -WIDTH / 2), unmarked, _on_lane(50.0), 0, 0.1)
-    assert kept.left is not None and kept.right is None and withheld == ["right unpainted"]

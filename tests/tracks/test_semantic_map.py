@@ -33,8 +33,7 @@ def two_lane_arc() -> Track:
 
 
 def test_trackmap_matches_the_protocol_signatures():
-    for name in ("project", "lane_dev", "lane_width", "lane_point", "lane_curvature", "is_intersection",
-                 "line_painted"):
+    for name in ("project", "lane_dev", "lane_width", "lane_point", "lane_curvature", "is_intersection"):
         mine = inspect.signature(getattr(TrackMap, name))
         spec = inspect.signature(getattr(SemanticMap, name))
         assert list(mine.parameters) == list(spec.parameters)
