@@ -5,11 +5,12 @@ reads its value at x = 0, an extrapolation back from the nearest ground in view.
 within the view (a town corner of radius about 10 m a few metres ahead) the line is no low-order y(x) and that
 extrapolation is metres off while the car is centred. `line_model_error` measures it on the map: the ego lane's
 line is walked ahead of a pose, taken into the pose's frame, kept while it runs within `VIEW_ANGLE` of the car's
-heading, fitted over [`VIEW_NEAR`, the detection's far x] by the polynomial of `MODEL_DEGREE`, and the fit's value
-at x = 0 is compared with the line's own offset there. `followable_lines` withholds a line whose error exceeds a
-tolerance (a line that leaves the view before `MIN_SAMPLES` samples counts as unbounded error); it never
-changes a line it keeps. The pose is the caller's to choose: LD3 passes its dead-reckoned pose, one no MSF
-attacker moves.
+heading, fitted over [`VIEW_NEAR`, the detection's far x] by the polynomial of `MODEL_DEGREE` (samples weighed
+1/x², as a camera's image rows thin out with distance), and the fit's value at x = 0 is compared with the line's own
+offset there. `followable_lines` withholds a line whose error exceeds a tolerance (a line that leaves the view
+before `MIN_SAMPLES` samples counts as unbounded error; one the map ends before is kept: the map shows nothing to
+judge it by); it never changes a line it keeps. The pose is the caller's to choose: LD3 passes its dead-reckoned
+pose, one no MSF attacker moves.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ MIN_SAMPLES = MODEL_DEGREE + 2
 """Fewest samples in view for a fit; a line seen over fewer is not followable."""
 
 
-def _walk(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> np.ndarray:
+def _walk(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> tuple[np.ndarray, bool]:
     """Rows (x, y, heading, width) of the lane centre from the station of `pose` forward every `WALK_STEP`, while
-    within `VIEW_ANGLE` of the pose's heading and up to `x_far` plus a lane width ahead (or the map's end)."""
+    within `VIEW_ANGLE` of the pose's heading and up to `x_far` plus a lane width ahead, and whether the map ended
+    first."""
     rows = []
     point, heading = smap.lane_point(pose, lane)
     width = float(smap.lane_width(pose, lane))
@@ -55,15 +57,15 @@ def _walk(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> np.ndarray:
             point, heading = smap.lane_point(step, lane)
             width = float(smap.lane_width(step, lane))
         except OffMapError:
-            break
-    return np.array(rows, dtype=float).reshape(-1, 4)
+            return np.array(rows, dtype=float).reshape(-1, 4), True
+    return np.array(rows, dtype=float).reshape(-1, 4), False
 
 
 def line_model_error(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> tuple[float, float]:
     """(left, right): how far the lines' model, fitted to the map's line of `lane` as seen from `pose` over
-    [VIEW_NEAR, x_far], puts the line at x = 0 from where it is (m); inf for a line in view over too few samples.
-    OffMapError when the map cannot place `pose` on `lane`."""
-    rows = _walk(smap, pose, lane, x_far)
+    [VIEW_NEAR, x_far], puts the line at x = 0 from where it is (m); inf for a line in view over too few samples
+    (0 where the map ends first). OffMapError when the map cannot place `pose` on `lane`."""
+    rows, ended = _walk(smap, pose, lane, x_far)
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     errors = []
     for side in (1.0, -1.0):
@@ -73,7 +75,7 @@ def line_model_error(smap: SemanticMap, pose: Pose, lane: int, x_far: float) -> 
         x, y = c * gx + s * gy, -s * gx + c * gy
         seen = (x >= VIEW_NEAR) & (x <= x_far)
         if int(seen.sum()) < MIN_SAMPLES:
-            errors.append(math.inf)
+            errors.append(0.0 if ended else math.inf)
             continue
         at_car = y[0] - x[0] * math.tan(wrap_angle(rows[0, 2] - pose.yaw))
         fit = np.polynomial.polynomial.polyfit(x[seen], y[seen], MODEL_DEGREE, w=1.0 / x[seen])

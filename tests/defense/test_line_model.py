@@ -47,6 +47,7 @@ def test_the_model_follows_straights_and_wide_curves_not_a_sharp_corner_ahead(co
     wide = _map(Straight(50.0), Arc(200.0, 150.0))
     assert max(line_model_error(wide, _on_lane(50.0), 0, 30.0)) < 0.01
     assert min(line_model_error(corner, _on_lane(CORNER_AT - 15.0), 0, 30.0)) > 0.5
+    assert line_model_error(_map(Straight(60.0)), _on_lane(55.0), 0, 30.0) == (0.0, 0.0)  # the map ends: kept
 
 
 def test_a_line_that_leaves_the_view_within_a_few_metres_is_not_followable():
