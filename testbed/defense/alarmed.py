@@ -11,21 +11,21 @@ The checked pose's yaw is kept within `steer_yaw_tol` of the heading the lines g
 where no line is valid): a yaw bias the heading check lets through cannot steer the car by more than that.
 The paper mode steers on every MSF pose.
 
-Fail-closed mode reads a detection less the lines the map says the lines' model cannot follow from the dead-reckoned
-pose (`followable`, `testbed.defense.line_model`: a sharp corner ahead): such a line's offset at the car is an
-extrapolation metres off, so it is neither compared nor used to anchor; with no line left the MSF is checked
+Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range
+ahead of the dead-reckoned pose (`followable`, `testbed.defense.line_model`: a town corner, where a line's offset at
+the car is an extrapolation metres off): they are neither compared nor used to anchor, and the MSF is checked
 against odometry as where lines are absent."""
 
 from __future__ import annotations
 
 import logging
 
+from testbed.defense import line_model
 from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.fused_heading import station_relative_heading
-from testbed.defense.line_model import followable_lines
 from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -64,20 +64,20 @@ class Ld3AlarmedDefense(LatchingDefense):
         return self.faults.records()
 
     def followable(self, ld: LaneDetection, smap: SemanticMap) -> LaneDetection:
-        """Fail-closed: `ld` less the lines whose model error from the dead-reckoned pose exceeds `line_model_tol` (a
-        fault each, logged at debug level: the map's doing, not a bad input); `ld` as given in paper mode, before the
-        pose is anchored, or where the map cannot place it."""
+        """Fail-closed: `ld` without its lines where the lane turns tighter than `corner_radius` near the dead-reckoned
+        pose (a fault, logged at debug level: the map's doing, not a bad input); `ld` as given in paper mode, before
+        the pose is anchored, or where the map cannot place it."""
         reckoned = self.monitor.reckoned
         if not self.config.fail_closed or reckoned is None:
             return ld
         try:
             lane = self.monitor.ego_lane if self.monitor.ego_lane is not None else smap.project(reckoned).lane
-            kept, withheld = followable_lines(ld, smap, reckoned, lane, self.config.line_model_tol)
+            kept, turn = line_model.followable(ld, smap, reckoned, lane, self.config.corner_radius)
         except OffMapError:
             return ld
-        if withheld:
-            self.faults.report("line-beyond-model", ld.timestamp, f"{', '.join(withheld)} from the line's model at "
-                                                                  f"the car (the map's lane ahead); withheld",
+        if turn is not None:
+            self.faults.report("corner-lines", ld.timestamp, f"the lane turns at a radius of {turn:.1f} m within "
+                                                             f"{line_model.NEAR_RANGE:g} m; lines not compared",
                                expected=True)
         return kept
 
