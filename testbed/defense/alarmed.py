@@ -9,12 +9,18 @@ controller, whatever the control and camera rates and however late or irregular 
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
 The checked pose's yaw is kept within `steer_yaw_tol` of the heading the lines give (of the dead-reckoned yaw
 where no line is valid): a yaw bias the heading check lets through cannot steer the car by more than that.
-The paper mode steers on every MSF pose."""
+The paper mode steers on every MSF pose.
+
+Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range
+ahead of the dead-reckoned pose (`followable`, `testbed.defense.line_model`: a town corner, where a line's offset at
+the car is an extrapolation metres off): they are neither compared nor used to anchor, and the MSF is checked
+against odometry as where lines are absent."""
 
 from __future__ import annotations
 
 import logging
 
+from testbed.defense import line_model
 from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.config import DefenseConfig
@@ -56,6 +62,24 @@ class Ld3AlarmedDefense(LatchingDefense):
 
     def fault_records(self) -> list[FaultRecord]:
         return self.faults.records()
+
+    def followable(self, ld: LaneDetection, smap: SemanticMap) -> LaneDetection:
+        """Fail-closed: `ld` without its lines where the lane turns tighter than `corner_radius` near the dead-reckoned
+        pose (a fault, logged at debug level: the map's doing, not a bad input); `ld` as given in paper mode, before
+        the pose is anchored, or where the map cannot place it."""
+        reckoned = self.monitor.reckoned
+        if not self.config.fail_closed or reckoned is None:
+            return ld
+        try:
+            lane = self.monitor.ego_lane if self.monitor.ego_lane is not None else smap.project(reckoned).lane
+            kept, turn = line_model.followable(ld, smap, reckoned, lane, self.config.corner_radius)
+        except OffMapError:
+            return ld
+        if turn is not None:
+            self.faults.report("corner-lines", ld.timestamp, f"the lane turns at a radius of {turn:.1f} m within "
+                                                             f"{line_model.NEAR_RANGE:g} m; lines not compared",
+                               expected=True)
+        return kept
 
     def _detect(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> bool:
         """One detection update while normal; True on the update that raises the alarm."""

@@ -38,7 +38,7 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "response_gate"})
+                              "response_gate", "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 
 
@@ -89,6 +89,10 @@ class DefenseConfig(Params):
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")
+    corner_radius: float = Field(20.0, gt=0.0, description="fail-closed: a detection's lines are not compared where "
+                                 "the ego lane turns tighter than this radius within 12 m ahead of the dead-reckoned "
+                                 "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
+                                 "metres off); the MSF is then checked by odometry")
     savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
     savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
     savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")

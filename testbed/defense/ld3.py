@@ -76,6 +76,7 @@ class Ld3Defense(Ld3AlarmedDefense):
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.config.fail_closed:
+            ld = self.followable(ld, smap)
             alarm = self.detection_time is None
             if not alarm or self._detect(ld, msf, smap):
                 self._respond_fail_closed(ld, msf, smap, alarm)

@@ -20,7 +20,7 @@ class NaiveArDefense(Ld3AlarmedDefense):
         return self.config.max_decel
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
-        self._detect(ld, msf, smap)
+        self._detect(self.followable(ld, smap), msf, smap)
 
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
         """The checked pose while normal; the MSF pose in the response."""

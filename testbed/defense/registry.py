@@ -18,7 +18,7 @@ from testbed.defense.savior import SaviorDefense
 from testbed.registry import Capability, Component, Registry
 
 _DETECTION = frozenset({"b", "tau", "existence_threshold", "fail_closed", "heading_b", "heading_tau",
-                        "steer_yaw_tol", "along_b", "along_tau", "along_gain"})
+                        "steer_yaw_tol", "along_b", "along_tau", "along_gain", "corner_radius"})
 _LD3 = _DETECTION | {"window", "lam", "p_msf", "p_ld", "r_power", "p_source", "heading", "heading_clamp", "kf_q",
                      "kf_p0", "ar_decel", "response_gate"}
 _SAVIOR = frozenset({"savior_b", "savior_tau", "savior_speed_std", "savior_accel_std", "savior_yaw_rate_std",

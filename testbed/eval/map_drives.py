@@ -56,15 +56,18 @@ def map_runs(detector: str, maps: Sequence[str]) -> list[CampaignRun]:
         trace = {"kind": "trace", "trace": "default", "start": round(min(ATTACK_AT, travel / 3.0), 2)}
         drives = [("benign", det, None) for det in dict.fromkeys(("oracle", detector))]
         for kind, det, attack in [*drives, ("attacked", detector, trace)]:
+            tags = {"file": path.name, "kind": kind, "detector": det, "route_m": round(track.length)}
+            if attack is not None:
+                tags["attack_s"] = attack["start"]
             runs.append(CampaignRun(f"{path.stem}-{kind}-{det}", drive.with_overrides(detector=det, attack=attack),
-                                    {"file": path.name, "kind": kind, "detector": det,
-                                     "route_m": round(track.length)}))
+                                    tags))
     return runs
 
 
 def map_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
     """One table per file: each drive's consequence, alarm, largest |D| and how it ended; benign drives must reach
-    the route's end without an alarm, attacked ones stop in lane."""
+    the route's end without an alarm, attacked ones stop in lane on an alarm raised after the attack's start (an
+    earlier one is a false alarm, marked "before the attack")."""
     by_file: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
     for run, s in done:
         by_file.setdefault(run.tags["file"], []).append((run, s))
@@ -76,8 +79,10 @@ def map_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
                   "|---|---|---|---|---|---|---|"]
         for run, s in items:
             want = "reach_destination" if run.tags["kind"] == "benign" else "stop_in_lane"
-            ok = s["consequence"] == want and (run.tags["kind"] == "attacked" or not s["detected"])
+            early = s["detected"] and s["detection_time_s"] < run.tags.get("attack_s", 0.0)
+            ok = s["consequence"] == want and not early and (run.tags["kind"] == "attacked" or not s["detected"])
             alarm = f"{s['detection_time_s']:.2f} s" if s["detected"] else "none"
+            alarm += " (before the attack)" if early else ""
             lines.append(f"| {run.tags['kind']} | {run.tags['detector']} | {s['consequence']} | {alarm} "
                          f"| {s['max_abs_dev_m']:.3f} | {s['sim_time_s']:.1f} | {'yes' if ok else 'NO'} |")
     return "\n".join(lines)

@@ -55,3 +55,5 @@ def test_the_table_has_one_section_per_file_and_judges_each_drive(tmp_path):
     rows = [line for line in table.splitlines() if line.startswith("| benign") or line.startswith("| attacked")]
     assert rows[0].endswith("| yes |") and rows[1].endswith("| NO |") and rows[2].endswith("| yes |")
     assert "12.50 s" in rows[1]
+    early = map_table([(runs[2], dict(sums[2], detection_time_s=8.0))], tmp_path)  # the attack starts at 10 s
+    assert "8.00 s (before the attack)" in early and early.endswith("| NO |")

@@ -1,6 +1,7 @@
 """`PATH[#ROUTE][@LANE]`: a track read from an OpenDRIVE file, along a route of road ids (`#1,5,2`) or the
-file's default route (`tracks.opendrive.route.default_route`), the ego lane starting on lane id LANE of the
-route's first road (`@-2`; default keep right)."""
+file's default route (`tracks.opendrive.route.default_route`, around or ending before a road where its lane turns
+tighter than a car follows), the ego lane starting on lane id LANE of the route's first road (`@-2`; default keep
+right)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 from tracks.opendrive.model import OpenDriveError
 from tracks.opendrive.parse import read_file
 from tracks.opendrive.route import default_route, drivable_routes, resolve_route, route_text
-from tracks.opendrive.route_track import route_track
+from tracks.opendrive.route_track import TightLaneError, route_track
 from tracks.road import Track
 
 PREFIX = "xodr:"
@@ -29,7 +30,15 @@ def load_xodr(spec: str) -> Track:
     ids = [r.strip() for r in route_text.split(",") if r.strip()]
     legs = resolve_route(od, ids, lane) if ids else default_route(od, lane)
     name = f"{PREFIX}{path.name}" + (f"#{route_part}" if route_part else "")
-    return route_track(legs, name, str(path))
+    avoid: frozenset[str] = frozenset()
+    while True:
+        try:
+            return route_track(legs, name, str(path))
+        except TightLaneError as exc:
+            if ids or exc.leg == 0:
+                raise
+            avoid |= {legs[exc.leg].road.id}
+            legs = default_route(od, lane, avoid)
 
 
 def list_routes(path_text: str) -> list[tuple[str, int, float]]:

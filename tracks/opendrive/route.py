@@ -253,28 +253,28 @@ def resolve_route(od: OpenDrive, ids: list[str], lane: int | None = None) -> lis
     return _with_lanes(od, directed, start)
 
 
-def default_route(od: OpenDrive, lane: int | None = None) -> list[Leg]:
+def default_route(od: OpenDrive, lane: int | None = None, avoid: frozenset[str] = frozenset()) -> list[Leg]:
     """The first road outside junctions along its drivable side (forward where both are), followed through its
-    successors: at a junction the connection from the ego lane that turns least."""
+    successors: at a junction the connection from the ego lane that turns least, never one of the roads `avoid`."""
     road = next((r for r in od.roads.values() if r.junction == "-1"), next(iter(od.roads.values())))
     start = lane if lane is not None else od.ego_lane
     forward = _drivable(road.sections[0], driving_side(road, 1))
     direction = 1 if forward or (start is not None and start * driving_side(road, 1) > 0) else -1
-    return _followed(od, _first_leg(od, road, direction, start))
+    return _followed(od, _first_leg(od, road, direction, start), avoid)
 
 
-def _followed(od: OpenDrive, first: Leg) -> list[Leg]:
+def _followed(od: OpenDrive, first: Leg, avoid: frozenset[str] = frozenset()) -> list[Leg]:
     """`first` and the legs after it along the ego lane until a road would repeat or none follows."""
     legs, seen = [first], {first.road.id}
-    while (nxt := _follow(od, legs[-1])) is not None and nxt.road.id not in seen:
+    while (nxt := _follow(od, legs[-1], avoid)) is not None and nxt.road.id not in seen:
         legs.append(nxt)
         seen.add(nxt.road.id)
     return legs
 
 
-def _follow(od: OpenDrive, leg: Leg) -> Leg | None:
+def _follow(od: OpenDrive, leg: Leg, avoid: frozenset[str]) -> Leg | None:
     """The next leg from `leg`'s exit along the ego lane: the linked road, or the junction connection that
-    carries the ego lane and turns least; None where the lane leads nowhere drivable."""
+    carries the ego lane and turns least; None where the lane leads nowhere drivable or only onto `avoid`."""
     link: Link | None = leg.road.successor if leg.direction == 1 else leg.road.predecessor
     if link is None:
         return None
@@ -286,7 +286,7 @@ def _follow(od: OpenDrive, leg: Leg) -> Leg | None:
                       for c in (junction.connections if junction else ()) if c.incoming == leg.road.id]
     options = []
     for road, direction in candidates:
-        if road is None:
+        if road is None or road.id in avoid:
             continue
         try:
             lane = _entry_lane(od, leg, road, direction)

@@ -7,7 +7,8 @@ drivable lanes beside it, without a gap, that every road outside junctions has; 
 connecting road lacks are interpolated. The ego lane's centre is sampled every half metre of road (and at every
 geometry, section and width record start) and fitted by curvature-linear segments; lane widths become tabulated
 profiles when they vary; each lane line keeps the road-mark kind it has over most of the route outside
-junctions; connecting roads are intersections. The other direction's drivable lanes next to the centre lane
+junctions; connecting roads are intersections. A route whose ego lane turns tighter than `MIN_RADIUS` is refused
+naming the road (`TightLaneError`). The other direction's drivable lanes next to the centre lane
 become the track's oncoming lanes on a right-hand-traffic route (the track's oncoming lanes are its leftmost);
 where something else (a median, a left-hand-traffic route) comes first, that side is paved surface beyond the
 centre line."""
@@ -38,6 +39,18 @@ DELTA = 1e-3  # m: central-difference step for the ego centre's heading
 JOIN_GAP, JOIN_TURN = 0.05, 0.02  # m, rad: the most the ego lane may jump where two roads meet
 FIT_TOLERANCE = 0.005  # m: the most the fitted reference line may stray from the sampled ego centre
 CURB = RoadsideBody("curb", gap=0.0, thickness=0.30, height=0.15)
+MIN_RADIUS = 3.0
+"""m: the tightest ego-lane centre a route may have (over a metre of lane). A car's turning circle at full lock is
+4-6 m in radius; the sedan has driven a metre of 3.8 m (Town04) within its lane, not a 1.7 m lane (Town05's
+junction 924, where it leaves the lane by 1.66 m)."""
+
+
+class TightLaneError(OpenDriveError):
+    """A route whose ego lane turns tighter than `MIN_RADIUS`; `leg` is the index of the route's leg where."""
+
+    def __init__(self, message: str, leg: int) -> None:
+        super().__init__(message)
+        self.leg = leg
 
 
 class _Knot(NamedTuple):
@@ -169,6 +182,7 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     chord = np.hypot(np.diff(xs), np.diff(ys))
     sigma = np.concatenate([[0.0], np.cumsum(chord * (1.0 + np.diff(heading) ** 2 / 24.0))])
     reference = ReferenceLine(Pose(xs[0], ys[0], heading[0]), fit_segments(sigma, heading))
+    _check_radius(sigma, heading, [k.leg for k in knots], legs, source, roads)
     stray = float(np.max(np.hypot(*(reference.points(sigma) - np.column_stack([xs, ys])).T)))
     if stray > FIT_TOLERANCE:
         raise OpenDriveError(f"{source}: route {roads}: the ego lane's centre cannot be followed within "
@@ -198,6 +212,18 @@ def route_track(legs: list[Leg], name: str, source: str) -> Track:
     return Track(name, 0, description, reference, [float(w) for w in np.median(widths, axis=0)], kinds, right,
                  left, ego_lane=order.index(e), intersections=crossings,
                  width_table=(sigma, widths) if varies else None, oncoming=m)
+
+
+def _check_radius(sigma: np.ndarray, heading: np.ndarray, leg_of: list[int], legs: list[Leg], source: str,
+                  roads: str) -> None:
+    """TightLaneError where the ego centre's curvature (its heading's slope along the samples) passes 1/MIN_RADIUS."""
+    curvature = np.abs(np.gradient(heading, sigma))
+    i = int(np.argmax(curvature))
+    if curvature[i] * MIN_RADIUS > 1.0:
+        leg = leg_of[i]
+        raise TightLaneError(f"{source}: route {roads}: the ego lane turns at a radius of {1.0 / curvature[i]:.2f} m "
+                             f"on road {legs[leg].road.id}, tighter than the {MIN_RADIUS:g} m a car follows; "
+                             f"choose a route around it (#ROAD,...)", leg)
 
 
 def _oncoming(samples: list[_Sample], outside: list[bool], e: int) -> int:

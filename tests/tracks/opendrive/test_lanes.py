@@ -40,10 +40,9 @@ def test_the_ego_lane_keeps_right_and_the_spec_can_name_another(tmp_path):
     assert inner.ego_lane == 1 and _ego_y(inner, 30.0) == pytest.approx(-1.75, abs=1e-3)
 
 
-def _fork() -> str:
+def _fork(r: float = 20.0) -> str:
     """Road 1 (lanes −1, −2) → junction 100: connecting road 11 runs straight on from lane −1 only into road 3,
-    connecting road 10 turns right (radius 20 m) from lane −2 into road 2."""
-    r = 20.0
+    connecting road 10 turns right (radius `r`, its lane's centre r − 1.75 m) from lane −2 into road 2."""
     conn = ('<junction id="100">'
             '<connection id="0" incomingRoad="1" connectingRoad="11" contactPoint="start">'
             '<laneLink from="-1" to="-1"/></connection>'
@@ -71,6 +70,14 @@ def test_the_default_route_follows_the_ego_lane_s_lane_link_not_the_straightest_
     assert " roads 1 → 10 → 2:" in track.description
     inner = load_xodr(f"{path}#@-1")  # the inner lane goes straight on
     assert " roads 1 → 11 → 3:" in inner.description
+
+
+def test_a_lane_tighter_than_a_car_follows_ends_the_default_route_and_refuses_a_route_through_it(tmp_path):
+    path = _path(tmp_path, _fork(r=4.0))  # lane −2's only way on turns at a radius of 2.25 m
+    track = load_xodr(str(path))
+    assert " roads 1:" in track.description
+    with pytest.raises(TrackFileError, match=r"^[^\n]*radius of 2\.25 m on road 10, tighter than the 3 m"):
+        build_track(f"xodr:{path}#1,10,2")
 
 
 def test_a_bidirectional_lane_is_never_the_ego_lane(tmp_path):
