@@ -1,4 +1,4 @@
-"""The one detection/response/control loop (DESIGN.md), shared by simulation and the CAN bridge.
+"""The one detection/response/control loop (docs/architecture.md), shared by simulation and the CAN bridge.
 
 Per control tick: read the chassis and hand its odometry to the defense, step localization (the attacker
 may spoof GNSS or the MSF output), on camera ticks run the lane detector and feed the defense, take the pose
@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(slots=True)
 class TickRecord:
-    """One row of trajectory.csv (DESIGN.md output contract), the attack's state, and in attack response
+    """One row of trajectory.csv (docs/outputs.md), the attack's state, and in attack response
     the fusion's internals (None outside it, or for a defense without them)."""
 
     t: float
@@ -108,7 +108,8 @@ class DrivingPorts:
 
 
 class ControlLoop:
-    """Wires chassis, sensors, perception, defense and driving at the control rate (DESIGN.md tick order)."""
+    """Wires chassis, sensors, perception, defense and driving at the control rate (docs/architecture.md, "One
+    control tick")."""
 
     def __init__(self, chassis: ChassisPort, sensors: SensorPorts, perception: PerceptionPorts, defense: Defense,
                  driving: DrivingPorts, *, attack: Attack | None = None, rates: Rates | None = None) -> None:

@@ -1,4 +1,5 @@
-"""One registry per component family (DESIGN.md), in the style of python-can's interface registry.
+"""One registry per component family (docs/architecture.md, "Registries"), in the style of python-can's
+interface registry.
 
 A registry holds the built-in components of its family and, on first lookup, those that installed
 packages declare under the family's entry-point group (`ld3.defenses`, `ld3.detectors`, `ld3.attacks`,

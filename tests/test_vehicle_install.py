@@ -1,6 +1,7 @@
-"""The vehicle side (DESIGN.md: tracks' geometry and map, localization, the lane-detection contract, defense,
-control, the loop, hil) imports and its commands start with the simulator's packages absent: a subprocess
-whose import system refuses them imports every vehicle-side module and prints `ld3 hil --help`."""
+"""The vehicle side (docs/architecture.md, "Conventions": tracks' geometry and map, localization, the
+lane-detection contract, defense, control, the loop, hil) imports and its commands start with the simulator's
+packages absent: a subprocess whose import system refuses them imports every vehicle-side module and prints
+`ld3 hil --help`."""
 
 from __future__ import annotations
 

@@ -11,8 +11,9 @@ LD3's open choices in the attack response: `heading` of the fused pose (Alg. 2 d
 `window`, `r_power` and `p_source` (where Alg. 4's P^MSF and P^LD come from). `PAPER_MODE` is the paper's
 system as written (MSF heading, constant P, a 1-s window); the defaults are what the ablation campaign
 measured to hold best on held-out roads (docs/decisions.md): the fused heading clamped to 0.02 rad and a
-5-detection window. The default also fails closed (`fail_closed`, DESIGN.md): what the paper skips or resets
-(off-map MSF poses, intersections, the response's MSF motion) is checked against odometry instead.
+5-detection window. The default also fails closed (`fail_closed`, docs/decisions.md "Failing closed"): what
+the paper skips or resets (off-map MSF poses, intersections, the response's MSF motion) is checked against
+odometry instead.
 
 NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
 stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,

@@ -1,5 +1,5 @@
-"""Physical consequence of a run (DESIGN.md): contacts with roadside bodies, leaving the road surface,
-and where the car ends relative to its lane.
+"""Physical consequence of a run (docs/outputs.md, summary.json): contacts with roadside bodies, leaving the road
+surface, and where the car ends relative to its lane.
 
 Precedence: the first contact (curb, barrier/guardrail/tree, lane divider, traffic car) or leaving the paved surface
 beyond a drop-off ends the run at once. Otherwise a run stopped by the attack response is

@@ -1,5 +1,5 @@
 """Runs one scenario in simulation end to end (`SimRun` steps what `run_build` builds) and writes the output
-contract (DESIGN.md)."""
+contract (docs/outputs.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""summary.json as typed models (DESIGN.md output contract): `RunSummary` for a simulated run, `HilSummary`
+"""summary.json as typed models (docs/outputs.md): `RunSummary` for a simulated run, `HilSummary`
 for one over CAN, `VehicleSummary` for a drive on a real vehicle. A summary is built once, checked on
 construction (no unknown or missing key), and written by `write`; non-finite numbers are written as null."""
 
