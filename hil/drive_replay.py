@@ -22,6 +22,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
 from testbed.eval.ld3_input import ld3_input_from_message
+from testbed.eval.summary import read_summary_object
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.presets import build_track
@@ -70,12 +71,7 @@ def drive_settings(path: Path) -> dict[str, Any]:
     summary = path.parent / "summary.json"
     if not summary.is_file():
         return {}
-    try:
-        data = json.loads(summary.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{summary} is not readable JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise UserError(f"{summary} is not a run's summary (not a JSON object)")
+    data = read_summary_object(summary)
     return {"track": data.get("track"), "defense": data.get("defense"),
             "defense_params": data.get("defense_params") or {}}
 

@@ -11,6 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
+from testbed.errors import UserError
 from testbed.traffic.record import HitVehicle
 
 SCHEMA_VERSION = 6
@@ -150,3 +151,17 @@ def _json_safe(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [_json_safe(v) for v in value]
     return value
+
+
+def read_summary_object(path: Path) -> dict[str, Any]:
+    """The JSON object a run's summary.json holds, its fields unchecked; a file that cannot be read, is not JSON
+    or holds no JSON object is a one-line UserError naming it."""
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path} is not readable JSON: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path} is not a run's summary (not a JSON object)")
+    return data
