@@ -54,9 +54,9 @@ from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.summary import VehicleSummary
 from testbed.extras import missing_extra, require_modules
 from testbed.lane_detection import CameraFrame, LaneDetection
+from testbed.lane_tracker import LaneTracker
 from testbed.loop import SensorPorts
 from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.rates import Rates
 from testbed.registry import Capability

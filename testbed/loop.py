@@ -21,9 +21,9 @@ from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_tracker import LaneTracker
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.stack import Localization
-from testbed.perception.tracker import LaneTracker
 from testbed.rates import Rates
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose

@@ -160,15 +160,15 @@ LAYERS: dict[str, int] = {
 """Module prefix -> layer (the longest prefix decides); a module imports only from its own layer or lower ones."""
 
 KNOWN_UPWARD = {
-    ("testbed.loop", "testbed.perception.tracker"): "the tracker is pure logic of the core; its file moves to the "
+    ("testbed.loop", "testbed.lane_tracker"): "the tracker is pure logic of the core; its file moves to the "
                                                      "core with the rooms by concern",
-    ("testbed.assembly", "testbed.perception.tracker"): "as above",
-    ("testbed.control.car_following", "testbed.traffic.idm"): "the IDM is a control law; its file moves to "
+    ("testbed.assembly", "testbed.lane_tracker"): "as above",
+    ("testbed.control.car_following", "testbed.control.idm"): "the IDM is a control law; its file moves to "
                                                                "testbed/control/ with the rooms by concern",
-    ("testbed.perception.closed_loop", "testbed.eval.runner"): "a lab tool that runs scenarios; its file moves "
+    ("testbed.perception.lab.closed_loop", "testbed.eval.runner"): "a lab tool that runs scenarios; its file moves "
                                                                "to the evaluation with the rooms by concern",
-    ("testbed.perception.closed_loop", "testbed.eval.scenario"): "as above",
-    ("testbed.perception.traffic_drive", "testbed.eval.scenario"): "as above",
+    ("testbed.perception.lab.closed_loop", "testbed.eval.scenario"): "as above",
+    ("testbed.perception.lab.traffic_drive", "testbed.eval.scenario"): "as above",
 }
 """Imports that run up the layers today, each waiting for a file move (moves are commits of their own)."""
 

@@ -12,7 +12,7 @@ import textwrap
 SIMULATOR_PACKAGES = ("pybullet", "cv2", "torch", "torchvision", "matplotlib", "gymnasium", "imageio_ffmpeg", "mcap",
                       "pandas", "ray", "onnxruntime", "onnx", "control")
 VEHICLE_PACKAGES = ("tracks", "vehicles", "testbed.defense", "testbed.localization", "testbed.control", "hil")
-VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.perception.tracker",
+VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.lane_tracker",
                    "testbed.perception.onnx_file",
                    "testbed.perception.registry", "testbed.cli")
 SIMULATOR_MODULES = ("tracks.plot", "vehicles.pybullet_vehicle", "hil.campaigns", "hil.fault_drill",

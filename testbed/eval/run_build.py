@@ -21,6 +21,7 @@ from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort, ChassisState
 from testbed.conditions import Condition, get_condition
 from testbed.control.car_following import CarFollowing
+from testbed.control.idm import IdmParams
 from testbed.defense.base import Defense
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
@@ -30,16 +31,15 @@ from testbed.eval.recording import Recording
 from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError, check_needs
 from testbed.eval.video import VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_tracker import LaneTracker
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import SensorPorts
 from testbed.params import Params
 from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
 from testbed.traffic.fleet import Fleet, PlacementError
-from testbed.traffic.idm import IdmParams
 from testbed.traffic.lead import LeadSensor
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
