@@ -50,6 +50,7 @@ from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
 from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
+from testbed.eval.consequence import Consequence
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.summary import VehicleSummary
 from testbed.extras import missing_extra, require_modules
@@ -280,8 +281,9 @@ class VehicleRun:
         straddle = 0.5 * (width - self.params.width)
         worst = float(np.nanmax(np.abs(msf))) if np.isfinite(msf).any() else None
         final = float(msf[-1]) if len(msf) and np.isfinite(msf[-1]) else None
-        consequence = ("chassis_fault" if faults else "out_of_lane" if worst is None or worst > straddle
-                       else "stop_in_lane" if run.stop_t is not None else "reach_destination")
+        consequence = (Consequence.CHASSIS_FAULT if faults else Consequence.OUT_OF_LANE
+                       if worst is None or worst > straddle else Consequence.STOP_IN_LANE if run.stop_t is not None
+                       else Consequence.REACH_DESTINATION)
         return VehicleSummary(**{
             **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()},
                                                  "rates": self.settings.rates.model_dump(),

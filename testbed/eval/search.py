@@ -36,6 +36,7 @@ from testbed.eval.campaign import (
     run_and_write_data,
     run_campaign,
 )
+from testbed.eval.consequence import Consequence
 from testbed.eval.scenario import Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.eval.study_log import check_study_log
@@ -45,10 +46,11 @@ OBJECTIVES = ("loss", "undetected", "overall")
 """`loss` (the default): any lane departure or contact, detected or not, ranked by how far the car got (the
 deviation reached at all, plus `CRASH_BONUS_M` for a loss); `undetected`: the physical deviation reached before
 detection first, then the deviation reached at all; `overall`: the other way round."""
-CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "wrong_way",
-                     "hit_vehicle"})
+CRASHES = frozenset({Consequence.HIT_CURB, Consequence.HIT_BARRIER, Consequence.HIT_LANE_DIVIDER,
+                     Consequence.FALL_OFF_ROAD, Consequence.OUT_OF_LANE, Consequence.WRONG_WAY,
+                     Consequence.HIT_VEHICLE})
 """Consequences that end a drive in a collision or off its lane."""
-LOSSES = CRASHES | {"stop_with_lane_straddle"}
+LOSSES = CRASHES | {Consequence.STOP_WITH_LANE_STRADDLE}
 """Consequences that count as a loss for the defense: a collision, a departure, or a stop across a lane line."""
 CRASH_BONUS_M = 1.0
 """Added to the score of a run that crashed (`undetected`: without a detection first): a crash ends the run,

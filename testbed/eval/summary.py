@@ -12,6 +12,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, field_serializer
 
 from testbed.errors import UserError
+from testbed.eval.consequence import Consequence
 from testbed.traffic.record import HitVehicle
 
 SCHEMA_VERSION = 6
@@ -61,7 +62,7 @@ class RunSummary(BaseModel):
     lane_straddle_dev_m: float | None
     max_abs_dev_m: float | None
     final_dev_m: float | None
-    consequence: str
+    consequence: Consequence
     ended_by: Literal["consequence", "standstill", "road_end", "duration"] | None = None
     """What ended the run: a run-ending consequence, standstill after a stop, the end of the road, or the
     scenario's duration (a `reach_destination` that ran out of time short of the road's end); None: not over."""
