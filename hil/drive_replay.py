@@ -18,8 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
 from testbed.eval.ld3_input import ld3_input_from_message
 from testbed.eval.summary import read_summary_object
@@ -79,9 +78,8 @@ def drive_settings(path: Path) -> dict[str, Any]:
 def replay_drive(path: Path, track: str, defense: str = "ld3",
                  defense_params: Mapping[str, Any] | None = None) -> ReplayResult:
     """Run `defense` over the drive's inputs on the map of `track`."""
-    config = DefenseConfig.from_dict(dict(defense_params or {}))
-    component = DEFENSES.get(defense)
-    model = component.factory(config, BicycleCoefficients())
+    _, params = defense_settings(defense, dict(defense_params or {}))
+    model = DEFENSES.get(defense).factory(params, BicycleCoefficients())
     smap = TrackMap(build_track(track))
     rows: list[dict[str, Any]] = []
     for ld, est in read_inputs(path):

@@ -229,7 +229,7 @@ class SimRun:
         faults = self.parts.chassis.latched_faults()
         consequence = (Consequence.CHASSIS_FAULT if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
-        defense_params = self.parts.defense_config.model_dump()
+        defense_params = self.parts.defense_table
         return RunSummary(**{
             **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
                                                  "detector_params": self.parts.detector_settings.model_dump()
