@@ -22,7 +22,7 @@ from hil.camera_reader import OpenCvSource
 from hil.frame_stream import frame_stream
 from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection
-from testbed.perception.tracker import NOMINAL_LANE_WIDTH, LaneTracker
+from testbed.lane_tracker import NOMINAL_LANE_WIDTH, LaneTracker
 from vehicles.camera_rig import CameraRig
 
 COLUMNS = ("t", "left_found", "right_found", "dev_m", "dev_raw_m", "lane_width_m", "left_existence",

@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any
 
 from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
 from testbed.eval.ld3_input import ld3_input_from_message
+from testbed.eval.summary import read_summary_object
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.presets import build_track
@@ -70,12 +70,7 @@ def drive_settings(path: Path) -> dict[str, Any]:
     summary = path.parent / "summary.json"
     if not summary.is_file():
         return {}
-    try:
-        data = json.loads(summary.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{summary} is not readable JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise UserError(f"{summary} is not a run's summary (not a JSON object)")
+    data = read_summary_object(summary)
     return {"track": data.get("track"), "defense": data.get("defense"),
             "defense_params": data.get("defense_params") or {}}
 
@@ -83,9 +78,8 @@ def drive_settings(path: Path) -> dict[str, Any]:
 def replay_drive(path: Path, track: str, defense: str = "ld3",
                  defense_params: Mapping[str, Any] | None = None) -> ReplayResult:
     """Run `defense` over the drive's inputs on the map of `track`."""
-    config = DefenseConfig.from_dict(dict(defense_params or {}))
-    component = DEFENSES.get(defense)
-    model = component.factory(config, BicycleCoefficients())
+    _, params = defense_settings(defense, dict(defense_params or {}))
+    model = DEFENSES.get(defense).factory(params, BicycleCoefficients())
     smap = TrackMap(build_track(track))
     rows: list[dict[str, Any]] = []
     for ld, est in read_inputs(path):

@@ -29,6 +29,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     import tomllib
 
     from hil.drive_replay import drive_settings, replay_drive, write_replay
+    from testbed.defense.registry import declared_table
     from testbed.eval.run_folder import check_out_dir, output_folder
 
     path = args.drive / "run.mcap" if args.drive.is_dir() else args.drive
@@ -40,13 +41,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
     track = args.track or settings.get("track")
     if track is None:
         raise UserError(f"{path} has no summary.json beside it: give --track")
-    params = dict(settings.get("defense_params") or {})
+    defense = args.defense or settings.get("defense") or "ld3"
+    params = declared_table(defense, settings.get("defense_params") or {})
     for item in args.overrides:
         key, sep, value = item.partition("=")
         if not sep or not key.startswith("defense."):
             raise UserError(f"--set takes defense.KEY=VALUE, got {item!r}")
         params[key.removeprefix("defense.")] = tomllib.loads(f"v = {value}")["v"]
-    defense = args.defense or settings.get("defense") or "ld3"
     result = replay_drive(path, track, defense, params)
     with output_folder(out, force=True, marker=REPLAY_MARKER, what="a replay") as tmp:
         written = write_replay(tmp, result, f"replay of {path} · {track} · {defense}")

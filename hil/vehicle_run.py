@@ -47,16 +47,16 @@ from testbed.assembly import LanePorts, LoopRun, LoopSettings, assemble
 from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
 from testbed.control.config import ControlConfig
 from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings, resolved_table
 from testbed.errors import UserError
+from testbed.eval.consequence import Consequence
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.summary import VehicleSummary
 from testbed.extras import missing_extra, require_modules
 from testbed.lane_detection import CameraFrame, LaneDetection
+from testbed.lane_tracker import LaneTracker
 from testbed.loop import SensorPorts
 from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.rates import Rates
 from testbed.registry import Capability
@@ -107,7 +107,7 @@ class VehicleConfig:
     def settings(self) -> LoopSettings:
         """The loop's settings: the speed, the duration and the `[rates]`, `[control]` and `[defense]` tables."""
         return LoopSettings(self.speed, self.duration, self.rates, self.control,
-                            DefenseConfig.from_dict(self.defense_params))
+                            defense_settings(self.defense, self.defense_params)[0])
 
 
 class ReportedChassis(ChassisPort):
@@ -241,7 +241,7 @@ class VehicleRun:
         config, settings = self.config, self.settings
         start, lane = self._start_pose()
         self.bridge.odometry = KinematicOdometry(start, self.bridge.odometry.geometry)
-        defense = DEFENSES.get(config.defense).factory(settings.defense,
+        defense = DEFENSES.get(config.defense).factory(defense_settings(config.defense, config.defense_params)[1],
                                                        BicycleCoefficients(wheelbase=self.params.wheelbase))
         self.localization = MeasuredLocalization(self.gnss, start, self.bridge.sensor_fault)
         chassis = ReportedChassis(self.bridge, self.params)
@@ -271,6 +271,10 @@ class VehicleRun:
         """What LD3's detection read at this frame: the detection and the tick's localization estimate."""
         self.recording.add_ld3_input(ld, self._loop.last_estimate)
 
+    def _defense_table(self) -> dict[str, Any]:
+        """The `[defense]` table as summary.json records it."""
+        return resolved_table(*defense_settings(self.config.defense, self.config.defense_params))
+
     def _summary(self, run: LoopRun, defense, lane: int, yaw_source: str, wall: float) -> VehicleSummary:
         config, status, rows = self.config, defense.status(), run.rows
         faults = self.bridge.latched_faults()
@@ -280,16 +284,17 @@ class VehicleRun:
         straddle = 0.5 * (width - self.params.width)
         worst = float(np.nanmax(np.abs(msf))) if np.isfinite(msf).any() else None
         final = float(msf[-1]) if len(msf) and np.isfinite(msf[-1]) else None
-        consequence = ("chassis_fault" if faults else "out_of_lane" if worst is None or worst > straddle
-                       else "stop_in_lane" if run.stop_t is not None else "reach_destination")
+        consequence = (Consequence.CHASSIS_FAULT if faults else Consequence.OUT_OF_LANE
+                       if worst is None or worst > straddle else Consequence.STOP_IN_LANE if run.stop_t is not None
+                       else Consequence.REACH_DESTINATION)
         return VehicleSummary(**{
             **provenance(), "resolved_scenario": {"vehicle_run": {k: str(v) for k, v in vars(config).items()},
                                                  "rates": self.settings.rates.model_dump(),
                                                  "control": self.settings.control.model_dump(),
-                                                 "defense_params": self.settings.defense.model_dump()},
+                                                 "defense_params": self._defense_table()},
             "scenario": "vehicle", "seed": None, "track": config.map, "vehicle": config.vehicle, "attack": None,
             "threat_model": "none",
-            "defense": defense.name, "defense_params": self.settings.defense.model_dump(),
+            "defense": defense.name, "defense_params": self._defense_table(),
             "detector": config.detector, "localization": "msf: chassis reports + NMEA GNSS", "condition": "real",
             "sim_time_s": run_time,
             "wall_time_s": wall, "real_time_factor": run_time / wall if wall > 0 else None,

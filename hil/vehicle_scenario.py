@@ -10,8 +10,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from testbed.control.config import ControlConfig
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
 from testbed.rates import Rates
 
@@ -47,11 +46,12 @@ def loop_tables(path: Path) -> dict[str, Any]:
     if isinstance(defense, dict):
         params = dict(defense)
         out["defense"] = params.pop("kind", "ld3")
-        DefenseConfig.from_dict(params)
         out["defense_params"] = params
     elif defense is not None:
         out["defense"] = defense
     name = out.get("defense")
     if name is not None and name not in DEFENSES:
         raise UserError(f"{path}: unknown defense {name!r}; known: {', '.join(DEFENSES.names())}")
+    if name is not None:
+        defense_settings(name, out.get("defense_params", {}))
     return out

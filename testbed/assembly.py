@@ -17,8 +17,8 @@ from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense
 from testbed.defense.config import DefenseConfig
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_tracker import LaneTracker
 from testbed.loop import ControlLoop, DrivingPorts, PerceptionPorts, SensorPorts, TickRecord
-from testbed.perception.tracker import LaneTracker
 from testbed.rates import Rates
 from tracks.map_api import SemanticMap
 from vehicles.params import VehicleParams

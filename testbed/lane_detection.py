@@ -1,5 +1,5 @@
-"""The lane-detection contract (DESIGN.md), shared by perception, the loop and the defenses: ego left and
-right lines as cubics y(x) in the vehicle frame.
+"""The lane-detection contract (docs/architecture.md, "Conventions"), shared by perception, the loop and the
+defenses: ego left and right lines as cubics y(x) in the vehicle frame.
 
 Coefficients are in ascending powers, y = c0 + c1 x + c2 x² + c3 x³, so `|c0|` is the distance from
 the vehicle reference point to that line (paper Fig. 13, Alg. 3). The left line has y > 0.

@@ -1,4 +1,4 @@
-"""The one detection/response/control loop (DESIGN.md), shared by simulation and the CAN bridge.
+"""The one detection/response/control loop (docs/architecture.md), shared by simulation and the CAN bridge.
 
 Per control tick: read the chassis and hand its odometry to the defense, step localization (the attacker
 may spoof GNSS or the MSF output), on camera ticks run the lane detector and feed the defense, take the pose
@@ -21,9 +21,9 @@ from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense, DefenseStatus
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_tracker import LaneTracker
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.stack import Localization
-from testbed.perception.tracker import LaneTracker
 from testbed.rates import Rates
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose
@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(slots=True)
 class TickRecord:
-    """One row of trajectory.csv (DESIGN.md output contract), the attack's state, and in attack response
+    """One row of trajectory.csv (docs/outputs.md), the attack's state, and in attack response
     the fusion's internals (None outside it, or for a defense without them)."""
 
     t: float
@@ -108,7 +108,8 @@ class DrivingPorts:
 
 
 class ControlLoop:
-    """Wires chassis, sensors, perception, defense and driving at the control rate (DESIGN.md tick order)."""
+    """Wires chassis, sensors, perception, defense and driving at the control rate (docs/architecture.md, "One
+    control tick")."""
 
     def __init__(self, chassis: ChassisPort, sensors: SensorPorts, perception: PerceptionPorts, defense: Defense,
                  driving: DrivingPorts, *, attack: Attack | None = None, rates: Rates | None = None) -> None:

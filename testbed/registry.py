@@ -1,4 +1,5 @@
-"""One registry per component family (DESIGN.md), in the style of python-can's interface registry.
+"""One registry per component family (docs/architecture.md, "Registries"), in the style of python-can's
+interface registry.
 
 A registry holds the built-in components of its family and, on first lookup, those that installed
 packages declare under the family's entry-point group (`ld3.defenses`, `ld3.detectors`, `ld3.attacks`,
@@ -52,8 +53,8 @@ class UnknownComponent(UserError):
 @dataclass(frozen=True)
 class Component:
     """A named component: how to build it (a family-specific factory), one line of help, what it needs and
-    provides, its own parameters (`params`, a `Params` model of its scenario table: attacks and detectors),
-    and for defenses, the keys of the shared `[defense]` table it `reads`."""
+    provides, its own parameters (`params`, a `Params` model of its scenario table), and for defenses that share a
+    model, the keys of it they `reads` (empty: all of them)."""
 
     name: str
     factory: Callable[..., Any]
@@ -126,6 +127,10 @@ class Registry(Generic[E]):
     def reload_plugins(self) -> None:
         """Forget the loaded entry points, so that the next lookup reads the installed ones again."""
         self._plugins = None
+
+    def builtins(self) -> list[E]:
+        """The built-in entries, in the order they were added (no entry points)."""
+        return list(self._builtin.values())
 
     def names(self) -> tuple[str, ...]:
         return tuple(self._all())

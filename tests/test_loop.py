@@ -1,4 +1,5 @@
-"""The loop's tick order (DESIGN.md "The loop"), pinned against a kinematic plant on a real track map.
+"""The loop's tick order (docs/architecture.md, "One control tick"), pinned against a kinematic plant on a real
+track map.
 
 Every port is wrapped so that each call appends its name to one shared log; the test reads the log back
 tick by tick.

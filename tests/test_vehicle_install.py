@@ -1,6 +1,7 @@
-"""The vehicle side (DESIGN.md: tracks' geometry and map, localization, the lane-detection contract, defense,
-control, the loop, hil) imports and its commands start with the simulator's packages absent: a subprocess
-whose import system refuses them imports every vehicle-side module and prints `ld3 hil --help`."""
+"""The vehicle side (docs/architecture.md, "Conventions": tracks' geometry and map, localization, the
+lane-detection contract, defense, control, the loop, hil) imports and its commands start with the simulator's
+packages absent: a subprocess whose import system refuses them imports every vehicle-side module and prints
+`ld3 hil --help`."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import textwrap
 SIMULATOR_PACKAGES = ("pybullet", "cv2", "torch", "torchvision", "matplotlib", "gymnasium", "imageio_ffmpeg", "mcap",
                       "pandas", "ray", "onnxruntime", "onnx", "control")
 VEHICLE_PACKAGES = ("tracks", "vehicles", "testbed.defense", "testbed.localization", "testbed.control", "hil")
-VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.perception.tracker",
+VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.lane_tracker",
                    "testbed.perception.onnx_file",
                    "testbed.perception.registry", "testbed.cli")
 SIMULATOR_MODULES = ("tracks.plot", "vehicles.pybullet_vehicle", "hil.campaigns", "hil.fault_drill",

@@ -1,4 +1,4 @@
-"""Procedural painters for road tiles (the `texture.Painter` protocol), applied in order to an RGB image.
+"""Procedural painters for road tiles (the `tracks.tile_frame.Painter` protocol), applied in order to an RGB image.
 
 Large-scale fields (asphalt tone, wear blotches, shadow placement) are functions of global (s, t) seeded
 by the track seed, so they run on seamlessly across tile borders; per-pixel grain comes from the tile rng.
@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tracks.texture import TileFrame
+from tracks.tile_frame import TileFrame
 
 ASPHALT = (86.0, 86.0, 90.0)
 GROUND_COLOURS = {

@@ -24,7 +24,7 @@ from tracks.layout import Boundary, Edge, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter
 from tracks.pose import Pose
 from tracks.profile import Profile
-from tracks.texture import Painter
+from tracks.tile_frame import Painter
 
 SEDAN_WIDTH = 1.90  # m; the vehicle width the presets' lane straddle deviations are quoted for
 

@@ -20,8 +20,8 @@ from hil.camera_calibration import CameraCalibration, Rectifier
 from hil.camera_detect import LaneCentre
 from hil.frame_stream import frame_stream
 from testbed.lane_detection import CameraFrame
+from testbed.lane_tracker import LaneTracker
 from testbed.perception.registry import make_detector
-from testbed.perception.tracker import LaneTracker
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from testbed.traffic.idm import IdmParams, idm_accel
+from testbed.control.idm import IdmParams, idm_accel
 
 
 @dataclass(frozen=True)

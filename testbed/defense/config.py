@@ -11,8 +11,9 @@ LD3's open choices in the attack response: `heading` of the fused pose (Alg. 2 d
 `window`, `r_power` and `p_source` (where Alg. 4's P^MSF and P^LD come from). `PAPER_MODE` is the paper's
 system as written (MSF heading, constant P, a 1-s window); the defaults are what the ablation campaign
 measured to hold best on held-out roads (docs/decisions.md): the fused heading clamped to 0.02 rad and a
-5-detection window. The default also fails closed (`fail_closed`, DESIGN.md): what the paper skips or resets
-(off-map MSF poses, intersections, the response's MSF motion) is checked against odometry instead.
+5-detection window. The default also fails closed (`fail_closed`, docs/decisions.md "Failing closed"): what
+the paper skips or resets (off-map MSF poses, intersections, the response's MSF motion) is checked against
+odometry instead.
 
 NaiveAR's "maximum deceleration" (§5.3) is 4.5 m/s²: the paper models NaiveAR on Baidu Apollo's in-lane
 stop, and Apollo's planner never commands more braking than its longitudinal acceleration lower bound,
@@ -40,11 +41,14 @@ PSource = Literal["constant", "reported"]
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
                               "response_gate", "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
+ALWAYS_READ = frozenset({"existence_threshold"})
+"""`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
 
 
 class DefenseConfig(Params):
-    """LD3 detection (b, tau), safety-driven fusion (window, lam, p_*, kf_*), response decelerations,
-    LD line validity, and the SAVIOR baseline's CUSUM and EKF noise. SI units."""
+    """The parameter model of LD3 and LD3-NaiveAR (each reads its share, `testbed.defense.registry`): detection
+    (b, tau), safety-driven fusion (window, lam, p_*, kf_*), response decelerations, LD line validity (which the
+    loop reads whatever the defense: `ALWAYS_READ`). SI units. SAVIOR's are `testbed.defense.savior.SaviorConfig`."""
 
     b: float = Field(0.2, ge=0.0, description="CUSUM weight on |D_MSF - D_LD| (m); the paper's is 0.6")
     tau: float = Field(2.0, ge=0.0, description="CUSUM alarm threshold (m); the paper's is 0.1")
@@ -65,7 +69,7 @@ class DefenseConfig(Params):
     kf_q: float = Field(0.05, ge=0.0, description="process noise of the 1-D fusion Kalman filter per predict (m²)")
     kf_p0: float = Field(1.0, gt=0.0, description="initial variance of the 1-D fusion Kalman filter at AR onset "
                                                  "(m²); its state starts at d = 0")
-    ar_decel: float = Field(4.0, gt=0.0, description="LD3 (and SAVIOR) attack-response deceleration (m/s²)")
+    ar_decel: float = Field(4.0, gt=0.0, description="LD3's attack-response deceleration (m/s²)")
     max_decel: float = Field(4.5, gt=0.0, description="NaiveAR's maximum deceleration (m/s²): Apollo's planner "
                                                      "lower bound")
     existence_threshold: float = Field(0.5, ge=0.0, le=1.0, description="a detected lane line with existence "
@@ -93,11 +97,6 @@ class DefenseConfig(Params):
                                  "the ego lane turns tighter than this radius within 12 m ahead of the dead-reckoned "
                                  "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
                                  "metres off); the MSF is then checked by odometry")
-    savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
-    savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
-    savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
-    savior_accel_std: float = Field(0.5, gt=0.0, description="SAVIOR EKF: longitudinal process noise (m/s²)")
-    savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:

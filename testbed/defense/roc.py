@@ -24,8 +24,7 @@ import numpy as np
 
 from testbed.defense.attack_detection import Cusum
 from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import DefenseConfig
-from testbed.defense.savior import SaviorDefense
+from testbed.defense.savior import SaviorConfig, SaviorDefense
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.pose import Pose
 
@@ -138,11 +137,11 @@ def replay_savior(
     log: dict[str, np.ndarray],
     coefficients: BicycleCoefficients,
     attack_start: float | None,
-    config: DefenseConfig | None = None,
+    config: SaviorConfig | None = None,
 ) -> ResidualSeries:
     """SAVIOR's GNSS residual series, re-running its EKF on a DetectionLog's inputs in the loop's order
     within a tick (GNSS fix, then the lane detection that may start the EKF, then the command)."""
-    defense = SaviorDefense(config or DefenseConfig(), coefficients)
+    defense = SaviorDefense(config or SaviorConfig(), coefficients)
     cusum = _LoggingCusum()
     defense.cusum = cusum
     times: list[float] = []

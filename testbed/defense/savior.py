@@ -18,14 +18,15 @@ import math
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
+from pydantic import Field
 
 from testbed.defense.attack_detection import Cusum
 from testbed.defense.base import DefenseStatus, LatchingDefense
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel, fit_bicycle_coefficients
-from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
+from testbed.params import Params
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
 
@@ -38,13 +39,25 @@ _H_SPEED = np.array([[0.0, 0.0, 0.0, 1.0]])
 _INITIAL_SPEED_VAR = 1.0
 
 
+class SaviorConfig(Params):
+    """SAVIOR's `[defense]` parameters: its CUSUM on the GNSS residual, its EKF's noise, the response's
+    deceleration. SI units."""
+
+    ar_decel: float = Field(4.0, gt=0.0, description="SAVIOR's attack-response deceleration: its in-lane stop (m/s²)")
+    savior_b: float = Field(1.0, ge=0.0, description="SAVIOR CUSUM weight on the GNSS residual (m)")
+    savior_tau: float = Field(3.0, ge=0.0, description="SAVIOR CUSUM threshold (m)")
+    savior_speed_std: float = Field(0.1, gt=0.0, description="SAVIOR EKF: wheel-speed measurement noise (m/s)")
+    savior_accel_std: float = Field(0.5, gt=0.0, description="SAVIOR EKF: longitudinal process noise (m/s²)")
+    savior_yaw_rate_std: float = Field(0.05, gt=0.0, description="SAVIOR EKF: yaw-rate process noise (rad/s)")
+
+
 class SaviorDefense(LatchingDefense):
     """Bicycle-model EKF + CUSUM on GNSS residuals."""
 
     name = "savior"
     fit_bicycle_coefficients = staticmethod(fit_bicycle_coefficients)
 
-    def __init__(self, config: DefenseConfig, coefficients: BicycleCoefficients | None = None) -> None:
+    def __init__(self, config: SaviorConfig, coefficients: BicycleCoefficients | None = None) -> None:
         self.config = config
         self.model = BicycleModel(coefficients or BicycleCoefficients())
         self.cusum = Cusum(config.savior_b, config.savior_tau)

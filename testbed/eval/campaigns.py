@@ -289,12 +289,12 @@ BENIGN_TRAFFIC_DURATION_S = 15.0
 def benign_traffic_runs(detector: str) -> list[CampaignRun]:
     """Benign default LD3 on the MSF in every benign preset and the two-way road × condition × seed with
     `BENIGN_TRAFFIC_CARS` cars
-    (`testbed.perception.traffic_drive`: every car at the ego's speed, started at rest with the ego, a lead car
+    (`testbed.perception.lab.traffic_drive`: every car at the ego's speed, started at rest with the ego, a lead car
     close ahead in the ego lane),
     for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`; a neural detector reads the traffic weights, as in
     any run with traffic."""
     from testbed.conditions import CONDITIONS
-    from testbed.perception.traffic_drive import traffic_drive
+    from testbed.perception.lab.traffic_drive import traffic_drive
     from tracks.presets import load_track
 
     runs = []

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import declared_table
 from testbed.errors import UserError
 from testbed.eval.run_figures import (
     BELIEVED,
@@ -22,7 +22,7 @@ from testbed.eval.run_figures import (
     save_run_figures,
 )
 from testbed.eval.runner import SimRun
-from testbed.eval.scenario import ALWAYS_READ, Scenario
+from testbed.eval.scenario import Scenario
 
 
 def run_folders(root: Path) -> list[Path]:
@@ -45,8 +45,7 @@ def draw_later(run_dir: Path) -> bool:
     try:
         summary = json.loads((run_dir / "summary.json").read_text())
         resolved = dict(summary["resolved_scenario"])
-        reads = DEFENSES.get(resolved["defense"]).reads | ALWAYS_READ
-        resolved["defense_params"] = {k: v for k, v in resolved["defense_params"].items() if k in reads}
+        resolved["defense_params"] = declared_table(resolved["defense"], resolved["defense_params"])
         sc = Scenario.model_validate(resolved)
     except (ValueError, TypeError, KeyError, AttributeError) as exc:
         why = " ".join(str(exc).split())[:200]

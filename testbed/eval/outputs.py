@@ -1,4 +1,4 @@
-"""trajectory.csv (DESIGN.md output contract): its writer and the reader of its numeric columns that reports and
+"""trajectory.csv (docs/outputs.md): its writer and the reader of its numeric columns that reports and
 campaign tables use; the provenance every summary.json starts with (`testbed.eval.summary` writes it)."""
 
 from __future__ import annotations

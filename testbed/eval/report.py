@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 
 from testbed.errors import UserError
 from testbed.eval.outputs import read_trajectory
+from testbed.eval.summary import read_summary_object
 
 
 @dataclass(frozen=True)
@@ -95,12 +96,7 @@ REPORT_TEXTS = ("defense", "consequence")
 def read_summary(path: Path) -> dict:
     """A run's summary.json with the fields a report reads checked (numbers finite or null, names text); a file
     that is not one is a UserError naming it and the field."""
-    try:
-        summary = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"{path} is not readable JSON: {exc}") from None
-    if not isinstance(summary, dict):
-        raise UserError(f"{path} is not a run's summary (a JSON object)")
+    summary = read_summary_object(path)
     for key in REPORT_NUMBERS:
         value = summary.get(key)
         if key not in summary or not (value is None or (isinstance(value, int | float) and not isinstance(value, bool)

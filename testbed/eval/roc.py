@@ -20,6 +20,7 @@ from testbed.defense.bicycle import LOG_COLUMNS, BicycleCoefficients, fit_bicycl
 from testbed.defense.config import DefenseConfig
 from testbed.defense.recorder import DetectionRecorder, load_detection_log
 from testbed.defense.roc import ResidualSeries, RocPoint, ld3_series, replay_savior, roc_auc, roc_frontier, roc_sweep
+from testbed.defense.savior import SaviorConfig
 from testbed.eval.campaign import CampaignRun
 from testbed.eval.consequence import attack_succeeded
 from testbed.eval.outputs import read_trajectory
@@ -33,10 +34,11 @@ FIT_SEEDS = (100, 101)
 LOG_NAME = "detection_log.npz"
 
 _DEFAULTS = DefenseConfig()
+_SAVIOR_DEFAULTS = SaviorConfig()
 LD3_BS = np.round(np.arange(0.0, 1.51, 0.05), 3)
 LD3_TAUS = np.union1d(np.concatenate([[0.0], np.geomspace(0.01, 50.0, 60)]), [_DEFAULTS.tau])
 SAVIOR_BS = np.round(np.arange(0.0, 6.01, 0.25), 3)
-SAVIOR_TAUS = np.union1d(np.concatenate([[0.0], np.geomspace(0.05, 500.0, 60)]), [_DEFAULTS.savior_tau])
+SAVIOR_TAUS = np.union1d(np.concatenate([[0.0], np.geomspace(0.05, 500.0, 60)]), [_SAVIOR_DEFAULTS.savior_tau])
 
 
 def roc_runs(detector: str) -> list[CampaignRun]:
@@ -133,7 +135,7 @@ def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
         return (f"SAVIOR bicycle model fitted on {len(fit_runs)} benign drives: {coefficients}. No benign or "
                 "attacked drive finished, so there is no ROC to sweep yet.")
     grids = {"ld3": (LD3_BS, LD3_TAUS, _DEFAULTS.b, _DEFAULTS.tau),
-             "savior": (SAVIOR_BS, SAVIOR_TAUS, _DEFAULTS.savior_b, _DEFAULTS.savior_tau)}
+             "savior": (SAVIOR_BS, SAVIOR_TAUS, _SAVIOR_DEFAULTS.savior_b, _SAVIOR_DEFAULTS.savior_tau)}
     failed = sum(r.tags["role"] == "attacked" and not attack_succeeded(r.tags["track"], s["max_abs_dev_m"],
                                                                        s["consequence"]) for r, s in done)
     lines = [f"SAVIOR bicycle model fitted on {len(fit_runs)} benign drives: {coefficients}.",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -21,25 +22,25 @@ from testbed.camera import FrontCamera
 from testbed.chassis import ChassisPort, ChassisState
 from testbed.conditions import Condition, get_condition
 from testbed.control.car_following import CarFollowing
+from testbed.control.idm import IdmParams
 from testbed.defense.base import Defense
 from testbed.defense.bicycle import BicycleCoefficients
 from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings, resolved_table
 from testbed.direct_chassis import DirectChassis
 from testbed.eval.recording import Recording
 from testbed.eval.scenario import END_MARGIN_M, Scenario, ScenarioError, check_needs
 from testbed.eval.video import VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.lane_tracker import LaneTracker
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import SensorPorts
 from testbed.params import Params
 from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.tracker import LaneTracker
 from testbed.presets import build_track, vehicle
 from testbed.registry import Capability
 from testbed.traffic.fleet import Fleet, PlacementError
-from testbed.traffic.idm import IdmParams
 from testbed.traffic.lead import LeadSensor
 from testbed.world import PhysicsWorld, TileStreamer
 from tracks.pose import Pose
@@ -84,6 +85,9 @@ class RunParts:
     params: VehicleParams
     condition: Condition
     defense_config: DefenseConfig
+    """The loop's view of the `[defense]` table (`testbed.defense.registry.defense_settings`)."""
+    defense_table: dict[str, Any]
+    """The `[defense]` table as summary.json records it (`testbed.defense.registry.resolved_table`)."""
     smap: TrackMap
     lane: int
     start: Pose
@@ -151,7 +155,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     track = build_track(sc.track)
     params = vehicle(sc.vehicle)
     condition = get_condition(sc.condition)
-    defense_config = DefenseConfig.from_dict(sc.defense_params)
+    defense_config, defense_params = defense_settings(sc.defense, sc.defense_params)
     provided = check_needs(sc)
     if sc.speed > params.max_speed:
         raise ScenarioError(f"speed {sc.speed} m/s is beyond what {sc.vehicle} can reach ({params.max_speed} m/s)")
@@ -193,7 +197,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                             f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
     defense = o.defense if o.defense is not None else DEFENSES.get(sc.defense).factory(
-        defense_config, BicycleCoefficients(wheelbase=params.wheelbase, lever=-params.rear_axle_x))
+        defense_params, BicycleCoefficients(wheelbase=params.wheelbase, lever=-params.rear_axle_x))
     capture = None
     if camera is not None:
         def capture(t: float, pose: Pose):
@@ -212,7 +216,8 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         attack.know(WhiteBox(smap, lane, defense_config, rates.camera_hz, rates.control_hz, lidar_quality,
                              controller=run.loop.driving.lateral))
     detector_name = sc.detector if o.detector is None else getattr(o.detector, "name", type(o.detector).__name__)
-    return RunParts(sc, track, params, condition, defense_config, smap, lane, start, world, chassis, attack, rig,
+    return RunParts(sc, track, params, condition, defense_config, resolved_table(defense_config, defense_params),
+                    smap, lane, start, world, chassis, attack, rig,
                     streamer, camera, VideoWriter(rig, fps=rates.camera_hz) if o.video else None,
                     Recording(rig) if o.record else None, localization, detector, detector_name, settings, tracker,
                     defense, run, smap.lane_width(start, lane), traffic)

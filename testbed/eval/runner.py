@@ -1,5 +1,5 @@
 """Runs one scenario in simulation end to end (`SimRun` steps what `run_build` builds) and writes the output
-contract (DESIGN.md)."""
+contract (docs/outputs.md)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from testbed.attacks.compose import threat_model_of
 from testbed.attacks.threat import threat_label
 from testbed.chassis import ChassisPort
 from testbed.defense.base import Defense
-from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
+from testbed.eval.consequence import Consequence, ConsequenceMonitor, footprint_corners
 from testbed.eval.outputs import provenance, write_trajectory
 from testbed.eval.recording import ego_lane_lines
 from testbed.eval.run_build import RunOptions, build_run
@@ -227,9 +227,9 @@ class SimRun:
         during = phys[t >= det_t] if det_t is not None else np.array([])
         sim_time = float(t[-1] + self.loop.dt) if len(t) else 0.0
         faults = self.parts.chassis.latched_faults()
-        consequence = ("chassis_fault" if faults else
+        consequence = (Consequence.CHASSIS_FAULT if faults else
                        self.monitor.final(stopped_by_response=stop_t is not None, final_dev=final_dev))
-        defense_params = self.parts.defense_config.model_dump()
+        defense_params = self.parts.defense_table
         return RunSummary(**{
             **provenance(), "resolved_scenario": {**sc.model_dump(), "defense_params": defense_params,
                                                  "detector_params": self.parts.detector_settings.model_dump()

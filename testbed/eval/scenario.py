@@ -16,8 +16,7 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 from testbed.attacks.registry import ATTACKS
 from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
 from testbed.control.config import ControlConfig
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import error_key, error_problem
@@ -32,9 +31,6 @@ from tracks.presets import parse_track_spec
 class ScenarioError(UserError):
     """A scenario that cannot be loaded or run; the message is one line for the user."""
 
-
-ALWAYS_READ = frozenset({"existence_threshold"})
-"""`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
 
 END_MARGIN_M = 30.0
 """A run ends this far before the end of its road."""
@@ -87,12 +83,7 @@ class Scenario(BaseModel):
         for registry, name in ((TRACKS, track), (VEHICLES, self.vehicle), (LOCALIZATIONS, self.localization),
                                (DETECTORS, self.detector), (DEFENSES, self.defense)):
             _check(name in registry, f"unknown {registry.family} {name!r}; known: {', '.join(registry.names())}")
-        defense = DEFENSES.get(self.defense)
-        unread = sorted(set(self.defense_params) - defense.reads - ALWAYS_READ)
-        _check(not unread, f"[defense] {', '.join(unread)}: not read by defense {self.defense!r}, so it would "
-                           f"change nothing; remove it" + (f" (it reads {', '.join(sorted(defense.reads))})"
-                                                           if defense.reads else " (it reads no [defense] keys)"))
-        DefenseConfig.from_dict(self.defense_params)
+        defense_settings(self.defense, self.defense_params)
         DETECTORS.get(self.detector).settings(self.detector_params, f"detector {self.detector}")
         for table in attack_tables(self.attack):
             component, settings = attack_settings(table)

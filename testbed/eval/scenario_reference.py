@@ -7,9 +7,9 @@ from typing import Any
 
 from testbed.attacks.registry import ATTACKS
 from testbed.control.config import ControlConfig
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
-from testbed.eval.scenario import ALWAYS_READ, Scenario
+from testbed.defense.config import ALWAYS_READ, DefenseConfig
+from testbed.defense.registry import DEFENSES, defense_keys
+from testbed.eval.scenario import Scenario
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import reference_rows
 from testbed.perception.registry import DETECTORS
@@ -56,10 +56,15 @@ def reference_markdown() -> str:
     out += ["", "`[traffic]` (same-direction cars; a table that places none, or names a lane the track lacks, is "
                 "refused):", "", *_table(reference_rows(TrafficConfig))]
     out += ["", "`[control]`:", "", *_table(reference_rows(ControlConfig))]
-    readers = [", ".join(f"`{d.name}`" for d in DEFENSES if key in d.reads or key in ALWAYS_READ) or "–"
+    readers = [", ".join(f"`{d.name}`" for d in DEFENSES
+                         if (d.params is DefenseConfig and key in defense_keys(d)) or key in ALWAYS_READ) or "–"
                for key in DefenseConfig.model_fields]
     out += ["", "`[defense]` (a key no chosen defense reads is refused):", ""]
     out += _table(reference_rows(DefenseConfig), readers)
+    for c in DEFENSES:
+        rows = reference_rows(c.params) if c.params is not DefenseConfig else []
+        if rows:
+            out += ["", f"`[defense]` with kind = `{c.name}`:", "", *_table(rows)]
     for title, registry in (("detector", DETECTORS), ("attack", ATTACKS)):
         for c in registry:
             rows = reference_rows(c.params)
@@ -92,7 +97,12 @@ def json_schema() -> dict[str, Any]:
     defs["TrafficConfig"]["properties"]["vehicle"].update(names["vehicle"])
     defense_table = DefenseConfig.model_json_schema()
     defense_table["properties"] = {"kind": names["defense"], **defense_table["properties"]}
-    props["defense"]["anyOf"] = [names["defense"], defense_table]
+    loop_keys = {k: v for k, v in defense_table["properties"].items() if k in ALWAYS_READ}
+    own_tables = [_with_kind(c.name, c.params.model_json_schema(), defs) for c in DEFENSES
+                  if c.params is not DefenseConfig and c.params.model_fields]
+    for table in own_tables:
+        table["properties"].update(loop_keys)
+    props["defense"]["anyOf"] = [names["defense"], defense_table, *own_tables]
     props["detector"]["anyOf"] = [names["detector"]] + [
         _with_kind(c.name, c.params.model_json_schema(), defs) for c in DETECTORS]
     tables = [_with_kind(c.name, c.params.model_json_schema(), defs) for c in ATTACKS]

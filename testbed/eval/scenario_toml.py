@@ -8,14 +8,13 @@ from typing import Any
 import tomli_w
 
 from testbed.attacks.spec import attack_tables, attack_value
-from testbed.defense.config import DefenseConfig
-from testbed.defense.registry import DEFENSES
+from testbed.defense.registry import explicit_table
 from testbed.eval.scenario import Scenario
 
 
 def scenario_document(sc: Scenario) -> dict[str, Any]:
     """The scenario as a TOML document: every set field, components as tables with `kind`, and the defense's
-    parameters written out in full (`DefenseConfig.explicit`)."""
+    parameters written out in full (`testbed.defense.registry.explicit_table`)."""
     doc: dict[str, Any] = {"name": sc.name, "track": sc.track, "vehicle": sc.vehicle, "speed": float(sc.speed),
                            "duration": float(sc.duration), "condition": sc.condition, "seed": sc.seed,
                            "start_s": float(sc.start_s), "localization": sc.localization}
@@ -30,8 +29,7 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
     if sc.control.explicit():
         doc["control"] = sc.control.explicit()
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
-    reads = DEFENSES.get(sc.defense).reads
-    doc["defense"] = {"kind": sc.defense, **DefenseConfig.from_dict(sc.defense_params).explicit(reads)}
+    doc["defense"] = {"kind": sc.defense, **explicit_table(sc.defense, sc.defense_params)}
     if sc.attack:
         doc["attack"] = attack_value([dict(t) for t in attack_tables(sc.attack)])
     return doc

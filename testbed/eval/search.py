@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from testbed.eval.campaign import (
     run_and_write_data,
     run_campaign,
 )
+from testbed.eval.consequence import Consequence
 from testbed.eval.scenario import END_MARGIN_M, Scenario, check_needs
 from testbed.eval.scenario_toml import scenario_document, write_scenario
 from testbed.eval.study_log import check_study_log
@@ -45,10 +47,11 @@ OBJECTIVES = ("loss", "undetected", "overall")
 """`loss` (the default): any lane departure or contact, detected or not, ranked by how far the car got (the
 deviation reached at all, plus `CRASH_BONUS_M` for a loss); `undetected`: the physical deviation reached before
 detection first, then the deviation reached at all; `overall`: the other way round."""
-CRASHES = frozenset({"hit_curb", "hit_barrier", "hit_lane_divider", "fall_off_road", "out_of_lane", "wrong_way",
-                     "hit_vehicle"})
+CRASHES = frozenset({Consequence.HIT_CURB, Consequence.HIT_BARRIER, Consequence.HIT_LANE_DIVIDER,
+                     Consequence.FALL_OFF_ROAD, Consequence.OUT_OF_LANE, Consequence.WRONG_WAY,
+                     Consequence.HIT_VEHICLE})
 """Consequences that end a drive in a collision or off its lane."""
-LOSSES = CRASHES | {"stop_with_lane_straddle"}
+LOSSES = CRASHES | {Consequence.STOP_WITH_LANE_STRADDLE}
 """Consequences that count as a loss for the defense: a collision, a departure, or a stop across a lane line."""
 CRASH_BONUS_M = 1.0
 """Added to the score of a run that crashed (`undetected`: without a detection first): a crash ends the run,
@@ -118,6 +121,8 @@ class TrialOutcome:
     consequence: str
     straddle_m: float | None
     score: float | None
+    failure: str = ""
+    """Why a trial counts as `run_failed` (its run's failure, or what is wrong with its summary.json); else empty."""
 
     @property
     def undetected_departure(self) -> bool:
@@ -202,10 +207,12 @@ def score(summary: dict[str, Any], objective: str) -> tuple[float, float, float]
     return first + SECONDARY_WEIGHT * second + (CRASH_BONUS_M if lost else 0.0), dev_before, dev_all
 
 
-def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | None, objective: str) -> TrialOutcome:
-    """A trial's outcome from its run's summary (None: the run failed)."""
+def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | None, objective: str,
+               failure: str = "") -> TrialOutcome:
+    """A trial's outcome from its run's summary (None: the run failed, for the reason `failure`)."""
     if summary is None:
-        return TrialOutcome(number, attack["kind"], attack, None, None, None, None, FAILED, None, None)
+        return TrialOutcome(number, attack["kind"], attack, None, None, None, None, FAILED, None, None,
+                            failure or "the run failed")
     value, dev_before, dev_all = score(summary, objective)
     return TrialOutcome(number, attack["kind"], attack, bool(summary["detected"]), summary.get("detection_time_s"),
                         dev_before, dev_all, str(summary["consequence"]), summary.get("lane_straddle_dev_m"), value)
@@ -310,9 +317,15 @@ class AttackSearch:
         for t in study.get_trials(deepcopy=False):
             if t.state in (TrialState.COMPLETE, TrialState.FAIL):
                 summary = load_summary(self.out / TRIALS_DIR / trial_id(t.number))
+                failure = ""
+                if isinstance(summary, str):
+                    failure = f"{TRIALS_DIR}/{trial_id(t.number)}: {summary}"
+                    if t.state == TrialState.COMPLETE:
+                        print(f"{self.out.name}: trial {t.number} was told but {failure}; it counts as {FAILED}",
+                              file=sys.stderr)
                 self.outcomes[t.number] = outcome_of(t.number, t.user_attrs["attack"],
                                                      summary if isinstance(summary, dict) else None,
-                                                     self.spec.objective)
+                                                     self.spec.objective, failure)
 
     def _run_batch(self, study: optuna.Study, asked: list[tuple[int, dict[str, Any]]]) -> list[TrialOutcome]:
         runs = [CampaignRun(trial_id(n), self._scenario(n, attack), {"trial": n, "family": attack["kind"]})
@@ -320,9 +333,11 @@ class AttackSearch:
         done = {run.run_id: summary for run, summary in
                 run_campaign(runs, self.out / TRIALS_DIR, workers=self.workers, progress=False, execute=self.execute,
                              timeout=self.timeout, backend=self.backend, address=self.address)}
+        failures = failure_headers(self.out / TRIALS_DIR / "failures.txt")
         finished = []
         for n, attack in asked:
-            outcome = outcome_of(n, attack, done.get(trial_id(n)), self.spec.objective)
+            outcome = outcome_of(n, attack, done.get(trial_id(n)), self.spec.objective,
+                                 failures.get(trial_id(n), ""))
             if outcome.score is None:
                 study.tell(n, state=TrialState.FAIL)
             else:
@@ -344,11 +359,12 @@ class AttackSearch:
         with path.open("w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(["trial", "family", "attack", "detected", "detection_time_s", "dev_before_detection_m",
-                             "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score"])
+                             "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score", "failure"])
             for o in self.sorted_outcomes():
                 writer.writerow([o.number, o.family, attack_spec(o.attack), csv_cell(o.detected),
                                  csv_cell(o.detection_time_s), csv_cell(o.dev_before_m), csv_cell(o.max_dev_m),
-                                 o.consequence, csv_cell(o.undetected_departure), csv_cell(o.loss), csv_cell(o.score)])
+                                 o.consequence, csv_cell(o.undetected_departure), csv_cell(o.loss), csv_cell(o.score),
+                                 o.failure])
         return path
 
     def write_best(self) -> Path | None:
@@ -361,6 +377,14 @@ class AttackSearch:
         write_scenario(path, sc, f"Worst attack found by ld3 search (trial {best.number}): "
                                  f"{attack_spec(best.attack)}\nReplay: ld3 run {path}")
         return path
+
+
+def failure_headers(path: Path) -> dict[str, str]:
+    """Run id → its failure's first line (`ErrorType: message`) from a campaign's `failures.txt`, if any."""
+    if not path.exists():
+        return {}
+    lines = path.read_text(errors="replace").splitlines()
+    return dict(line.split(": ", 1) for line in lines if line and not line[0].isspace() and ": " in line)
 
 
 def csv_cell(value: Any) -> str:

@@ -1,4 +1,4 @@
-"""summary.json as typed models (DESIGN.md output contract): `RunSummary` for a simulated run, `HilSummary`
+"""summary.json as typed models (docs/outputs.md): `RunSummary` for a simulated run, `HilSummary`
 for one over CAN, `VehicleSummary` for a drive on a real vehicle. A summary is built once, checked on
 construction (no unknown or missing key), and written by `write`; non-finite numbers are written as null."""
 
@@ -11,6 +11,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, field_serializer
 
+from testbed.errors import UserError
+from testbed.eval.consequence import Consequence
 from testbed.traffic.record import HitVehicle
 
 SCHEMA_VERSION = 6
@@ -60,7 +62,7 @@ class RunSummary(BaseModel):
     lane_straddle_dev_m: float | None
     max_abs_dev_m: float | None
     final_dev_m: float | None
-    consequence: str
+    consequence: Consequence
     ended_by: Literal["consequence", "standstill", "road_end", "duration"] | None = None
     """What ended the run: a run-ending consequence, standstill after a stop, the end of the road, or the
     scenario's duration (a `reach_destination` that ran out of time short of the road's end); None: not over."""
@@ -150,3 +152,17 @@ def _json_safe(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [_json_safe(v) for v in value]
     return value
+
+
+def read_summary_object(path: Path) -> dict[str, Any]:
+    """The JSON object a run's summary.json holds, its fields unchecked; a file that cannot be read, is not JSON
+    or holds no JSON object is a one-line UserError naming it."""
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path} is not readable JSON: {exc}") from None
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path} is not a run's summary (not a JSON object)")
+    return data

@@ -78,8 +78,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                    help="export only the network (preprocessed input in, column and existence logits out)")
     p.set_defaults(func=_export_onnx)
 
+    from testbed.perception.lab.traffic_drive import LEAD_GAP_M
     from testbed.perception.registry import DETECTORS
-    from testbed.perception.traffic_drive import LEAD_GAP_M
 
     p = sub.add_parser("closed-loop", help="drive held-out tracks of every preset in every condition and table "
                                            "|D_LD - phys_dev| with and without lane tracking")
@@ -226,7 +226,7 @@ def _closed_loop(args: argparse.Namespace) -> int:
     from testbed.conditions import CONDITIONS
     from testbed.errors import UserError
     from testbed.eval.run_folder import check_out_dir, output_folder
-    from testbed.perception.closed_loop import markdown_table, run_closed_loop, write_report
+    from testbed.perception.lab.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 
     if args.detector == "none":

@@ -41,7 +41,7 @@ from tracks.layout import Boundary, MarkingRun
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
-from tracks.texture import TileFrame
+from tracks.tile_frame import TileFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

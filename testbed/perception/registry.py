@@ -28,7 +28,7 @@ class CameraDetectorParams(Params):
     """Parameters of every detector that reads the camera: whether the loop tracks its lines."""
 
     tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
-                                             "(testbed.perception.tracker), between the detector and LD3")
+                                             "(testbed.lane_tracker), between the detector and LD3")
 
 
 class NeuralParams(CameraDetectorParams):

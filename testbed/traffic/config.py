@@ -8,9 +8,9 @@ from typing import Any
 
 from pydantic import BaseModel, Field, model_validator
 
+from testbed.control.idm import IdmParams
 from testbed.presets import VEHICLES
 from testbed.rates import STRICT
-from testbed.traffic.idm import IdmParams
 
 
 class TrafficConfig(BaseModel):

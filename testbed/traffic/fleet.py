@@ -15,8 +15,8 @@ from itertools import pairwise
 
 import numpy as np
 
+from testbed.control.idm import IdmParams, idm_accel, integrate
 from testbed.traffic.config import TrafficConfig
-from testbed.traffic.idm import IdmParams, idm_accel, integrate
 from tracks.pose import Pose
 from tracks.road import Track
 

@@ -196,6 +196,10 @@ RUN_FOLDERS = [
          {"bad/summary.json": SUMMARY_OK, "bad/trajectory.csv": ""}),
     Case("compare-trajectory-text", ("compare", "{ws}/bad", "--out", "{ws}/cmp"), "trajectory.csv",
          {"bad/summary.json": SUMMARY_OK, "bad/trajectory.csv": "t,phys_dev\nabc,def\n"}),
+    Case("replay-summary-list", ("replay", "{ws}/d/run.mcap", "--out", "{ws}/r"), "summary.json",
+         {"d/summary.json": "[]", "d/run.mcap": b"x"}),
+    Case("replay-summary-garbage", ("replay", "{ws}/d/run.mcap", "--out", "{ws}/r"), "summary.json",
+         {"d/summary.json": b"\xff\xfe{", "d/run.mcap": b"x"}),
 ]
 
 GNSS = [

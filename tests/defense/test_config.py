@@ -52,9 +52,10 @@ def test_from_dict_rejects_bad_tables(table, message):
 
 def test_factory_names_and_unknown_name():
     for name in ("ld3", "ld3-naive-ar", "savior", "none"):
-        assert make_defense(name, DefenseConfig()).name == name
+        assert make_defense(name).name == name  # each with its own model's defaults
+    assert make_defense("ld3", DefenseConfig(b=0.5)).config.b == 0.5
     with pytest.raises(ValueError, match=r"unknown defense 'ld4'.*ld3, ld3-naive-ar, savior, none"):
-        make_defense("ld4", DefenseConfig())
+        make_defense("ld4")
 
 
 def test_heading_clamp_is_accepted_where_it_acts():

@@ -7,7 +7,6 @@ import pytest
 
 from testbed.defense.attack_detection import cusum_alarm_index
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel
-from testbed.defense.config import DefenseConfig
 from testbed.defense.recorder import DetectionRecorder, load_detection_log
 from testbed.defense.roc import (
     ResidualSeries,
@@ -20,7 +19,7 @@ from testbed.defense.roc import (
     roc_frontier,
     roc_sweep,
 )
-from testbed.defense.savior import SaviorDefense
+from testbed.defense.savior import SaviorConfig, SaviorDefense
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tests.defense.fake_map import FakeStraightMap
@@ -122,7 +121,7 @@ def drive(rng, duration_s=12.0, dt=0.01, spoof_from=None):
 
 def test_savior_replay_reproduces_the_live_residuals():
     coeffs = BicycleCoefficients(wheelbase=2.8, rear_ratio=0.45, steer_gain=0.8)
-    config = DefenseConfig(savior_tau=1e9)
+    config = SaviorConfig(savior_tau=1e9)
     live = SaviorDefense(config, coeffs)
     rec = DetectionRecorder()
     smap = FakeStraightMap(lanes=1, width=1e6)

@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from testbed.defense.bicycle import BicycleCoefficients, BicycleModel
-from testbed.defense.config import DefenseConfig
-from testbed.defense.savior import SaviorDefense
+from testbed.defense.savior import SaviorConfig, SaviorDefense
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tests.defense.fake_map import FakeStraightMap
@@ -52,7 +51,7 @@ def test_fit_rejects_logs_shorter_than_the_horizon():
 def run_savior(spoof_from_s: float | None, duration_s: float = 20.0):
     rng = np.random.default_rng(3)
     log = drive(duration_s, rng)
-    d = SaviorDefense(DefenseConfig(savior_b=1.0, savior_tau=3.0), TRUE)
+    d = SaviorDefense(SaviorConfig(savior_b=1.0, savior_tau=3.0), TRUE)
     smap = FakeStraightMap(lanes=1, width=1e6)
     cov = np.eye(2) * 0.3**2
     for k, (t, x, y, yaw, v, steer, accel) in enumerate(log):
@@ -88,7 +87,7 @@ def test_spoofed_gnss_is_detected_and_response_uses_the_ekf_pose():
 
 
 def test_bad_inputs_are_skipped():
-    d = SaviorDefense(DefenseConfig())
+    d = SaviorDefense(SaviorConfig())
     d.on_gnss(0.0, np.array([0.0, 0.0]), np.eye(2))  # before init: ignored
     d.on_lane_detection(
         LaneDetection.empty(0.0), LocalizationEstimate(0.0, Pose(0, 0, 0), np.eye(3)), FakeStraightMap()

@@ -3,7 +3,7 @@ import numpy as np
 from testbed.conditions import CONDITIONS
 from testbed.eval.campaigns import BENIGN_TRAFFIC_PRESETS, CAMPAIGNS, benign_traffic_table, selected_runs
 from testbed.eval.outputs import TRAJECTORY_COLUMNS
-from testbed.perception.traffic_drive import LEAD_GAP_M
+from testbed.perception.lab.traffic_drive import LEAD_GAP_M
 from testbed.traffic.fleet import Fleet
 from tracks.presets import load_track
 from vehicles.params import get_vehicle

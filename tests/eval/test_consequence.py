@@ -1,4 +1,4 @@
-"""Consequence classification follows DESIGN.md's precedence."""
+"""Consequence classification follows the precedence in docs/outputs.md (summary.json, `consequence`)."""
 
 import math
 

@@ -16,7 +16,7 @@ from testbed.errors import UserError
 from testbed.eval.scenario import load_scenario
 from testbed.eval.search import CRASH_BONUS_M, AttackSearch, SearchSpec, families_for, is_loss, outcome_of, score
 from testbed.eval.search_report import write_search_report
-from tests.eval.search_helpers import toy_executor, toy_search
+from tests.eval.search_helpers import toy_executor, toy_search, toy_spec
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -90,6 +90,27 @@ def test_a_larger_budget_continues_and_another_search_is_refused(tmp_path):
     (tmp_path / "other" / "x.txt").write_text("mine")
     with pytest.raises(UserError, match="not empty"):
         toy_search(tmp_path / "other", budget=4)
+
+
+def test_a_told_trial_whose_summary_is_corrupt_is_named_and_its_reason_recorded(tmp_path, capsys):
+    toy_search(tmp_path / "s", budget=4).run()
+    (tmp_path / "s" / "trials" / "trial-0002" / "summary.json").write_text("{\"detected\": tru")
+    capsys.readouterr()
+    toy_search(tmp_path / "s", budget=4).run()
+    err = capsys.readouterr().err
+    assert "trial 2 was told but trials/trial-0002: summary.json unreadable (JSONDecodeError" in err
+    rows = _rows(tmp_path / "s")
+    assert rows[2]["consequence"] == "run_failed" and "summary.json unreadable" in rows[2]["failure"]
+    assert [r["failure"] for i, r in enumerate(rows) if i != 2] == ["", "", ""]
+
+
+def test_a_trial_whose_run_fails_records_the_failure(tmp_path):
+    def failing(run, run_dir):
+        raise RuntimeError("boom")
+
+    search = AttackSearch(toy_spec(2), tmp_path / "s", workers=1, progress=False, execute=failing)
+    search.run()
+    assert [r["failure"] for r in _rows(tmp_path / "s")] == ["RuntimeError: boom"] * 2
 
 
 def test_families_follow_the_threat_model_and_the_victim():

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from testbed.errors import UserError
-from testbed.perception import closed_loop
-from testbed.perception.closed_loop import (
+from testbed.perception.lab import closed_loop
+from testbed.perception.lab.closed_loop import (
     drive,
     drive_scenario,
     error_stats,

@@ -5,7 +5,7 @@ import pytest
 
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import LaneDetection
-from testbed.perception.tracker import LaneTracker, TrackerParams, shift_matrix
+from testbed.lane_tracker import LaneTracker, TrackerParams, shift_matrix
 from tests.perception.lane_scene import LANE_W, Scene
 
 

@@ -4,7 +4,7 @@ import pytest
 from testbed.errors import UserError
 from testbed.eval import run_build
 from testbed.eval.scenario import load_scenario
-from testbed.perception import traffic_drive as td
+from testbed.perception.lab import traffic_drive as td
 from testbed.perception.seeds import cells
 from testbed.traffic.config import TrafficConfig
 from testbed.traffic.fleet import Fleet

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from testbed.traffic.idm import IdmParams, desired_gap, idm_accel, integrate
+from testbed.control.idm import IdmParams, desired_gap, idm_accel, integrate
 
 P = IdmParams(accel=1.5, decel=2.0, headway=1.5, min_gap=2.0, delta=4.0, brake_limit=9.0)
 

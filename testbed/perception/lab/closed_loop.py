@@ -7,7 +7,7 @@ Alg. 3 as the loop computes it (map lane width at the MSF pose, last D held betw
 valid): once of the tracked detections the loop used, once of the raw detections of the same frames.
 A preset too short for the duration is driven slower, so that it lasts the duration.
 
-With traffic (`traffic` cars, `testbed.perception.traffic_drive`: a lead car `lead_gap` m ahead in the ego lane,
+With traffic (`traffic` cars, `testbed.perception.lab.traffic_drive`: a lead car `lead_gap` m ahead in the ego lane,
 every car starting at rest with the ego) each frame also gets its occluded fraction
 (`testbed.perception.occlusion`: the share of the ego lines' points in the detector's range that a car hides
 from the camera), held per tick like D_LD, and the tables split the ticks into occluded (fraction > 0) and
@@ -34,10 +34,10 @@ from testbed.eval.runner import SimRun
 from testbed.eval.scenario import END_MARGIN_M, Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.params import ParamsError
+from testbed.perception.lab.traffic_drive import LEAD_GAP_M, traffic_drive
 from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
 from testbed.perception.registry import DETECTORS, make_detector
 from testbed.perception.seeds import Cell, cells, check_cells
-from testbed.perception.traffic_drive import LEAD_GAP_M, traffic_drive
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose

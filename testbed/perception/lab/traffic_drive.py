@@ -20,9 +20,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from testbed.control.idm import IdmParams
 from testbed.errors import UserError
 from testbed.eval.scenario import END_MARGIN_M
-from testbed.traffic.idm import IdmParams
 from tracks.road import Track
 from vehicles.params import get_vehicle
 

@@ -1,0 +1,1 @@
+"""Lane-detector lab drives: closed-loop accuracy per condition, drives in traffic."""

@@ -1,0 +1,71 @@
+"""Each defense declares its own parameter model: SAVIOR's keys are its own, a plugin defense brings its model,
+and a `[defense]` key the chosen defense does not declare is refused in one line; summary.json records the same
+table as before the split."""
+
+import pytest
+from pydantic import Field
+
+from testbed.defense.config import DefenseConfig
+from testbed.defense.no_defense import NoDefense
+from testbed.defense.registry import DEFENSES, declared_table, defense_settings, explicit_table, resolved_table
+from testbed.defense.savior import SaviorConfig
+from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.params import Params, ParamsError
+from testbed.registry import Component
+
+SAVIOR_KEYS = ["savior_b", "savior_tau", "savior_speed_std", "savior_accel_std", "savior_yaw_rate_std"]
+
+
+class GentleParams(Params):
+    """A plugin defense's own parameters."""
+
+    patience: float = Field(2.0, gt=0.0, description="seconds before it acts")
+
+
+class Gentle(NoDefense):
+    name = "gentle"
+
+    def __init__(self, params: GentleParams) -> None:
+        super().__init__()
+        self.params = params
+
+
+@pytest.fixture
+def gentle(monkeypatch):
+    component = Component("gentle", lambda params, bicycle: Gentle(params), "a plugin with its own model",
+                          params=GentleParams)
+    monkeypatch.setattr(DEFENSES, "_plugins", {"gentle": component})
+    return component
+
+
+def test_savior_reads_its_own_model_and_the_loop_its_threshold():
+    loop, own = defense_settings("savior", {"savior_b": 2.0, "ar_decel": 3.0, "existence_threshold": 0.6})
+    assert own == SaviorConfig(savior_b=2.0, ar_decel=3.0) and loop.existence_threshold == 0.6
+    assert not set(SAVIOR_KEYS) & set(DefenseConfig.model_fields)
+    with pytest.raises(ParamsError, match=r"^\[defense\] b: not read by defense 'savior'.*savior_b"):
+        defense_settings("savior", {"b": 0.45})
+    with pytest.raises(ParamsError, match="savior_tau"):
+        defense_settings("savior", {"savior_tau": -1.0})
+
+
+def test_a_plugin_defense_declares_its_own_parameters(gentle):
+    loop, own = defense_settings("gentle", {"patience": 5.0})
+    assert own == GentleParams(patience=5.0) and loop == DefenseConfig()
+    assert gentle.factory(own, None).params.patience == 5.0
+    with pytest.raises(ParamsError, match=r"\[defense\] tau: not read by defense 'gentle'.*\(it reads patience\)"):
+        defense_settings("gentle", {"tau": 1.0})
+    sc = Scenario.build(name="g", track="slr", defense="gentle", defense_params={"patience": 5.0})
+    assert explicit_table(sc.defense, sc.defense_params) == {"patience": 5.0}
+    with pytest.raises(ScenarioError, match="not read by defense 'gentle'") as err:
+        Scenario.build(name="g", track="slr", defense="gentle", defense_params={"savior_b": 1.0})
+    assert "\n" not in str(err.value)
+
+
+def test_the_recorded_table_keeps_every_builtin_key_in_its_old_order(gentle):
+    table = resolved_table(*defense_settings("ld3", {"b": 0.45}))
+    assert list(table) == [*DefenseConfig.model_fields, *SAVIOR_KEYS] and table["b"] == 0.45
+    savior = resolved_table(*defense_settings("savior", {"ar_decel": 3.0, "savior_b": 2.0}))
+    assert list(savior) == list(table) and savior["ar_decel"] == 3.0 and savior["savior_b"] == 2.0
+    assert resolved_table(*defense_settings("gentle", {}))["patience"] == 2.0
+    assert declared_table("savior", table) == {"existence_threshold": 0.5, "ar_decel": 4.0,
+                                               **{k: SaviorConfig().model_dump()[k] for k in SAVIOR_KEYS}}
