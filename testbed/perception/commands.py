@@ -44,6 +44,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, default=3e-3, help="peak learning rate")
     p.add_argument("--input-rows", type=int, choices=(56, 112), default=56,
                    help="network input rows: the ground crop's halved (the shipped weights) or all kept")
+    p.add_argument("--negatives", type=int, default=0,
+                   help="frames without lane lines (noise, dark, blur, textures) added, both lines absent")
+    p.add_argument("--freeze-bn", action="store_true", help="keep the batch-norm statistics of --init")
     p.set_defaults(func=_train)
 
     p = sub.add_parser("average", help="write the element-wise mean of LaneNet checkpoints of one shape (a weight "
@@ -145,12 +148,13 @@ def _train(args: argparse.Namespace) -> int:
     from testbed.eval.run_folder import output_folder
     from testbed.perception.train import TrainConfig, train
 
-    for flag, value, low in (("--epochs", args.epochs, 1), ("--threads", args.threads, 1), ("--limit", args.limit, 1)):
+    for flag, value, low in (("--epochs", args.epochs, 1), ("--threads", args.threads, 1), ("--limit", args.limit, 1),
+                             ("--negatives", args.negatives, 0)):
         _at_least(value, low, flag)
     for flag, value in (("--lr", args.lr), ("--minutes", args.minutes)):
         _at_least(value, 1e-12, flag)
     cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr,
-                      input_rows=args.input_rows)
+                      input_rows=args.input_rows, negatives=args.negatives, freeze_bn=args.freeze_bn)
     with output_folder(args.out, True, "lanenet.pt", "a training run") as tmp:
         res = train(args.data, tmp, cfg, val_dir=args.val, limit=args.limit, progress=True, init=args.init)
     print(f"checkpoint {args.out / res.checkpoint.name}, curve {args.out / res.curve.name}")

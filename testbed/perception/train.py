@@ -3,7 +3,9 @@
 Targets come from the label cubics: each line's column cell at every anchor row (absent where the line is
 unpainted or out of the image), its offsets y (m) at the anchors, its c0 and its existence. Loss = column
 cross-entropy + L1 on the decoded offsets + L1 on the fitted c0 + weighted existence BCE. Each batch is
-mirrored left-right with probability 1/2 (image flipped, lines swapped and negated). The model trains in
+mirrored left-right with probability 1/2 (image flipped, lines swapped and negated). Frames without lane lines
+(`negatives`, `existence_head.negative_frames`) may be added: both lines absent, every anchor absent. A fine-tune
+may keep the batch-norm statistics of its start (`freeze_bn`). The model trains in
 channels-last memory format (faster convolutions on CPU); checkpoints hold plain contiguous tensors. AdamW, warm-up then
 cosine decay over whichever runs out first, the epochs or the time budget (`max_minutes`, wall clock after
 loading). Writes the checkpoint and a training-curve PNG.
@@ -51,6 +53,8 @@ class TrainConfig:
     seed: int = 0
     max_minutes: float = 27.0
     input_rows: int = INPUT_ROWS[0]  # network input rows (`neural.INPUT_ROWS`)
+    negatives: int = 0  # frames without lane lines added to the training set (drawn with `seed`)
+    freeze_bn: bool = False  # keep the batch-norm running statistics of the start
 
 
 @dataclass
@@ -91,6 +95,17 @@ def to_tensors(frames: FrameSet, rows: int = INPUT_ROWS[0]) -> Tensors:
     return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(cls),
                    torch.from_numpy(coeffs[..., 0].astype(np.float32)),
                    torch.from_numpy(exists.astype(np.float32)))
+
+
+def negative_tensors(n: int, seed: int, rows: int = INPUT_ROWS[0]) -> Tensors:
+    """`n` frames without lane lines (`existence_head.negative_frames`) as training tensors: both lines absent,
+    every anchor's column class absent."""
+    from testbed.perception.existence_head import negative_frames
+
+    x = np.stack([preprocess(img, rows) for img in negative_frames(n, seed)]).astype(np.float16)
+    k = len(X_ANCHORS)
+    return Tensors(torch.from_numpy(x), torch.zeros(n, 2, k), torch.full((n, 2, k), N_COLS, dtype=torch.int64),
+                   torch.zeros(n, 2), torch.zeros(n, 2))
 
 
 def mirror(b: Tensors) -> Tensors:
@@ -159,6 +174,8 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
         raise ValueError(f"the checkpoint {init} takes {model.input_rows}-row inputs, the config asks for "
                          f"{config.input_rows}: train on with input_rows={model.input_rows} or start from scratch")
     data = load_tensors(train_dirs, limit, config.input_rows)
+    if config.negatives:
+        data = Tensors.cat([data, negative_tensors(config.negatives, config.seed, config.input_rows)])
     val = load_frames(val_dir) if val_dir is not None else None
     val_t = to_tensors(val, config.input_rows) if val is not None else None
     model = model.to(memory_format=torch.channels_last)  # NHWC convolutions: faster training steps on CPU
@@ -172,6 +189,10 @@ def train(train_dirs: list[Path], out: Path, config: TrainConfig | None = None, 
     bar = tqdm(total=config.epochs * steps_per_epoch, desc="training", unit="step", disable=not progress)
     for epoch in range(config.epochs):
         model.train()
+        if config.freeze_bn:
+            for module in model.modules():
+                if isinstance(module, nn.BatchNorm2d):
+                    module.eval()
         order = rng.permutation(n)
         total, steps = 0.0, 0
         for b in range(steps_per_epoch):

@@ -221,6 +221,8 @@ OTHER_COMMANDS = [
     Case("ld-eval-data", ("ld", "eval", "--data", "{ws}/nodata", "--out", "{ws}/e"), "nodata"),
     Case("ld-export-weights", ("ld", "export-onnx", "--weights", "{ws}/no.pt", "--out", "{ws}/e.onnx"), "no.pt"),
     Case("ld-train-data", ("ld", "train", "--data", "{ws}/nodata", "--out", "{ws}/w.pt"), "nodata"),
+    Case("ld-train-negatives", ("ld", "train", "--data", "{ws}/nodata", "--out", "{ws}/w.pt", "--negatives", "-1"),
+         "--negatives must be"),
     Case("ld-closed-loop-preset", ("ld", "closed-loop", "--presets", "moon", "--out", "{ws}/cl"), "moon"),
     Case("ld-closed-loop-no-detector", ("ld", "closed-loop", "--detector", "none", "--out", "{ws}/cl"),
          "needs a lane detector"),

@@ -6,8 +6,15 @@ import torch
 
 from testbed.lane_detection import CameraFrame
 from testbed.perception.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
-from testbed.perception.neural import LaneNet, NeuralLaneDetector, load_model
-from testbed.perception.train import TrainConfig, load_tensors, mirror, to_tensors, train
+from testbed.perception.neural import N_COLS, LaneNet, NeuralLaneDetector, load_model
+from testbed.perception.train import (
+    TrainConfig,
+    load_tensors,
+    mirror,
+    negative_tensors,
+    to_tensors,
+    train,
+)
 
 
 def _tiny_dataset(path, n=12, shard=0):
@@ -86,3 +93,23 @@ def test_training_with_every_input_row_kept(tmp_path):
     with pytest.raises(ValueError, match="input_rows=112"):  # a 112-row checkpoint cannot train on at 56 rows
         train([tmp_path / "data"], tmp_path / "out2", TrainConfig(epochs=1, batch=4, threads=1),
               init=res.checkpoint)
+
+
+def test_negatives_have_no_line_and_every_anchor_absent():
+    neg = negative_tensors(6, seed=3)
+    assert neg.x.shape == (6, 3, 56, 160) and torch.isfinite(neg.x.float()).all()
+    assert (neg.exists == 0).all() and (neg.cls == N_COLS).all() and (neg.c0 == 0).all()
+    assert torch.equal(negative_tensors(6, seed=3).x, neg.x) and not torch.equal(negative_tensors(6, seed=4).x, neg.x)
+
+
+def test_a_fine_tune_with_frozen_batch_norm_keeps_the_starts_statistics(tmp_path):
+    _tiny_dataset(tmp_path / "data")
+    start = train([tmp_path / "data"], tmp_path / "a", TrainConfig(epochs=1, batch=4, threads=1)).checkpoint
+    cfg = TrainConfig(epochs=1, batch=4, threads=1, negatives=4, freeze_bn=True)
+    tuned = load_model(train([tmp_path / "data"], tmp_path / "b", cfg, init=start).checkpoint).state_dict()
+    before = load_model(start).state_dict()
+    assert torch.equal(before["features.0.1.running_mean"], tuned["features.0.1.running_mean"])
+    assert not torch.equal(before["features.0.0.weight"], tuned["features.0.0.weight"])
+    free = load_model(train([tmp_path / "data"], tmp_path / "c", TrainConfig(epochs=1, batch=4, threads=1),
+                            init=start).checkpoint).state_dict()
+    assert not torch.equal(before["features.0.1.running_mean"], free["features.0.1.running_mean"])
