@@ -5,12 +5,18 @@ fitted over the range ahead, and the marking kinds in view.
 
 The same arithmetic as the pure-Python path, operation for operation and in the same order (the build turns off
 multiply-add contraction; cos, sin and tan are the C library's, which numpy's float64 cos and sin and Python's
-math call on the machines this runs on; `xs ** 3` and the least-squares solve are numpy's own calls), so every
-answer is the same to the bit; `tests/perception/test_label_kernels.py` holds them to it. Python's `min`/`max`
-keep their first argument on a tie, and so do `_min`/`_max` here.
+math call on the machines this runs on; `xs ** 3` and the least-squares solve are numpy's own calls, the solve
+through the gufunc `np.linalg.lstsq` calls, without its argument handling), so every answer is the same to the
+bit; `tests/perception/test_label_kernels.py` holds them to it. Python's `min`/`max` keep their first argument
+on a tie, and so do `_min`/`_max` here.
 """
 
 import numpy as np
+
+try:
+    from numpy.linalg._umath_linalg import lstsq as _lstsq
+except ImportError:  # a numpy without the module: its public function
+    _lstsq = None
 
 from libc.math cimport NAN, cos, fabs, isnan, sin, tan
 
@@ -19,6 +25,7 @@ from tracks.reference_kernels cimport LineKernel
 
 cdef double X_MAX = 40.0, X_VIEW_NEAR = 5.0, X_VIEW_FAR = 25.0  # labels.X_MAX, X_VIEW_NEAR, X_VIEW_FAR
 cdef double FIT_TOLERANCE = 0.10, FIT_SHRINK = 0.8, X_FIT_MIN = 8.0  # labels.FIT_TOLERANCE, FIT_SHRINK, X_FIT_MIN
+cdef double EPS = np.finfo(np.float64).eps
 
 
 cdef inline double _max(double a, double b) noexcept nogil:
@@ -179,8 +186,12 @@ def range_fit(const double[::1] x, const double[::1] y, double y0, double slope)
             a = np.empty((m, 2))
             a[:, 0] = sq
             a[:, 1] = xs ** 3
-            rest = np.linalg.lstsq(a, rhs, rcond=None)[0]
-            coeffs = np.array([y0, slope, rest[0], rest[1]])
+            if _lstsq is None:
+                rest = np.linalg.lstsq(a, rhs, rcond=None)[0]
+                coeffs = np.array([y0, slope, rest[0], rest[1]])
+            else:  # np.linalg.lstsq's call for float64 (rcond=None: machine epsilon times the rows)
+                rest = _lstsq(a, rhs[:, None], EPS * m, signature="ddd->ddid")[0]
+                coeffs = np.array([y0, slope, rest[0, 0], rest[1, 0]])
         else:
             coeffs = np.array([y0, slope, 0.0, 0.0])
         worst = _stray(coeffs[0], coeffs[1], coeffs[2], coeffs[3], xsv, ysv) if m else 0.0
