@@ -17,7 +17,6 @@ slope (which would hide a large heading error from the controller).
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 from testbed.defense.ld_deviation import line_distance
@@ -30,13 +29,16 @@ CROSSING_ITERATIONS = 3
 corner of radius 6 m)."""
 
 
+def _valid_lines(ld: LaneDetection, existence_threshold: float) -> list[tuple[float, float]]:
+    """(offset c0, slope c1) at x = 0 of the valid lines with a slope, left first."""
+    return [(float(c[0]), float(c[1])) for c, p in ((ld.left, ld.left_prob), (ld.right, ld.right_prob))
+            if math.isfinite(line_distance(c, p, existence_threshold)) and len(c) > 1 and math.isfinite(c[1])]
+
+
 def line_relative_heading(ld: LaneDetection, existence_threshold: float) -> float | None:
     """Vehicle heading relative to the lane from the valid lines' slopes at x = 0 (rad, + left), or None."""
-    slopes = [float(c[1]) for c, p in ((ld.left, ld.left_prob), (ld.right, ld.right_prob))
-              if math.isfinite(line_distance(c, p, existence_threshold)) and len(c) > 1 and math.isfinite(c[1])]
-    if not slopes:
-        return None
-    return -math.atan(sum(slopes) / len(slopes))
+    lines = _valid_lines(ld, existence_threshold)
+    return -math.atan(sum(slope for _, slope in lines) / len(lines)) if lines else None
 
 
 def station_relative_heading(ld: LaneDetection, existence_threshold: float, smap: SemanticMap, pose: Pose,
@@ -49,11 +51,10 @@ def station_relative_heading(ld: LaneDetection, existence_threshold: float, smap
     the lines of the map's lane heading at the crossing less that at `pose`; the crossing is placed along the
     lateral axis of the lane heading plus ψ, never of the pose's own yaw (the MSF's, which the check judges), by
     fixed point from ψ₀. A crossing the map cannot place adds no turn."""
-    psi0 = line_relative_heading(ld, existence_threshold)
-    if psi0 is None:
+    lines = _valid_lines(ld, existence_threshold)
+    if not lines:
         return None
-    offsets = [float(c[0]) for c, p in ((ld.left, ld.left_prob), (ld.right, ld.right_prob))
-               if math.isfinite(line_distance(c, p, existence_threshold)) and len(c) > 1 and math.isfinite(c[1])]
+    psi0 = -math.atan(sum(slope for _, slope in lines) / len(lines))
     if lane is None:
         lane = smap.project(pose).lane
     heading = smap.lane_point(pose, lane)[1]
@@ -61,11 +62,13 @@ def station_relative_heading(ld: LaneDetection, existence_threshold: float, smap
     for _ in range(CROSSING_ITERATIONS):
         c, s = math.cos(heading + psi), math.sin(heading + psi)
         turn = 0.0
-        for c0 in offsets:
-            with contextlib.suppress(OffMapError):
+        for c0, _ in lines:
+            try:  # noqa: SIM105 - a try costs less than contextlib.suppress, six times a call
                 turn += wrap_angle(smap.lane_point(Pose(pose.x - c0 * s, pose.y + c0 * c, heading + psi), lane)[1]
                                    - heading)
-        psi = psi0 + turn / len(offsets)
+            except OffMapError:
+                pass
+        psi = psi0 + turn / len(lines)
     return psi
 
 

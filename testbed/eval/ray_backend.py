@@ -6,9 +6,10 @@ At most `workers` tasks are in flight (default: every CPU of the cluster), one C
 run's time limit itself, counted from when it starts executing (as the in-process local backend does);
 a task still unfinished `START_ALLOWANCE_S` after its limit, counted from submission, is cancelled with its
 worker process killed (a hang in one long C call). Workers never touch the campaign folder, so killing the
-campaign leaves no writer there. A cluster address is probed with a plain TCP connection first (Ray itself
-retries an address nobody answers for minutes), so a dead one is refused within `CONNECT_TIMEOUT_S`. Needs
-the optional extra: `pip install '.[ray]'`.
+campaign leaves no writer there. Within `kept_warm` the connection (and with it Ray's worker processes, their
+imports and what they keep, such as the controller's gain schedules) stays from one batch to the next. A
+cluster address is probed with a plain TCP connection first (Ray itself retries an address nobody answers for
+minutes), so a dead one is refused within `CONNECT_TIMEOUT_S`. Needs the optional extra: `pip install '.[ray]'`.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import socket
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -50,6 +51,11 @@ class RayBackend(CampaignBackend):
     help = f"Ray tasks on a local Ray instance or the cluster at --address (needs {INSTALL_HINT})"
     connects = True
 
+    def __init__(self) -> None:
+        self._warm: ExitStack | None = None
+        self._connection: tuple[str | None, int | None, int] | None = None
+        """Within `kept_warm`: the (address, workers) the kept connection was made for, and its task slots."""
+
     def check(self, address: str | None) -> None:
         require_ray()
         if address is not None:
@@ -57,7 +63,34 @@ class RayBackend(CampaignBackend):
 
     def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
-        return _run_on_ray(require_ray(), batch, out, execute, timeout, workers, address)
+        ray = require_ray()
+        if self._warm is None:
+            return _run_connected(ray, batch, out, execute, timeout, workers, address)
+        return _run_tasks(ray, batch, out, execute, timeout, self._kept_slots(ray, address, workers))
+
+    def _kept_slots(self, ray: ModuleType, address: str | None, workers: int | None) -> int:
+        """The task slots of the kept connection, connecting (or reconnecting, for another address or number of
+        workers) first."""
+        if self._connection is not None and self._connection[:2] != (address, workers):
+            self._warm.close()
+            self._connection = None
+        if self._connection is None:
+            self._connection = (address, workers, self._warm.enter_context(connected(ray, address, workers)))
+        return self._connection[2]
+
+    @contextmanager
+    def kept_warm(self) -> Iterator[None]:
+        """The Ray connection made for one batch serves the next ones, until the outermost `kept_warm` ends (a
+        local instance started for it is shut down then)."""
+        if self._warm is not None:
+            yield
+            return
+        self._warm = ExitStack()
+        try:
+            yield
+        finally:
+            warm, self._warm, self._connection = self._warm, None, None
+            warm.close()
 
 
 def probe(address: str) -> None:
@@ -170,34 +203,40 @@ def _place(run: CampaignRun, out: Path, error: str | None, files: dict[str, byte
     return RunOutcome(run, error)
 
 
-def _run_on_ray(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
-                timeout: float | None, workers: int | None, address: str | None) -> Iterator[RunOutcome]:
-    """The runs as Ray tasks (see the module docstring)."""
+def _run_connected(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+                   timeout: float | None, workers: int | None, address: str | None) -> Iterator[RunOutcome]:
+    """The runs as Ray tasks on a connection of their own (see the module docstring)."""
     with connected(ray, address, workers) as slots:
-        task = ray.remote(num_cpus=1, max_retries=0)(execute_in_scratch)
-        pending = list(reversed(batch))
-        in_flight: dict[Any, _Task] = {}
-        try:
-            while pending or in_flight:
-                while pending and len(in_flight) < slots:
-                    run = pending.pop()
-                    limit = run_limit(run, timeout)
-                    in_flight[task.remote(execute, run, limit)] = _Task(run, limit, time.monotonic() + limit
-                                                                        + START_ALLOWANCE_S)
-                wait_s = max(0.0, min(t.deadline for t in in_flight.values()) - time.monotonic())
-                ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=wait_s)
-                for ref in ready:
-                    job = in_flight.pop(ref)
-                    error, files = _outcome(ray, ref, job.run)
-                    yield _place(job.run, out, error, files)
-                now = time.monotonic()
-                for ref, job in list(in_flight.items()):
-                    if now >= job.deadline:
-                        ray.cancel(ref, force=True)
-                        del in_flight[ref]
-                        yield RunOutcome(job.run, failure_record(
-                            job.run.run_id, "RunTimeout", f"over its {job.limit_s:g} s limit (+ "
-                                                          f"{START_ALLOWANCE_S:g} s to start, cancelled)"))
-        finally:
-            for ref in in_flight:
-                ray.cancel(ref, force=True)
+        yield from _run_tasks(ray, batch, out, execute, timeout, slots)
+
+
+def _run_tasks(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+               timeout: float | None, slots: int) -> Iterator[RunOutcome]:
+    """The runs as Ray tasks on the open connection, at most `slots` in flight (see the module docstring)."""
+    task = ray.remote(num_cpus=1, max_retries=0)(execute_in_scratch)
+    pending = list(reversed(batch))
+    in_flight: dict[Any, _Task] = {}
+    try:
+        while pending or in_flight:
+            while pending and len(in_flight) < slots:
+                run = pending.pop()
+                limit = run_limit(run, timeout)
+                in_flight[task.remote(execute, run, limit)] = _Task(run, limit, time.monotonic() + limit
+                                                                    + START_ALLOWANCE_S)
+            wait_s = max(0.0, min(t.deadline for t in in_flight.values()) - time.monotonic())
+            ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=wait_s)
+            for ref in ready:
+                job = in_flight.pop(ref)
+                error, files = _outcome(ray, ref, job.run)
+                yield _place(job.run, out, error, files)
+            now = time.monotonic()
+            for ref, job in list(in_flight.items()):
+                if now >= job.deadline:
+                    ray.cancel(ref, force=True)
+                    del in_flight[ref]
+                    yield RunOutcome(job.run, failure_record(
+                        job.run.run_id, "RunTimeout", f"over its {job.limit_s:g} s limit (+ "
+                                                      f"{START_ALLOWANCE_S:g} s to start, cancelled)"))
+    finally:
+        for ref in in_flight:
+            ray.cancel(ref, force=True)

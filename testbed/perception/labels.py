@@ -17,11 +17,13 @@ brightness (RGB distance over the surface's RGB norm): yellow stands out from a 
 from __future__ import annotations
 
 import math
+import weakref
 from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
 
+from tracks.compiled import compiled_module
 from tracks.map_api import OffMapError
 from tracks.paint import marking_coverage
 from tracks.pose import Pose, wrap_angle
@@ -42,6 +44,7 @@ VISIBLE_FRACTION = 0.15  # of a line's painted image rows in the view window tha
 PAINT_BAND_M = 0.25  # |offset| from the line within which its own paint lies (double yellow included)
 PAINT_CORE = 0.9  # marking coverage at a pixel centre for it to show the paint (not its anti-aliased edge)
 SIDE_BAND_M = (0.05, 0.25)  # beyond the outermost paint of the row: the surface beside the line, each side
+_KERNELS = compiled_module("testbed.perception.label_kernels")
 
 
 class PaintLayout:
@@ -156,32 +159,73 @@ class EgoLines:
     deviation: float
 
 
+class _CompiledLines:
+    """A track's lane lines for the compiled line fit (testbed/perception/label_kernels.pyx): the reference line's
+    kernel and sample arc lengths, and each line's marking runs as arrays with its kinds by index."""
+
+    def __init__(self, track) -> None:
+        ref = track.reference
+        self.line, self.grid = ref._kernel, ref.s
+        self.runs = []
+        for boundary in track.boundaries:
+            kinds = list(dict.fromkeys(["none", *(run.kind for run in boundary.runs)]))
+            self.runs.append((np.array([run.s0 for run in boundary.runs], dtype=float),
+                              np.array([run.s1 for run in boundary.runs], dtype=float),
+                              np.array([kinds.index(run.kind) for run in boundary.runs], dtype=np.intp), kinds))
+
+
+_COMPILED_LINES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""The `_CompiledLines` of each track asked about (kept while the track lives)."""
+
+
+def _compiled_lines(track) -> _CompiledLines | None:
+    """The track's compiled line fit, or None where the kernels are not built (the Python path then answers)."""
+    if _KERNELS is None or track.reference._kernel is None:
+        return None
+    found = _COMPILED_LINES.get(track)
+    if found is None:
+        found = _COMPILED_LINES[track] = _CompiledLines(track)
+    return found
+
+
 def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
                 visibility: FrameVisibility | None = None) -> LineTruth:
     boundary = track.boundaries[boundary_index]
     ref = track.reference
     s = np.arange(s0 - 5.0, s0 + X_MAX * 1.5 + 5.0, SAMPLE_STEP)
-    world = ref.points(np.clip(s, 0.0, ref.length), boundary.t)
-    beyond = s - np.clip(s, 0.0, ref.length)  # straight extrapolation past either end of the road
-    heading_end = np.where(s > ref.length, ref.heading_at(ref.length), ref.heading_at(0.0))
-    world = world + beyond[:, None] * np.column_stack([np.cos(heading_end), np.sin(heading_end)])
     c, sn = math.cos(pose.yaw), math.sin(pose.yaw)
-    dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
-    x, y = c * dx + sn * dy, -sn * dx + c * dy
-    at_car = _at_car(ref, boundary.t, pose, s, x)
+    compiled = _compiled_lines(track)
+    if compiled is not None:
+        x, y = _KERNELS.vehicle_samples(compiled.line, compiled.grid, boundary.t, pose.x, pose.y, c, sn, s)
+        at_car = _KERNELS.at_car(compiled.line, compiled.grid, boundary.t, pose.x, pose.y, pose.yaw, c, sn, s, x)
+    else:
+        world = ref.points(np.clip(s, 0.0, ref.length), boundary.t)
+        beyond = s - np.clip(s, 0.0, ref.length)  # straight extrapolation past either end of the road
+        heading_end = np.where(s > ref.length, ref.heading_at(ref.length), ref.heading_at(0.0))
+        world = world + beyond[:, None] * np.column_stack([np.cos(heading_end), np.sin(heading_end)])
+        dx, dy = world[:, 0] - pose.x, world[:, 1] - pose.y
+        x, y = c * dx + sn * dy, -sn * dx + c * dy
+        at_car = _at_car(ref, boundary.t, pose, s, x)
     if at_car is None and np.count_nonzero((x >= -2.0) & (x <= X_MAX + 2.0)) < 4:
         # the car faces away from the line (turned across the road): nothing in view to fit
         return LineTruth(coeffs=np.full(4, np.nan), exists=False, kind="none")
-    coeffs, x_far, fit = _range_fit(x, y, at_car)
-    view = (x >= X_VIEW_NEAR) & (x <= X_VIEW_FAR)
-    kinds = [boundary.kind_at(float(si)) for si in s[view]]
-    painted = sum(k != "none" for k in kinds)
-    exists = bool(kinds) and painted >= 0.5 * len(kinds)
+    if compiled is not None and at_car is not None:
+        coeffs, x_far, fit = _KERNELS.range_fit(x, y, at_car[0], at_car[1])
+        run_s0, run_s1, run_kind, names = compiled.runs[boundary_index]
+        seen_n, painted, best = _KERNELS.view_kinds(s, x, run_s0, run_s1, run_kind, 0, len(names))
+        exists = seen_n > 0 and painted >= 0.5 * seen_n
+        kind = names[best] if seen_n else "none"
+    else:
+        coeffs, x_far, fit = _range_fit(x, y, at_car)
+        view = (x >= X_VIEW_NEAR) & (x <= X_VIEW_FAR)
+        kinds = [boundary.kind_at(float(si)) for si in s[view]]
+        painted = sum(k != "none" for k in kinds)
+        exists = bool(kinds) and painted >= 0.5 * len(kinds)
+        kind = Counter(kinds).most_common(1)[0][0] if kinds else "none"
     seen = None
     if exists and visibility is not None:
         seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
-    kind = Counter(kinds).most_common(1)[0][0] if kinds else "none"
     return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen, x_far=x_far)
 
 

@@ -3,6 +3,7 @@ the Ray backend's equivalence with the local one (same seed, same bytes), its fa
 refusal of a dead cluster address; `ld3 campaign list`."""
 
 import json
+import os
 import socket
 import subprocess
 import sys
@@ -23,7 +24,7 @@ from testbed.eval.campaign_cost import (
 )
 from testbed.eval.campaigns import CAMPAIGNS
 from testbed.eval.scenario import load_scenario
-from tests.eval.campaign_helpers import slow_writer, thread_probe
+from tests.eval.campaign_helpers import process_probe, slow_writer, thread_probe
 
 WALL_FIELDS = ("wall_time_s", "real_time_factor")
 
@@ -292,3 +293,28 @@ def test_the_documented_cluster_configs_pass_rays_schema(path):
 
     schema = json.loads((Path(autoscaler.__file__).parent / "ray-schema.json").read_text())
     jsonschema.validate(yaml.safe_load(path.read_text()), schema)
+
+
+def test_ray_kept_warm_connects_once_for_every_batch_and_shuts_down_after(tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray")
+    from testbed.eval.campaign import campaign_backend
+
+    inits = []
+    real_init = ray.init
+    monkeypatch.setattr(ray, "init", lambda *a, **k: inits.append(k) or real_init(*a, **k))
+    sc = load_scenario("slr")
+
+    def batch(name: str) -> set[int]:
+        runs = [CampaignRun(f"{name}{i}", sc, {}) for i in range(4)]
+        done = run_campaign(runs, tmp_path / name, workers=2, progress=False, execute=process_probe,
+                            backend="ray")
+        return {s["pid"] for _, s in done}
+
+    with campaign_backend("ray", None).kept_warm():
+        first = batch("a")
+        assert ray.is_initialized()
+        second = batch("b")
+    assert len(inits) == 1 and not ray.is_initialized()
+    assert second <= first and os.getpid() not in first  # the second batch ran on the first's Ray workers
+    batch("cold")
+    assert len(inits) == 2 and not ray.is_initialized()  # outside: a connection per batch, as before
