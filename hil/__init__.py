@@ -1,9 +1,9 @@
 """CAN bridge: chassis profiles, codec, chassis port over python-can, ECU emulator, and scenario runs over CAN.
 
 The loop drives a `CanChassisBridge` (a ChassisPort) instead of the PyBullet car. A chassis profile
-(hil/profiles/<name>/: chassis.dbc + profile.toml; shipped: ld3-dev, ld3-dev-secoc, pix-hooke) says which
+(hil/link/profiles/<name>/: chassis.dbc + profile.toml; shipped: ld3-dev, ld3-dev-secoc, pix-hooke) says which
 messages carry the commands and reports, their units, enums, counters and checksums or SecOC freshness and MAC
-(`hil.secoc`), cycle and time-outs. The bridge sends a command cycle only for a fresh loop command, places the
+(`hil.link.secoc`), cycle and time-outs. The bridge sends a command cycle only for a fresh loop command, places the
 simulated world at its odometry pose (from reported speed and steering), and ends the run as chassis_fault
 after an in-lane stop when a fault latches. In lockstep the bridge clocks the emulator with
 SIM_StepRequest/StepDone. See docs/hil.md and docs/can-security.md.
@@ -20,5 +20,5 @@ Usage:
   ld3 hil parking-lot --profile ld3-dev-secoc  # authenticated frames; the test key only on an emulator's bus
 `ld3 hil` accepts the overrides of `ld3 run` and writes the same outputs (summary.json gains interface,
 channel, clock, profile, faults and CAN frame counts) plus the CAN log (default OUT/can.asc). In Python:
-`hil.scenario_run.run_hil_scenario(scenario, out_dir, LinkConfig(interface, channel, profile="pix-hooke"))`.
+`hil.emulator.scenario_run.run_hil_scenario(scenario, out_dir, LinkConfig(interface, channel, profile="pix-hooke"))`.
 """

@@ -1,10 +1,10 @@
 """Command line of the CAN link: `ld3 hil SCENARIO` (a scenario over CAN), `ld3 hil replay LOG` (play a log onto a
 bus) and `ld3 ecu` (the ECU emulator); `python -m hil ecu|replay ...` runs the last two without the ld3 command.
 
-An ECU plant is named by `--plant`: "kinematic" (hil.kinematic_plant), "pybullet" (hil.plants.pybullet_plant,
-the scenario's PyBullet car) or "package.module:factory", called with the `--plant-arg KEY=VALUE` pairs as
-keyword strings and returning a ChassisPort; `--scenario NAME` selects the PyBullet car of that scenario.
-`--profile NAME|PATH` picks the chassis protocol of both commands (hil.profile).
+An ECU plant is named by `--plant`: "kinematic" (hil.emulator.kinematic_plant), "pybullet"
+(hil.emulator.plants.pybullet_plant, the scenario's PyBullet car) or "package.module:factory", called with the
+`--plant-arg KEY=VALUE` pairs as keyword strings and returning a ChassisPort; `--scenario NAME` selects the PyBullet car of that scenario.
+`--profile NAME|PATH` picks the chassis protocol of both commands (hil.link.profile).
 
 Exit codes: 0 done; 2 a usage error; 3 the run ended on a chassis fault (the car braked to standstill in lane;
 outputs written); 4 the CAN link failed (no such interface or device, the ECU process or handshake failed).
@@ -25,24 +25,24 @@ from pathlib import Path
 
 import can
 
-from hil.bus_config import BusConfig, interfaces, parse_options
 from hil.detect_cli import add_detect_parser
-from hil.ecu import EcuEmulator, EcuLimits
-from hil.ecu_process import READY_PREFIX
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.link_errors import LINK_ERRORS, link_error_line
-from hil.profile import DEFAULT_PROFILE, load_profile
-from hil.replay import replay_log
+from hil.emulator.ecu import EcuEmulator, EcuLimits
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.emulator.log_replay import replay_log
+from hil.link.bus_config import BusConfig, interfaces, parse_options
+from hil.link.ecu_process import READY_PREFIX
+from hil.link.errors import LINK_ERRORS, link_error_line
+from hil.link.profile import DEFAULT_PROFILE, load_profile
+from hil.link.secoc_key import link_key
+from hil.link.slcan_pty import SlcanPtyBus
+from hil.link.timing import ClockMode
 from hil.replay_cli import add_replay_parser
-from hil.secoc_key import link_key
-from hil.slcan_pty import SlcanPtyBus
-from hil.timing import ClockMode
 from hil.vehicle_cli import add_vehicle_parser
 from testbed.chassis import ChassisPort
 from testbed.cli import OneLineParser, positive, seconds
 from testbed.errors import UserError
-from testbed.eval.outputs import chassis_faults
-from testbed.eval.run_folder import check_out_dir
+from testbed.eval.run.folder import check_out_dir
+from testbed.eval.run.outputs import chassis_faults
 from testbed.extras import require_modules
 
 PlantFactory = Callable[..., ChassisPort]
@@ -56,7 +56,7 @@ def resolve_plant(spec: str) -> PlantFactory:
     if spec == "kinematic":
         return KinematicBicyclePlant
     if spec == "pybullet":
-        spec = "hil.plants:pybullet_plant"
+        spec = "hil.emulator.plants:pybullet_plant"
     module_name, _, attribute = spec.partition(":")
     if not attribute:
         raise UserError(f"plant must be 'kinematic', 'pybullet' or 'package.module:factory', got {spec!r}")
@@ -126,8 +126,8 @@ def _plant(args: argparse.Namespace, plant_factory: PlantFactory | None) -> Chas
             raise UserError(f"--plant-arg {key}={value}: must be a finite number"
                             + (" > 0" if key in POSITIVE_PLANT_ARGS else ""))
     if args.scenario:
-        from hil.plants import plant_args_for, pybullet_plant
-        from testbed.eval.scenario import load_scenario
+        from hil.emulator.plants import plant_args_for, pybullet_plant
+        from testbed.eval.run.scenario import load_scenario
 
         return pybullet_plant(**{**plant_args_for(load_scenario(args.scenario)), **kwargs})
     factory = plant_factory or resolve_plant(args.plant)
@@ -219,7 +219,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
         raise UserError(f"unexpected argument {str(args.log)!r} after the scenario")
     # before importing the run: its world is the simulator's, and a missing extra must name itself
     require_modules(("pybullet", "cv2"), "sim", "ld3 hil (its world is the simulator's)")
-    from hil.scenario_run import LinkConfig, run_hil_scenario
+    from hil.emulator.scenario_run import LinkConfig, run_hil_scenario
     from testbed.cli import scenario_from_args
 
     sc = scenario_from_args(args)
@@ -230,7 +230,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
                         args.profile, args.truth, args.bitrate, parse_options(args.can_option), args.can_config)
     drill: dict[str, object] = {}
     if args.drill:
-        from hil.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
+        from hil.emulator.fault_drill import DRILL_REPLY_TIMEOUT_S, drill_installer, parse_drill
 
         if args.interface != "virtual":
             raise UserError("--drill needs the in-process ECU emulator (--interface virtual)")
@@ -292,7 +292,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="io: the simulated GNSS goes out as NMEA on a pty and comes back through the NMEA reader, "
                         "the camera frames through the camera reader (needs --localization msf)")
     p.add_argument("--drill", default=None, metavar="KIND[@T]",
-                   help="inject a fault into the emulated chassis at T s (see hil.fault_drill), e.g. chassis_estop@2")
+                   help="inject a fault into the emulated chassis at T s (see hil.emulator.fault_drill), "
+                        "e.g. chassis_estop@2")
     p.set_defaults(func=cmd_hil)
 
     p = sub.add_parser("ecu", help="run the chassis ECU emulator on a CAN bus", description=ecu_parser().description)

@@ -1,18 +1,18 @@
-"""`ld3 ld detect`: the lane detector on a camera alone (hil.camera_detect), added to the `ld` command group."""
+"""`ld3 ld detect`: the lane detector on a camera alone (hil.vehicle.camera_detect), added to the `ld` command group."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from hil.frame_stream import SPECS
+from hil.vehicle.frame_stream import SPECS
 
 DEFAULT_SPEED = 25.0
 
 
 def add_detect_parser(ld: argparse.ArgumentParser) -> None:
     """Add `detect` to the `ld` group's subcommands."""
-    from testbed.perception.registry import DETECTORS
+    from testbed.perception.detectors.registry import DETECTORS
 
     sub = next(a for a in ld._actions if isinstance(a, argparse._SubParsersAction))
     p = sub.add_parser("detect", help="run a lane detector on a camera, video or pictures alone (no GNSS or CAN)",
@@ -38,10 +38,10 @@ def add_detect_parser(ld: argparse.ArgumentParser) -> None:
 
 
 def _detect(args: argparse.Namespace) -> int:
-    from hil.camera_detect import DetectConfig, run_detect
+    from hil.vehicle.camera_detect import DetectConfig, run_detect
     from testbed.errors import UserError
-    from testbed.eval.run_folder import check_out_dir, output_folder
-    from testbed.perception.registry import DETECTORS, make_detector
+    from testbed.eval.run.folder import check_out_dir, output_folder
+    from testbed.perception.detectors.registry import DETECTORS, make_detector
     from testbed.registry import Capability
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle

@@ -1,5 +1,5 @@
 """`ld3 replay DRIVE`: LD3's detection (and the response's fusion as a shadow) run again over a recorded drive
-(`hil.drive_replay`)."""
+(`hil.vehicle.drive_replay`)."""
 
 from __future__ import annotations
 
@@ -28,9 +28,9 @@ def add_replay_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_replay(args: argparse.Namespace) -> int:
     import tomllib
 
-    from hil.drive_replay import drive_settings, replay_drive, write_replay
+    from hil.vehicle.drive_replay import drive_settings, replay_drive, write_replay
     from testbed.defense.registry import declared_table
-    from testbed.eval.run_folder import check_out_dir, output_folder
+    from testbed.eval.run.folder import check_out_dir, output_folder
 
     path = args.drive / "run.mcap" if args.drive.is_dir() else args.drive
     if not path.is_file():

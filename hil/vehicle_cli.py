@@ -1,4 +1,4 @@
-"""`ld3 vehicle`: the loop on a real vehicle (`hil.vehicle_run`). Exit codes as `ld3 hil`: 0 done, 2 usage (and a
+"""`ld3 vehicle`: the loop on a real vehicle (`hil.vehicle.run`). Exit codes as `ld3 hil`: 0 done, 2 usage (and a
 sensor that never delivered a first GNSS fix), 3 the run ended on a fault (outputs written), 4 the CAN link
 failed."""
 
@@ -9,11 +9,11 @@ import sys
 import time
 from pathlib import Path
 
-from hil.geodetic import DEFAULT_ORIGIN, parse_origin
-from hil.link_errors import LINK_ERRORS, link_error_line
-from hil.profile import DEFAULT_PROFILE
-from hil.scheduling import RT_PRIORITY
-from testbed.eval.run_folder import claimed_out_dir
+from hil.link.errors import LINK_ERRORS, link_error_line
+from hil.link.profile import DEFAULT_PROFILE
+from hil.link.scheduling import RT_PRIORITY
+from hil.vehicle.geodetic import DEFAULT_ORIGIN, parse_origin
+from testbed.eval.run.folder import claimed_out_dir
 
 EXIT_FAULT, EXIT_LINK = 3, 4
 
@@ -21,7 +21,7 @@ EXIT_FAULT, EXIT_LINK = 3, 4
 def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_from_args) -> None:
     """Add `ld3 vehicle`; the bus arguments are those of `ld3 hil`."""
     from testbed.defense.registry import DEFENSES
-    from testbed.perception.registry import DETECTORS
+    from testbed.perception.detectors.registry import DETECTORS
 
     p = sub.add_parser("vehicle", help="run the detection/response loop on a real vehicle (no simulator)",
                        description="Drive a real chassis over CAN with GNSS from an NMEA stream, frames from a "
@@ -59,8 +59,8 @@ def add_vehicle_parser(sub: argparse._SubParsersAction, add_bus_arguments, bus_f
 
 
 def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
-    from hil.vehicle_run import VehicleConfig, VehicleRun
-    from hil.vehicle_scenario import loop_tables
+    from hil.vehicle.run import VehicleConfig, VehicleRun
+    from hil.vehicle.scenario import loop_tables
 
     tables = loop_tables(args.scenario) if args.scenario is not None else {}
     defense = args.defense or tables.pop("defense", None) or "ld3"

@@ -20,9 +20,9 @@ import pandas as pd
 
 from testbed.attacks.base import Attack
 from testbed.defense.base import Defense
-from testbed.eval.outputs import TRAJECTORY_COLUMNS
-from testbed.eval.runner import RunResult, SimRun, prepare_out_dir
-from testbed.eval.scenario import Scenario, load_scenario
+from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
+from testbed.eval.run.runner import RunResult, SimRun, prepare_out_dir
+from testbed.eval.run.scenario import Scenario, load_scenario
 from testbed.lane_detection import LaneDetector
 from testbed.loop import TickRecord
 

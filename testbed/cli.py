@@ -54,7 +54,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
     from testbed.attacks.registry import ATTACKS
     from testbed.defense.registry import DEFENSES
     from testbed.localization.registry import LOCALIZATIONS
-    from testbed.perception.registry import DETECTORS
+    from testbed.perception.detectors.registry import DETECTORS
 
     p.add_argument("scenario", help="shipped scenario name (see `ld3 scenarios`) or path to a .toml file")
     p.add_argument("--track", help="track preset NAME[@SEED] or an OpenDRIVE route xodr:PATH[#ROAD,...][@LANE]")
@@ -82,7 +82,7 @@ def _add_run_overrides(p: argparse.ArgumentParser) -> None:
 
 def scenario_from_args(args: argparse.Namespace):
     from testbed.attacks.spec import specs_to_value
-    from testbed.eval.scenario import apply_settings, load_scenario
+    from testbed.eval.run.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
     attack = specs_to_value(getattr(args, "attack", None) or [])
@@ -94,8 +94,8 @@ def scenario_from_args(args: argparse.Namespace):
 
 def cmd_run(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_tables
-    from testbed.eval.run_folder import check_out_dir
-    from testbed.eval.runner import run_scenario
+    from testbed.eval.run.folder import check_out_dir
+    from testbed.eval.run.runner import run_scenario
 
     sc = scenario_from_args(args)
     out = args.out or Path("runs") / f"{sc.name}-{sc.seed}"
@@ -116,11 +116,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_components(args: argparse.Namespace) -> int:
     from testbed.attacks.registry import ATTACKS
     from testbed.defense.registry import DEFENSES
-    from testbed.eval.campaign import CAMPAIGN_BACKENDS
-    from testbed.eval.campaigns import CAMPAIGNS
-    from testbed.eval.scenario_reference import reference_markdown
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS
+    from testbed.eval.experiments.campaigns import CAMPAIGNS
+    from testbed.eval.run.scenario_reference import reference_markdown
     from testbed.localization.registry import LOCALIZATIONS
-    from testbed.perception.registry import DETECTORS
+    from testbed.perception.detectors.registry import DETECTORS
     from testbed.presets import TRACKS, VEHICLES
 
     for registry in (DEFENSES, DETECTORS, LOCALIZATIONS, ATTACKS, TRACKS, VEHICLES, CAMPAIGNS,
@@ -132,13 +132,13 @@ def cmd_components(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from testbed.eval.scenario_reference import json_schema
+    from testbed.eval.run.scenario_reference import json_schema
 
     text = json.dumps(json_schema(), indent=2) + "\n"
     if args.out is None:
         sys.stdout.write(text)
     else:
-        from testbed.eval.run_folder import output_file
+        from testbed.eval.run.folder import output_file
 
         with output_file(args.out) as tmp:
             tmp.write_text(text)
@@ -147,8 +147,8 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from testbed.eval.report import compare_runs
-    from testbed.eval.run_folder import output_folder
+    from testbed.eval.report.compare import compare_runs
+    from testbed.eval.run.folder import output_folder
 
     with output_folder(args.out, force=True, marker="report.md", what="a comparison") as tmp:
         compare_runs(args.runs, tmp)
@@ -159,7 +159,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_figures(args: argparse.Namespace) -> int:
-    from testbed.eval.figures_later import draw_later, run_folders
+    from testbed.eval.report.figures_later import draw_later, run_folders
 
     folders = run_folders(args.dir)
     drawn = [d for d in folders if draw_later(d)]
@@ -169,7 +169,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    from testbed.eval.scenario import load_scenario, shipped_scenarios
+    from testbed.eval.run.scenario import load_scenario, shipped_scenarios
 
     for name in shipped_scenarios():
         sc = load_scenario(name)
@@ -178,7 +178,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def cmd_tracks(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import output_file
+    from testbed.eval.run.folder import output_file
     from testbed.presets import TRACKS, build_track
     from tracks.plot import save_track_png
 
@@ -211,8 +211,8 @@ def cmd_tracks(args: argparse.Namespace) -> int:
 
 def cmd_patch_figure(args: argparse.Namespace) -> int:
     from testbed.attacks.spec import attack_spec_to_dict
-    from testbed.eval.drp_figure import drp_before_after
-    from testbed.eval.run_folder import output_file
+    from testbed.eval.report.drp_figure import drp_before_after
+    from testbed.eval.run.folder import output_file
 
     with output_file(args.out, ".png") as tmp:
         clean, patched = drp_before_after(tmp, attack_spec_to_dict(args.attack), args.track, args.detector,
@@ -226,7 +226,7 @@ LOOP_ONLY = ("camera", "scenario", "speed", "localization", "ground", "detector"
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from testbed.eval import bench
+    from testbed.eval.analysis import bench
 
     given = ["--set" if name == "settings" else f"--{name}" for name in LOOP_ONLY if getattr(args, name) is not None]
     if args.what != "loop" and given:
@@ -251,8 +251,8 @@ def format_bench(result: dict, indent: str = "") -> str:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from testbed.eval.demo import run_demo
-    from testbed.eval.run_folder import output_folder
+    from testbed.eval.experiments.demo import run_demo
+    from testbed.eval.run.folder import output_folder
 
     with output_folder(args.out, force=True, marker="report.md", what="a demo") as tmp:
         run_demo(tmp, progress=sys.stderr.isatty())
@@ -261,8 +261,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from testbed.eval.campaign import CampaignBusyError
-    from testbed.eval.campaigns import run_named
+    from testbed.eval.campaign.driver import CampaignBusyError
+    from testbed.eval.experiments.campaigns import run_named
 
     if args.name == "list":
         return _campaign_list(args)
@@ -281,9 +281,9 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def _campaign_list(args: argparse.Namespace) -> int:
     """`ld3 campaign list`: every campaign with its runs, simulated time and estimated wall time."""
-    from testbed.eval.campaign_backend import DEFAULT_WORKERS
-    from testbed.eval.campaign_cost import campaign_cost, human_duration
-    from testbed.eval.campaigns import CAMPAIGNS
+    from testbed.eval.campaign.backend import DEFAULT_WORKERS
+    from testbed.eval.campaign.cost import campaign_cost, human_duration
+    from testbed.eval.experiments.campaigns import CAMPAIGNS
 
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
@@ -304,8 +304,8 @@ def _campaign_list(args: argparse.Namespace) -> int:
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
-    from testbed.eval.campaign import CampaignBusyError
-    from testbed.eval.paper import PaperOptions, run_paper
+    from testbed.eval.campaign.driver import CampaignBusyError
+    from testbed.eval.experiments.paper import PaperOptions, run_paper
 
     options = PaperOptions(args.out, quick=args.quick, workers=args.workers, detector=args.detector,
                            timeout=args.timeout, progress=sys.stderr.isatty(), backend=args.backend,
@@ -320,8 +320,8 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_search(args: argparse.Namespace) -> int:
     from testbed.attacks.threat import parse_threat
-    from testbed.eval.search import AttackSearch, SearchSpec
-    from testbed.eval.search_report import write_search_report
+    from testbed.eval.search.attack_search import AttackSearch, SearchSpec
+    from testbed.eval.search.report import write_search_report
 
     victim = search_victim(args)
     spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
@@ -344,9 +344,9 @@ def cmd_search(args: argparse.Namespace) -> int:
 
 def cmd_bound(args: argparse.Namespace) -> int:
     from testbed.defense.config import PAPER_MODE
-    from testbed.eval.bound_table import bound_markdown, bound_rows, bound_setting, write_bound
-    from testbed.eval.run_folder import check_out_dir
-    from testbed.eval.scenario import apply_settings, load_scenario
+    from testbed.eval.run.folder import check_out_dir
+    from testbed.eval.run.scenario import apply_settings, load_scenario
+    from testbed.eval.search.bound_table import bound_markdown, bound_rows, bound_setting, write_bound
 
     if args.out is not None:
         check_out_dir(args.out, args.force)
@@ -383,7 +383,7 @@ def _floats(text: str, flag: str) -> list[float]:
 
 
 def cmd_security_margin(args: argparse.Namespace) -> int:
-    from testbed.eval.security_margin import plan_cells, security_margin
+    from testbed.eval.experiments.security_margin import plan_cells, security_margin
 
     def names(text: str | None, sep: str = ",") -> list[str] | None:
         return None if text is None else [n.strip() for n in text.split(sep)]
@@ -408,7 +408,7 @@ def search_victim(args: argparse.Namespace):
     """The search's victim: the scenario with --defense/--detector/--localization, paper mode and --set."""
     from testbed.defense.config import PAPER_MODE
     from testbed.defense.registry import DEFENSES
-    from testbed.eval.scenario import apply_settings, load_scenario
+    from testbed.eval.run.scenario import apply_settings, load_scenario
 
     sc = load_scenario(args.scenario)
     if sc.attack:
@@ -476,9 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_tracks)
 
     from testbed.defense.registry import DEFENSES
-    from testbed.eval.campaign import CAMPAIGN_BACKENDS
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS
     from testbed.localization.registry import LOCALIZATIONS
-    from testbed.perception.registry import DETECTORS
+    from testbed.perception.detectors.registry import DETECTORS
 
     backends = CAMPAIGN_BACKENDS.names()
     p = sub.add_parser("search", help="worst-case attack search: the attack a threat model allows that does most "
@@ -620,7 +620,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="override the scenario as `ld3 run --set` does (repeatable), e.g. rates.control_hz=40")
     p.set_defaults(func=cmd_bench)
 
-    from testbed.eval.control_commands import add_control_parser
+    from testbed.eval.analysis.control_commands import add_control_parser
     from testbed.perception.commands import add_ld_parser
 
     add_ld_parser(sub)

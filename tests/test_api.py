@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import testbed.gym_env  # noqa: F401 - registers ld3/Lateral-v0
 from testbed import api
-from testbed.eval.outputs import TRAJECTORY_COLUMNS
+from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
 from testbed.rates import CONTROL_HZ
 
 EXAMPLES = sorted((Path(__file__).parents[1] / "docs" / "examples").glob("*.py"))

@@ -69,7 +69,7 @@ def test_the_doc_names_the_layers_and_the_paper_algorithms():
     paths = set(named_paths(DOC.read_text()))
     assert {"testbed/loop.py", "testbed/defense/attack_detection.py", "testbed/defense/fusion.py",
             "testbed/attacks/fusionripper.py", "testbed/attacks/stealthy.py", "testbed/attacks/drp.py",
-            "testbed/defense/savior.py", "testbed/eval/outputs.py"} <= paths
+            "testbed/defense/savior.py", "testbed/eval/run/outputs.py"} <= paths
     assert len(paths) > 40
 
 

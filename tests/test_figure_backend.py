@@ -35,7 +35,7 @@ def _python(code: str) -> str:
 
 def test_the_drawing_modules_are_found():
     modules = _drawing_modules()
-    assert {"tracks.plot", "testbed.eval.birdseye", "hil.drive_replay"} <= set(modules)
+    assert {"tracks.plot", "testbed.eval.run.birdseye", "hil.vehicle.drive_replay"} <= set(modules)
 
 
 def test_importing_the_package_and_every_drawing_module_keeps_the_default_backend():
@@ -58,8 +58,8 @@ def test_drawing_a_figure_keeps_the_backend_the_user_chose(tmp_path):
         from pathlib import Path
         import matplotlib
         matplotlib.use("svg")
-        from hil.drive_replay import ReplayResult, write_replay
-        from testbed.eval.paper_figures import paper_vs_ours
+        from hil.vehicle.drive_replay import ReplayResult, write_replay
+        from testbed.eval.experiments.paper_figures import paper_vs_ours
         out = Path({str(tmp_path)!r})
         paper_vs_ours(out / "bars.png", "t", ["a", "b"], [(0.5, 0.1), None], [(0.4, 0.1), (0.3, 0.2)], "rate")
         rows = [dict(t=0.1 * i, msf_dev=0.0, ld_dev=0.1, fused_dev=None, cusum=0.01 * i, mode="normal", r_msf=None,

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hil.kinematic_plant import KinematicBicyclePlant
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
 from testbed.attacks.base import Attack
 from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
@@ -23,7 +23,7 @@ from testbed.lane_detection import CameraFrame
 from testbed.localization.sensors import GnssFix
 from testbed.localization.stack import GroundTruthLocalization
 from testbed.loop import ControlLoop, DrivingPorts, PerceptionPorts, SensorPorts
-from testbed.perception.oracle import OracleLaneDetector
+from testbed.perception.detectors.oracle import OracleLaneDetector
 from testbed.rates import Rates
 from tracks.presets import load_track
 from tracks.semantic_map import TrackMap

@@ -13,9 +13,9 @@ import pytest
 
 from testbed.attacks.registry import ATTACKS
 from testbed.defense.registry import DEFENSES
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario
-from testbed.perception.registry import DETECTORS
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import load_scenario
+from testbed.perception.detectors.registry import DETECTORS
 
 PLUGIN = textwrap.dedent('''
     """A third-party package that extends the testbed through entry points only."""
@@ -24,7 +24,7 @@ PLUGIN = textwrap.dedent('''
     from testbed.defense.ld3 import Ld3Defense
     from testbed.localization.estimate import LocalizationEstimate
     from testbed.params import params_from_signature
-    from testbed.perception.oracle import OracleLaneDetector
+    from testbed.perception.detectors.oracle import OracleLaneDetector
     from testbed.registry import Capability, Component
 
 

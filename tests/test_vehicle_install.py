@@ -13,10 +13,10 @@ SIMULATOR_PACKAGES = ("pybullet", "cv2", "torch", "torchvision", "matplotlib", "
                       "pandas", "ray", "onnxruntime", "onnx", "control")
 VEHICLE_PACKAGES = ("tracks", "vehicles", "testbed.defense", "testbed.localization", "testbed.control", "hil")
 VEHICLE_MODULES = ("testbed.loop", "testbed.lane_detection", "testbed.chassis", "testbed.lane_tracker",
-                   "testbed.perception.onnx_file",
-                   "testbed.perception.registry", "testbed.cli")
-SIMULATOR_MODULES = ("tracks.plot", "vehicles.pybullet_vehicle", "hil.campaigns", "hil.fault_drill",
-                     "hil.mcap_can", "hil.plants", "hil.scenario_run", "hil.__main__")
+                   "testbed.perception.detectors.onnx_file",
+                   "testbed.perception.detectors.registry", "testbed.cli")
+SIMULATOR_MODULES = ("tracks.plot", "vehicles.pybullet_vehicle", "hil.emulator.campaigns", "hil.emulator.fault_drill",
+                     "hil.link.mcap_can", "hil.emulator.plants", "hil.emulator.scenario_run", "hil.__main__")
 """Modules inside the vehicle packages that drive or record the simulator."""
 
 PROBE = textwrap.dedent("""

@@ -18,9 +18,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hil.camera_calibration import CameraCalibration, Rectifier
+from hil.vehicle.camera_calibration import CameraCalibration, Rectifier
 from testbed.lane_detection import CameraFrame
-from testbed.perception.registry import make_detector
+from testbed.perception.detectors.registry import make_detector
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

@@ -16,12 +16,12 @@ import math
 import cv2
 import numpy as np
 
-from hil.camera_calibration import CameraCalibration, Rectifier
-from hil.camera_detect import LaneCentre
-from hil.frame_stream import frame_stream
+from hil.vehicle.camera_calibration import CameraCalibration, Rectifier
+from hil.vehicle.camera_detect import LaneCentre
+from hil.vehicle.frame_stream import frame_stream
 from testbed.lane_detection import CameraFrame
 from testbed.lane_tracker import LaneTracker
-from testbed.perception.registry import make_detector
+from testbed.perception.detectors.registry import make_detector
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

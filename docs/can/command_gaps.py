@@ -25,10 +25,10 @@ from pathlib import Path
 import can
 import numpy as np
 
-from hil.ecu_process import EcuProcess
-from hil.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
-from hil.nmea_out import gga_sentence
-from hil.timing import ClockMode
+from hil.link.ecu_process import EcuProcess
+from hil.link.timing import ClockMode
+from hil.vehicle.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
+from hil.vehicle.nmea_out import gga_sentence
 from testbed.cli import main as ld3
 from testbed.localization.sensors import GnssFix
 from tests.hil.test_vehicle import NmeaFeeder

@@ -7,7 +7,7 @@ import numpy as np
 
 from testbed import api
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.perception.oracle import OracleLaneDetector
+from testbed.perception.detectors.oracle import OracleLaneDetector
 from tracks.presets import load_track
 
 

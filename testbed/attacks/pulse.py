@@ -3,7 +3,7 @@ cancelled, as a white-box attacker who sees the truth can), and on the first lan
 `pulse_at` with the car within `SPEED_TOL_MPS` of `speed` it is moved by `offset` (m, + left) and its yaw by `yaw`
 (rad) for one camera period. Run with zero and
 with each input, the difference of the true deviations is the closed loop's response to one checked input: the
-linear program of the deviation bound solved on the car (`testbed.eval.bound_on_car`)."""
+linear program of the deviation bound solved on the car (`testbed.eval.search.bound_on_car`)."""
 
 from __future__ import annotations
 

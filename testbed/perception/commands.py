@@ -81,8 +81,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                    help="export only the network (preprocessed input in, column and existence logits out)")
     p.set_defaults(func=_export_onnx)
 
+    from testbed.perception.detectors.registry import DETECTORS
     from testbed.perception.lab.traffic_drive import LEAD_GAP_M
-    from testbed.perception.registry import DETECTORS
 
     p = sub.add_parser("closed-loop", help="drive held-out tracks of every preset in every condition and table "
                                            "|D_LD - phys_dev| with and without lane tracking")
@@ -129,8 +129,8 @@ def _at_least(value: float | None, low: float, flag: str) -> None:
 
 
 def _dataset(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import output_folder
-    from testbed.perception.dataset import build_dataset
+    from testbed.eval.run.folder import output_folder
+    from testbed.perception.training.dataset import build_dataset
 
     for flag, value, low in (("--frames", args.frames, 1), ("--seed", args.seed, 0),
                              ("--frames-per-episode", args.frames_per_episode, 1), ("--workers", args.workers, 1),
@@ -145,8 +145,8 @@ def _dataset(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import output_folder
-    from testbed.perception.train import TrainConfig, train
+    from testbed.eval.run.folder import output_folder
+    from testbed.perception.training.train import TrainConfig, train
 
     for flag, value, low in (("--epochs", args.epochs, 1), ("--threads", args.threads, 1), ("--limit", args.limit, 1),
                              ("--negatives", args.negatives, 0)):
@@ -164,8 +164,8 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _average(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import output_file
-    from testbed.perception.weight_mean import mean_checkpoint
+    from testbed.eval.run.folder import output_file
+    from testbed.perception.training.weight_mean import mean_checkpoint
 
     with output_file(args.out, ".pt") as tmp:
         mean_checkpoint(args.checkpoints, tmp)
@@ -174,7 +174,7 @@ def _average(args: argparse.Namespace) -> int:
 
 
 def _existence_refit(args: argparse.Namespace) -> int:
-    from testbed.perception.existence_head import write_refit
+    from testbed.perception.training.existence_head import write_refit
 
     if args.negatives < 1:
         from testbed.errors import UserError
@@ -187,11 +187,11 @@ def _existence_refit(args: argparse.Namespace) -> int:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import check_out_dir, output_folder
-    from testbed.perception.classical import ClassicalLaneDetector
-    from testbed.perception.dataset import load_frames
-    from testbed.perception.evaluate import evaluate, markdown_table, write_report
-    from testbed.perception.neural import NeuralLaneDetector, load_model
+    from testbed.eval.run.folder import check_out_dir, output_folder
+    from testbed.perception.detectors.classical import ClassicalLaneDetector
+    from testbed.perception.detectors.neural import NeuralLaneDetector, load_model
+    from testbed.perception.training.dataset import load_frames
+    from testbed.perception.training.evaluate import evaluate, markdown_table, write_report
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
 
@@ -214,10 +214,10 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def _export_onnx(args: argparse.Namespace) -> int:
-    from testbed.eval.run_folder import output_file
-    from testbed.perception.neural import load_model
-    from testbed.perception.onnx_detector_graph import export_detector_onnx
-    from testbed.perception.onnx_runtime import export_onnx
+    from testbed.eval.run.folder import output_file
+    from testbed.perception.detectors.neural import load_model
+    from testbed.perception.detectors.onnx_runtime import export_onnx
+    from testbed.perception.training.onnx_detector_graph import export_detector_onnx
 
     export = export_onnx if args.network_only else export_detector_onnx
     with output_file(args.out, ".onnx") as tmp:
@@ -229,7 +229,7 @@ def _export_onnx(args: argparse.Namespace) -> int:
 def _closed_loop(args: argparse.Namespace) -> int:
     from testbed.conditions import CONDITIONS
     from testbed.errors import UserError
-    from testbed.eval.run_folder import check_out_dir, output_folder
+    from testbed.eval.run.folder import check_out_dir, output_folder
     from testbed.perception.lab.closed_loop import markdown_table, run_closed_loop, write_report
     from tracks.presets import PRESETS
 

@@ -5,8 +5,8 @@ lets it move, and the run records the threat model."""
 import pytest
 
 from testbed.defense.config import PAPER_MODE
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import load_scenario
 
 CASES = {
     "zone": ({"kind": "zone", "zone": "intersection", "lateral": -1.5, "ramp": 0.2, "hold": 2.0}, "msf-output"),

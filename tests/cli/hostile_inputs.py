@@ -11,7 +11,7 @@ from pathlib import Path
 
 from tests.cli.case import Case
 
-PROFILE = Path(__file__).resolve().parents[2] / "hil" / "profiles" / "ld3-dev"
+PROFILE = Path(__file__).resolve().parents[2] / "hil" / "link" / "profiles" / "ld3-dev"
 GOOD = 'track = "slr"\nduration = 2.0\n'
 
 XODR = """<?xml version='1.0' encoding='utf-8'?>
@@ -104,14 +104,14 @@ def _checkpoint(state: dict) -> bytes:
 def _wrong_shape() -> bytes:
     import torch
 
-    from testbed.perception.neural import LaneNet
+    from testbed.perception.detectors.neural import LaneNet
 
     state = {k: torch.zeros([s + 1 for s in v.shape]) for k, v in LaneNet(16).state_dict().items()}
     return _checkpoint({"state_dict": state, "width": 16})
 
 
 def _wrong_width() -> bytes:
-    from testbed.perception.neural import LaneNet
+    from testbed.perception.detectors.neural import LaneNet
 
     return _checkpoint({"state_dict": LaneNet(16).state_dict(), "width": 32})
 

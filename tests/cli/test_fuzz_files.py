@@ -52,7 +52,7 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
 def _checkpoint() -> bytes:
     import torch
 
-    from testbed.perception.neural import LaneNet
+    from testbed.perception.detectors.neural import LaneNet
 
     buf = io.BytesIO()
     torch.save({"state_dict": LaneNet(8).state_dict(), "width": 8, "input_rows": 56}, buf)

@@ -55,7 +55,7 @@ def test_sigterm_leaves_no_temporary_folder_and_keeps_the_earlier_run(tmp_path):
 
 def test_a_run_set_aside_by_a_killed_command_is_named_not_overwritten(tmp_path):
     from testbed.errors import UserError
-    from testbed.eval.run_folder import claimed_out_dir
+    from testbed.eval.run.folder import claimed_out_dir
 
     out, aside = tmp_path / "run", tmp_path / ".run.old-999999999"
     make_files(tmp_path, {"run/can.asc": "partial", ".run.old-999999999/summary.json": "{}"})

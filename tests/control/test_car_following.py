@@ -4,8 +4,8 @@ import pytest
 
 from testbed.control.car_following import CarFollowing, LeadCar
 from testbed.control.idm import IdmParams, desired_gap
-from testbed.eval.runner import SimRun
-from testbed.eval.scenario import apply_settings, load_scenario
+from testbed.eval.run.runner import SimRun
+from testbed.eval.run.scenario import apply_settings, load_scenario
 
 IDM = IdmParams(brake_limit=8.0)
 

@@ -1,6 +1,6 @@
 """The lateral loop of every shipped vehicle at every control rate a run can choose (multiples of the default
 camera rate, the chassis profiles' command rates and their multiples, 20–100 Hz) with the shipped steering-rate
-weight: stable, and gain and phase margins above the floors of `testbed.eval.lateral_loop` on the design model
+weight: stable, and gain and phase margins above the floors of `testbed.eval.analysis.lateral_loop` on the design model
 with the command a tick late and on the car as measured, at speeds up to the vehicle's top speed. The
 combinations below the floors today are strict xfails: each is a finding, and fixing one fails its xfail."""
 
@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.profile import PROFILES_DIR, load_profile
+from hil.link.profile import PROFILES_DIR, load_profile
 from testbed.control.config import ControlConfig
 from testbed.control.lateral_model import LateralModel
-from testbed.eval.lateral_loop import FLOORED, LateralLoop
+from testbed.eval.analysis.lateral_loop import FLOORED, LateralLoop
 from testbed.rates import CAMERA_HZ, CONTROL_HZ, PHYSICS_HZ
 from vehicles.params import VEHICLES
 

@@ -9,7 +9,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.no_defense import NoDefense
 from testbed.defense.registry import DEFENSES, declared_table, defense_settings, explicit_table, resolved_table
 from testbed.defense.savior import SaviorConfig
-from testbed.eval.scenario import Scenario, ScenarioError
+from testbed.eval.run.scenario import Scenario, ScenarioError
 from testbed.params import Params, ParamsError
 from testbed.registry import Component
 

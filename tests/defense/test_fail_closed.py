@@ -17,7 +17,7 @@ from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.odometry import DeadReckoning, advance
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import ImuModel

@@ -12,8 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from testbed.eval.campaign import CampaignRun, run_campaign
-from testbed.eval.scenario import load_scenario
+from testbed.eval.campaign.driver import CampaignRun, run_campaign
+from testbed.eval.run.scenario import load_scenario
 
 PARTS = 20
 PART_PERIOD_S = 0.05

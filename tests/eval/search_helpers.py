@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from testbed.attacks.threat import parse_threat
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.scenario import load_scenario
-from testbed.eval.search import AttackSearch, SearchSpec
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.run.scenario import load_scenario
+from testbed.eval.search.attack_search import AttackSearch, SearchSpec
 
 
 def toy_deviation(attack: dict[str, Any]) -> float:

@@ -3,9 +3,9 @@
 import jsonschema
 import pytest
 
-from testbed.eval.scenario import ScenarioError, add_attacks, apply_settings, load_scenario, scenario_from_dict
-from testbed.eval.scenario_reference import json_schema
-from testbed.eval.scenario_toml import scenario_document, write_scenario
+from testbed.eval.run.scenario import ScenarioError, add_attacks, apply_settings, load_scenario, scenario_from_dict
+from testbed.eval.run.scenario_reference import json_schema
+from testbed.eval.run.scenario_toml import scenario_document, write_scenario
 
 DOC = {"track": "local", "localization": "msf", "defense": "ld3",
        "attack": [{"kind": "trace", "start": 12.0}, {"kind": "drp-trace", "start": 14.0, "shift": 0.5}]}

@@ -4,7 +4,7 @@ import importlib.util
 import json
 
 from testbed.cli import EXIT_USAGE, main
-from testbed.eval.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
+from testbed.eval.analysis.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
 from testbed.rates import PHYSICS_HZ
 
 

@@ -1,8 +1,8 @@
 import numpy as np
 
 from testbed.conditions import CONDITIONS
-from testbed.eval.campaigns import BENIGN_TRAFFIC_PRESETS, CAMPAIGNS, benign_traffic_table, selected_runs
-from testbed.eval.outputs import TRAJECTORY_COLUMNS
+from testbed.eval.experiments.campaigns import BENIGN_TRAFFIC_PRESETS, CAMPAIGNS, benign_traffic_table, selected_runs
+from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
 from testbed.perception.lab.traffic_drive import LEAD_GAP_M
 from testbed.traffic.fleet import Fleet
 from tracks.presets import load_track

@@ -9,9 +9,9 @@ import pytest
 
 from testbed.control.attack_bound import deviation_bound, lateral_loop
 from testbed.errors import UserError
-from testbed.eval.bound_on_car import identify
-from testbed.eval.bound_table import bound_setting
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.scenario import load_scenario
+from testbed.eval.search.bound_on_car import identify
+from testbed.eval.search.bound_table import bound_setting
 
 SPEED, HORIZON_S = 8.0, 4.0
 

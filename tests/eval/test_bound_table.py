@@ -10,9 +10,9 @@ import pytest
 from testbed.cli import main
 from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
-from testbed.eval.bound_table import RESIDUAL_STD, bound_rows, bound_setting, write_bound
-from testbed.eval.scenario import load_scenario
-from testbed.eval.search_report import write_search_report
+from testbed.eval.run.scenario import load_scenario
+from testbed.eval.search.bound_table import RESIDUAL_STD, bound_rows, bound_setting, write_bound
+from testbed.eval.search.report import write_search_report
 from tests.eval.search_helpers import toy_search
 
 

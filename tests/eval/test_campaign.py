@@ -5,12 +5,19 @@ from collections import Counter
 from pathlib import Path
 
 from testbed.defense.config import PAPER_MODE, DefenseConfig
-from testbed.eval.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
-from testbed.eval.campaign import CampaignRun, run_campaign
-from testbed.eval.campaigns import CAMPAIGNS, GRID_D, GRID_F, GRID_TRACK_SEEDS, fr_grid_runs, fusionripper_ld3_runs
-from testbed.eval.roc import record_detection_run, roc_runs
-from testbed.eval.scenario import load_scenario
-from testbed.eval.summary import SCHEMA_VERSION
+from testbed.eval.campaign.driver import CampaignRun, run_campaign
+from testbed.eval.experiments.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
+from testbed.eval.experiments.campaigns import (
+    CAMPAIGNS,
+    GRID_D,
+    GRID_F,
+    GRID_TRACK_SEEDS,
+    fr_grid_runs,
+    fusionripper_ld3_runs,
+)
+from testbed.eval.experiments.roc import record_detection_run, roc_runs
+from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import SCHEMA_VERSION
 
 
 def write_fake_summary(run: CampaignRun, run_dir: Path) -> dict:
@@ -87,7 +94,7 @@ def test_roc_campaign_records_benign_fit_and_attacked_drives():
 
 
 def test_attack_success_is_the_goal_deviation_or_leaving_the_road():
-    from testbed.eval.consequence import attack_succeeded
+    from testbed.eval.run.consequence import attack_succeeded
 
     assert attack_succeeded("highway", 1.95, "out_of_lane")
     assert not attack_succeeded("highway", 1.85, "out_of_lane")
@@ -97,8 +104,8 @@ def test_attack_success_is_the_goal_deviation_or_leaving_the_road():
 
 
 def test_benign_table_reports_msf_lateral_error_per_track(tmp_path):
-    from testbed.eval.campaigns import benign_table
-    from testbed.eval.outputs import TRAJECTORY_COLUMNS
+    from testbed.eval.experiments.campaigns import benign_table
+    from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
 
     sc = load_scenario("local")
     done = []
@@ -132,7 +139,7 @@ def test_a_sweep_over_defense_b_is_recorded_in_runs_csv(tmp_path):
 
 
 def test_roc_report_with_only_a_fit_drive_says_there_is_nothing_to_sweep(tmp_path):
-    from testbed.eval.campaigns import run_named
+    from testbed.eval.experiments.campaigns import run_named
 
     report = run_named("roc", tmp_path, detector="oracle", workers=1, progress=False, select="local-fit-seed100")
     text = report.read_text()

@@ -14,16 +14,11 @@ from pathlib import Path
 import pytest
 
 from testbed import cli
-from testbed.eval.campaign import CAMPAIGN_BACKENDS, CampaignRun, run_campaign
-from testbed.eval.campaign_backend import BackendUnavailable
-from testbed.eval.campaign_cost import (
-    WALL_PER_SIM_S_CAMERA,
-    WALL_PER_SIM_S_NO_CAMERA,
-    campaign_cost,
-    human_duration,
-)
-from testbed.eval.campaigns import CAMPAIGNS
-from testbed.eval.scenario import load_scenario
+from testbed.eval.campaign.backend import BackendUnavailable
+from testbed.eval.campaign.cost import WALL_PER_SIM_S_CAMERA, WALL_PER_SIM_S_NO_CAMERA, campaign_cost, human_duration
+from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS, CampaignRun, run_campaign
+from testbed.eval.experiments.campaigns import CAMPAIGNS
+from testbed.eval.run.scenario import load_scenario
 from tests.eval.campaign_helpers import process_probe, slow_writer, thread_probe
 
 WALL_FIELDS = ("wall_time_s", "real_time_factor")
@@ -105,8 +100,8 @@ def test_an_unknown_backend_is_refused_naming_the_known_ones(tmp_path, capsys):
 
 PLUGIN = textwrap.dedent('''
     """A third-party campaign backend: runs in this process, newest first, and records the order."""
-    from testbed.eval.campaign_backend import CampaignBackend, RunOutcome
-    from testbed.eval.campaign_run import attempt_within, run_limit, temp_dir
+    from testbed.eval.campaign.backend import CampaignBackend, RunOutcome
+    from testbed.eval.campaign.run import attempt_within, run_limit, temp_dir
 
     ORDER = []
 
@@ -161,7 +156,7 @@ def test_a_backend_added_by_entry_point_runs_a_campaign_and_is_a_cli_choice(back
 
 
 def test_ld3_campaign_passes_backend_address_and_workers_through(tmp_path, monkeypatch):
-    from testbed.eval import campaigns
+    from testbed.eval.experiments import campaigns
 
     seen = {}
 
@@ -271,7 +266,7 @@ def test_the_ray_backend_records_failures_timeouts_and_dead_workers_and_goes_on(
 @pytest.mark.slow
 def test_a_ray_task_deaf_to_its_alarm_is_cancelled_after_the_start_allowance(tmp_path, monkeypatch):
     pytest.importorskip("ray")
-    from testbed.eval import ray_backend
+    from testbed.eval.campaign.driver import ray_backend
 
     monkeypatch.setattr(ray_backend, "START_ALLOWANCE_S", 30.0)
     sc = load_scenario("slr")
@@ -297,7 +292,7 @@ def test_the_documented_cluster_configs_pass_rays_schema(path):
 
 def test_ray_kept_warm_connects_once_for_every_batch_and_shuts_down_after(tmp_path, monkeypatch):
     ray = pytest.importorskip("ray")
-    from testbed.eval.campaign import campaign_backend
+    from testbed.eval.campaign.driver import campaign_backend
 
     inits = []
     real_init = ray.init

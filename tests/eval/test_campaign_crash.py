@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from testbed.eval.campaign import CampaignBusyError, CampaignRun, _folder_lock, run_campaign
-from testbed.eval.scenario import load_scenario
+from testbed.eval.campaign.driver import CampaignBusyError, CampaignRun, _folder_lock, run_campaign
+from testbed.eval.run.scenario import load_scenario
 from tests.eval.campaign_helpers import PARTS, crash_runs, process_probe, slow_writer, warning_writer
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -148,7 +148,7 @@ def test_one_campaign_process_per_folder(tmp_path):
 
 def test_ld3_campaign_passes_timeout_and_refuses_a_busy_folder(tmp_path, monkeypatch, capsys):
     from testbed import cli
-    from testbed.eval import campaigns
+    from testbed.eval.experiments import campaigns
 
     seen = {}
 
@@ -193,7 +193,7 @@ def test_warnings_a_run_logs_go_to_its_run_log_not_the_console(tmp_path, capfd, 
 
 
 def test_workers_kept_warm_serve_every_batch_and_a_dead_one_is_replaced(tmp_path):
-    from testbed.eval.campaign import campaign_backend
+    from testbed.eval.campaign.driver import campaign_backend
 
     sc = load_scenario("slr")
 

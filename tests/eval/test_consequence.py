@@ -2,7 +2,7 @@
 
 import math
 
-from testbed.eval.consequence import ConsequenceMonitor, footprint_corners
+from testbed.eval.run.consequence import ConsequenceMonitor, footprint_corners
 
 
 def monitor():

@@ -7,8 +7,8 @@ import pytest
 from testbed.conditions import CONDITIONS
 from testbed.defense.config import DefenseConfig
 from testbed.defense.roc import ResidualSeries
-from testbed.eval.campaign import CampaignRun, run_campaign
-from testbed.eval.cusum_fit import (
+from testbed.eval.campaign.driver import CampaignRun, run_campaign
+from testbed.eval.experiments.cusum_fit import (
     FIT_PRESETS,
     FIT_SEEDS,
     benign_alarms,
@@ -21,8 +21,8 @@ from testbed.eval.cusum_fit import (
     smallest_clean_b,
     sweep,
 )
-from testbed.eval.roc import record_detection_run
-from testbed.perception.seeds import HELD_OUT_SEEDS
+from testbed.eval.experiments.roc import record_detection_run
+from testbed.perception.training.seeds import HELD_OUT_SEEDS
 
 
 def series(r, t0=0.0, attack_start=None, dt=0.05):

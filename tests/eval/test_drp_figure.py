@@ -4,7 +4,7 @@ import pytest
 
 from testbed.attacks.spec import attack_spec_to_dict
 from testbed.cli import DEMO_PATCH
-from testbed.eval.drp_figure import drp_before_after
+from testbed.eval.report.drp_figure import drp_before_after
 
 
 def test_patch_shifts_the_neural_detectors_lane_deviation(tmp_path):

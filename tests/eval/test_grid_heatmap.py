@@ -3,10 +3,10 @@
 import matplotlib.image
 import numpy as np
 
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.campaigns import GRID_D, GRID_F, fr_grid_table
-from testbed.eval.consequence import ATTACK_GOAL_M
-from testbed.eval.scenario import load_scenario
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.experiments.campaigns import GRID_D, GRID_F, fr_grid_table
+from testbed.eval.run.consequence import ATTACK_GOAL_M
+from testbed.eval.run.scenario import load_scenario
 
 
 def fabricated_grid() -> list[tuple[CampaignRun, dict]]:

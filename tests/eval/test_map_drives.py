@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 
 from testbed.errors import UserError
-from testbed.eval.campaigns import selected_runs
-from testbed.eval.map_drives import CRUISE, map_table
+from testbed.eval.experiments.campaigns import selected_runs
+from testbed.eval.experiments.map_drives import CRUISE, map_table
 from tests.tracks.opendrive.xodr_text import constant, document, geometry, road, section
 
 

@@ -7,8 +7,8 @@ import json
 
 from scenariogeneration import xodr
 
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import load_scenario
 
 
 def write_route(path) -> None:

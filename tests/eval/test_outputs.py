@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from testbed.eval.outputs import TRAJECTORY_COLUMNS, read_trajectory
+from testbed.eval.run.outputs import TRAJECTORY_COLUMNS, read_trajectory
 
 
 def test_trajectory_reader_gives_floats_with_nan_for_empty_cells(tmp_path):

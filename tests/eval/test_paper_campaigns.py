@@ -7,13 +7,26 @@ from pathlib import Path
 import pytest
 
 from testbed.defense.config import PAPER_CUSUM, DefenseConfig
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.campaigns import CAMPAIGNS, selected_runs
-from testbed.eval.drp_response import PATCH_AT, TRACE_ROADS, drp_runs, drp_table
-from testbed.eval.paper_report import load_paper_values
-from testbed.eval.scenario import load_scenario
-from testbed.eval.sim_table import BENIGN_SEEDS, SIM_DEFENSES, SIM_SCENARIOS, SIM_STARTS, sim_table, sim_table_runs
-from testbed.eval.stealthy_bound import LD_NOISE_STD, MARGINS_SIGMA, fluctuation_stats, paper_bound, stealthy_runs
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.experiments.campaigns import CAMPAIGNS, selected_runs
+from testbed.eval.experiments.drp_response import PATCH_AT, TRACE_ROADS, drp_runs, drp_table
+from testbed.eval.experiments.paper_report import load_paper_values
+from testbed.eval.experiments.sim_table import (
+    BENIGN_SEEDS,
+    SIM_DEFENSES,
+    SIM_SCENARIOS,
+    SIM_STARTS,
+    sim_table,
+    sim_table_runs,
+)
+from testbed.eval.experiments.stealthy_bound import (
+    LD_NOISE_STD,
+    MARGINS_SIGMA,
+    fluctuation_stats,
+    paper_bound,
+    stealthy_runs,
+)
+from testbed.eval.run.scenario import load_scenario
 
 
 def summary(**fields) -> dict:

@@ -8,18 +8,18 @@ import pytest
 
 from testbed.cli import main
 from testbed.defense.config import DefenseConfig
-from testbed.eval import paper
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.campaigns import CAMPAIGNS
-from testbed.eval.paper import EXPERIMENTS, PaperOptions, announce_plan, campaign_command, planned_runs
-from testbed.eval.paper_report import (
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.experiments import paper
+from testbed.eval.experiments.campaigns import CAMPAIGNS
+from testbed.eval.experiments.paper import EXPERIMENTS, PaperOptions, announce_plan, campaign_command, planned_runs
+from testbed.eval.experiments.paper_report import (
     CampaignResult,
     ar_deceleration,
     load_paper_values,
     residual_max,
     write_paper_report,
 )
-from testbed.eval.scenario import ScenarioError, load_scenario
+from testbed.eval.run.scenario import ScenarioError, load_scenario
 
 TRAJECTORY = ("t", "speed", "mode", "phys_dev", "msf_dev", "ld_dev", "ld_fresh")
 
@@ -35,7 +35,7 @@ def chassis_registered(tmp_path_factory, monkeypatch):
     info = root / "ld3_chassis_probe-0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: ld3-chassis-probe\nVersion: 0\n")
-    (info / "entry_points.txt").write_text("[ld3.campaigns]\nchassis = hil.campaigns:CHASSIS\n")
+    (info / "entry_points.txt").write_text("[ld3.campaigns]\nchassis = hil.emulator.campaigns:CHASSIS\n")
     monkeypatch.syspath_prepend(str(root))
     CAMPAIGNS.reload_plugins()
     assert "chassis" in CAMPAIGNS

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from testbed.eval.recording import CHANNELS, Recording, ego_lane_lines
+from testbed.eval.run.recording import CHANNELS, Recording, ego_lane_lines
 from testbed.lane_detection import LaneDetection
 from testbed.loop import TickRecord
 from tracks.pose import Pose

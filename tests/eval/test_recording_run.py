@@ -8,8 +8,8 @@ import imageio_ffmpeg
 from mcap.reader import make_reader
 
 from testbed.defense.config import DefenseConfig
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import load_scenario
 from testbed.rates import CONTROL_HZ
 
 

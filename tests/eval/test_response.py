@@ -7,8 +7,8 @@ import json
 import pytest
 
 from testbed.defense.config import PAPER_MODE
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import load_scenario
 from testbed.rates import Rates
 
 FR = {"kind": "fusionripper", "d": 1.0, "f": 1.5, "start": 15.0}
@@ -64,8 +64,8 @@ def test_no_fusion_plot_without_attack_response(tmp_path):
 
 
 def test_reported_p_source_is_refused_with_a_detector_that_reports_no_variance():
-    from testbed.eval.runner import SimRun
-    from testbed.eval.scenario import ScenarioError
+    from testbed.eval.run.runner import SimRun
+    from testbed.eval.run.scenario import ScenarioError
 
     sc = load_scenario("slr").with_overrides(duration=1.0, defense="ld3", detector="classical",
                                              defense_params={"p_source": "reported"})
@@ -74,7 +74,7 @@ def test_reported_p_source_is_refused_with_a_detector_that_reports_no_variance()
 
 
 def test_p_source_is_refused_for_a_defense_without_the_fusion():
-    from testbed.eval.scenario import ScenarioError
+    from testbed.eval.run.scenario import ScenarioError
 
     with pytest.raises(ScenarioError, match=r"p_source: not read by defense 'ld3-naive-ar'"):
         load_scenario("slr").with_overrides(defense="ld3-naive-ar", detector="classical",

@@ -7,9 +7,9 @@ from pathlib import Path
 import cv2
 
 from testbed.cli import main
-from testbed.eval.run_figures import BELIEVED, read_believed, read_rows
-from testbed.eval.runner import run_into
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.figures import BELIEVED, read_believed, read_rows
+from testbed.eval.run.runner import run_into
+from testbed.eval.run.scenario import load_scenario
 
 FR = {"kind": "fusionripper", "d": 1.0, "f": 1.5, "start": 8.0}
 
@@ -49,8 +49,8 @@ def test_deferred_figures_are_drawn_later_from_the_folder(tmp_path, capsys):
 
 
 def test_ld3_campaign_figures_later_runs_the_executor_without_figures(tmp_path, monkeypatch):
-    from testbed.eval import campaigns
-    from testbed.eval.campaign import run_and_write, run_and_write_data
+    from testbed.eval.campaign.driver import run_and_write, run_and_write_data
+    from testbed.eval.experiments import campaigns
 
     seen = []
     monkeypatch.setattr(campaigns, "run_campaign", lambda runs, out, **kwargs: seen.append(kwargs["execute"]) or [])

@@ -8,10 +8,10 @@ import sys
 
 import pytest
 
-from testbed.eval.outputs import TRAJECTORY_COLUMNS
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import ScenarioError, load_scenario
-from testbed.eval.summary import RunSummary
+from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import ScenarioError, load_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.rates import CONTROL_HZ
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
@@ -92,7 +92,7 @@ def test_malformed_toml_is_a_scenario_error(tmp_path):
 
 def test_savior_in_the_loop_models_the_scenario_vehicle():
     """SAVIOR's bicycle model predicts with the wheelbase of the car it guards, not a generic one."""
-    from testbed.eval.runner import SimRun
+    from testbed.eval.run.runner import SimRun
     from vehicles.params import get_vehicle
 
     for vehicle in ("sedan", "dev-chassis"):
@@ -115,7 +115,7 @@ def test_debug_shows_the_traceback_that_the_one_line_error_hides():
 
 
 def test_compare_tables_any_runs_and_names_what_differs(tmp_path):
-    from testbed.eval.report import compare_runs
+    from testbed.eval.report.compare import compare_runs
 
     base = load_scenario("slr").with_overrides(duration=2.0, defense="ld3", localization="msf")
     run_scenario(base, tmp_path / "a")

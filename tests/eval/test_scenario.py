@@ -2,8 +2,8 @@
 
 import pytest
 
-from testbed.eval.scenario import ScenarioError, apply_settings, check_needs, load_scenario, shipped_scenarios
-from testbed.eval.scenario_toml import write_scenario
+from testbed.eval.run.scenario import ScenarioError, apply_settings, check_needs, load_scenario, shipped_scenarios
+from testbed.eval.run.scenario_toml import write_scenario
 
 PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
 
@@ -136,10 +136,10 @@ def test_neural_weights_must_exist(tmp_path):
 
 def test_a_lane_detection_attack_nothing_steers_by_is_named_not_silent(caplog):
     base = load_scenario("slr").replace(detector="oracle", attack={"kind": "drp-trace", "start": 0.0})
-    with caplog.at_level("WARNING", logger="testbed.eval.scenario"):
+    with caplog.at_level("WARNING", logger="testbed.eval.run.scenario"):
         check_needs(base)
     assert "changes only the recorded D_LD" in caplog.text and "'none'" in caplog.text
     caplog.clear()
-    with caplog.at_level("WARNING", logger="testbed.eval.scenario"):
+    with caplog.at_level("WARNING", logger="testbed.eval.run.scenario"):
         check_needs(base.replace(defense="ld3", localization="msf"))
     assert caplog.text == ""

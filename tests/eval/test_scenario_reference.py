@@ -7,8 +7,8 @@ from importlib import resources
 import jsonschema
 import pytest
 
-from testbed.eval.scenario import shipped_scenarios
-from testbed.eval.scenario_reference import json_schema, reference_markdown
+from testbed.eval.run.scenario import shipped_scenarios
+from testbed.eval.run.scenario_reference import json_schema, reference_markdown
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +20,7 @@ def validator():
 
 def test_every_shipped_scenario_validates_against_the_schema(validator):
     for name in shipped_scenarios():
-        text = (resources.files("testbed.eval") / "scenarios" / f"{name}.toml").read_text()
+        text = (resources.files("testbed.eval.run") / "scenarios" / f"{name}.toml").read_text()
         validator.validate(tomllib.loads(text))
 
 

@@ -13,9 +13,17 @@ import pytest
 
 from testbed.attacks.threat import parse_threat
 from testbed.errors import UserError
-from testbed.eval.scenario import load_scenario
-from testbed.eval.search import CRASH_BONUS_M, AttackSearch, SearchSpec, families_for, is_loss, outcome_of, score
-from testbed.eval.search_report import write_search_report
+from testbed.eval.run.scenario import load_scenario
+from testbed.eval.search.attack_search import (
+    CRASH_BONUS_M,
+    AttackSearch,
+    SearchSpec,
+    families_for,
+    is_loss,
+    outcome_of,
+    score,
+)
+from testbed.eval.search.report import write_search_report
 from tests.eval.search_helpers import toy_executor, toy_search, toy_spec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -170,8 +178,8 @@ def test_loss_counts_any_departure_or_contact_detected_or_not_and_ranks_by_how_f
 
 @pytest.mark.timeout(900)
 def test_a_few_closed_loop_trials_and_their_best_replays(tmp_path):
-    from testbed.eval.runner import run_scenario
-    from testbed.eval.scenario import load_scenario as load
+    from testbed.eval.run.runner import run_scenario
+    from testbed.eval.run.scenario import load_scenario as load
 
     victim = load_scenario("local").with_overrides(defense="ld3", localization="msf", duration=14.0)
     search = AttackSearch(SearchSpec(victim, parse_threat("msf-output"), 2, seed=1, batch=2), tmp_path / "s",

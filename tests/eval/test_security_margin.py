@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 from testbed.errors import UserError
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.security_margin import ROADS, cell_bound, cell_bound_on_car, plan_cells, security_margin
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.experiments.security_margin import ROADS, cell_bound, cell_bound_on_car, plan_cells, security_margin
 from tests.eval.search_helpers import toy_executor
 
 

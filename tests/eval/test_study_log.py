@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from testbed.errors import UserError
-from testbed.eval.study_log import check_study_log
+from testbed.eval.search.study_log import check_study_log
 
 LINE = '{"op_code":0,"worker_id":"w","study_name":"search","directions":[2]}\n'
 

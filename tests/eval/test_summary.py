@@ -6,8 +6,8 @@ import json
 import pytest
 from pydantic import ValidationError
 
-from testbed.eval.consequence import Consequence
-from testbed.eval.summary import RunSummary
+from testbed.eval.run.consequence import Consequence
+from testbed.eval.run.summary import RunSummary
 
 FIELDS = {"package_version": None, "git_commit": None, "resolved_scenario": {}, "scenario": "s", "seed": 0,
           "track": "slr", "vehicle": "sedan", "attack": None, "threat_model": "none", "defense": "ld3",

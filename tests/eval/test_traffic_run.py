@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from testbed.eval.runner import SimRun, run_scenario
-from testbed.eval.scenario import ScenarioError, load_scenario
+from testbed.eval.run.runner import SimRun, run_scenario
+from testbed.eval.run.scenario import ScenarioError, load_scenario
 
 
 def _highway(**overrides):

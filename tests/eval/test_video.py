@@ -4,7 +4,7 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
-from testbed.eval.video import FrameSignals, VideoWriter
+from testbed.eval.run.video import FrameSignals, VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle

@@ -1,5 +1,5 @@
 """AES-CMAC written out from RFC 4493 (subkeys by doubling in GF(2^128), 10* padding, CBC) over AES-128 in ECB
-mode: an implementation independent of the cmac module hil.secoc uses, checked against the RFC's vectors."""
+mode: an implementation independent of the cmac module hil.link.secoc uses, checked against the RFC's vectors."""
 
 from cryptography.hazmat.primitives.ciphers import Cipher, algorithms, modes
 

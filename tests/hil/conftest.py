@@ -8,17 +8,17 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from hil.actuator_map import ActuatorRequest
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator, EcuLimits
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.timing import CommandCycle
+from hil.emulator.ecu import EcuEmulator, EcuLimits
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.actuator_map import ActuatorRequest
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.timing import CommandCycle
 from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
 
 
 class SampleAndHoldPort(ChassisPort):
-    """The direct-run reference: the 50 Hz rule of hil.timing applied to a plant with no bus in between (ticks
+    """The direct-run reference: the 50 Hz rule of hil.link.timing applied to a plant with no bus in between (ticks
     that divide the cycle)."""
 
     def __init__(self, plant: ChassisPort) -> None:

@@ -2,8 +2,8 @@
 
 import math
 
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.odometry import KinematicOdometry
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.odometry import KinematicOdometry
 from testbed.chassis import ChassisCommand
 from tests.hil.conftest import SampleAndHoldPort
 from tracks.pose import Pose

@@ -7,7 +7,7 @@ import re
 import shutil
 from pathlib import Path
 
-from hil.profile import PROFILES_DIR
+from hil.link.profile import PROFILES_DIR
 
 
 def slow_dev_profile(folder: Path) -> str:

@@ -1,6 +1,6 @@
 """Benchmarks run and account for every frame (short versions of the 10-minute soak)."""
 
-from hil.bench import round_trip_benchmark, soak
+from hil.emulator.bench import round_trip_benchmark, soak
 
 
 def test_round_trip_benchmark_reports_median_and_p99():

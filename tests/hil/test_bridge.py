@@ -6,14 +6,14 @@ import time
 import can
 import pytest
 
-from hil.actuator_map import ActuatorRequest
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator, EcuLimits
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.recorder import FrameRecorder
-from hil.replay import replay_log
-from hil.timing import ClockMode
+from hil.emulator.ecu import EcuEmulator, EcuLimits
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.emulator.log_replay import replay_log
+from hil.link.actuator_map import ActuatorRequest
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.recorder import FrameRecorder
+from hil.link.timing import ClockMode
 from testbed.chassis import ChassisCommand
 from tests.hil.driving import START, direct_run, run, start_odometry
 

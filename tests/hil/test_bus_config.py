@@ -8,9 +8,9 @@ from __future__ import annotations
 import can
 import pytest
 
-from hil.bus_config import BusConfig, BusOpenError, interfaces, parse_options
-from hil.scenario_run import LinkConfig
-from hil.slcan_pty import SlcanPtyBus
+from hil.emulator.scenario_run import LinkConfig
+from hil.link.bus_config import BusConfig, BusOpenError, interfaces, parse_options
+from hil.link.slcan_pty import SlcanPtyBus
 from testbed.cli import main
 
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hil.camera_calibration import CameraCalibration
+from hil.vehicle.camera_calibration import CameraCalibration
 from testbed.cli import main
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle

@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from hil.camera_calibration import CameraCalibration, Rectifier, view_check
-from hil.camera_reader import CameraReader, HandedFrames, OpenCvSource
+from hil.vehicle.camera_calibration import CameraCalibration, Rectifier, view_check
+from hil.vehicle.camera_reader import CameraReader, HandedFrames, OpenCvSource
 from vehicles.camera_rig import CameraRig
 from vehicles.params import CameraParams
 

@@ -5,10 +5,19 @@ import importlib
 import tomllib
 from pathlib import Path
 
-from hil.campaigns import AR_DECEL, CHASSIS, REPETITIONS, SETTINGS, SPEEDS, chassis_runs, chassis_table, run_over_can
-from testbed.eval.campaign import CampaignRun
-from testbed.eval.campaigns import CampaignSpec
-from testbed.eval.scenario import load_scenario
+from hil.emulator.campaigns import (
+    AR_DECEL,
+    CHASSIS,
+    REPETITIONS,
+    SETTINGS,
+    SPEEDS,
+    chassis_runs,
+    chassis_table,
+    run_over_can,
+)
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.experiments.campaigns import CampaignSpec
+from testbed.eval.run.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -7,7 +7,7 @@ import can
 import pytest
 
 from hil.cli import ecu_main, resolve_plant
-from hil.plants import pybullet_plant
+from hil.emulator.plants import pybullet_plant
 from testbed.cli import main
 
 

@@ -5,10 +5,10 @@ import math
 import can
 import pytest
 
-from hil.actuator_map import ActuatorRequest, Gear
-from hil.codec import ChassisCodec, FrameRejected
-from hil.integrity import LifeMonitor, LifeVerdict, checksum_ok, xor_checksum
-from hil.profile import default_profile
+from hil.link.actuator_map import ActuatorRequest, Gear
+from hil.link.codec import ChassisCodec, FrameRejected
+from hil.link.integrity import LifeMonitor, LifeVerdict, checksum_ok, xor_checksum
+from hil.link.profile import default_profile
 from testbed.chassis import ChassisCommand
 
 

@@ -8,12 +8,12 @@ import uuid
 import can
 import pytest
 
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import load_profile
-from hil.timing import ClockMode, CommandCycle
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.profile import load_profile
+from hil.link.timing import ClockMode, CommandCycle
 from testbed.chassis import ChassisCommand
 
 PIX = load_profile("pix-hooke")

@@ -5,7 +5,7 @@ import sys
 
 import cantools
 
-from hil.codec import DBC_PATH
+from hil.link.codec import DBC_PATH
 
 COMMANDS = {0x130: "ACU_DriveCtrl", 0x131: "ACU_BrakeCtrl", 0x132: "ACU_SteerCtrl"}
 REPORTS = {0x530, 0x531, 0x532, 0x534, 0x537}

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from hil.ecu import EcuLimits
-from hil.report_map import DrivingMode, EStopSource
+from hil.emulator.ecu import EcuLimits
+from hil.link.report_map import DrivingMode, EStopSource
 from testbed.chassis import ChassisCommand
 
 DT = 0.01

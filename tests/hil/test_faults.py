@@ -12,17 +12,17 @@ import can
 import numpy as np
 import pytest
 
-from hil.bridge import BridgeError, CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator
-from hil.fault_drill import EXPECTED, run_drill
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import load_profile
-from hil.timing import ClockMode
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.fault_drill import EXPECTED, run_drill
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.bridge import BridgeError, CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.profile import load_profile
+from hil.link.timing import ClockMode
 from testbed.chassis import ChassisCommand
 from testbed.cli import main
-from testbed.eval.outputs import read_trajectory
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.outputs import read_trajectory
+from testbed.eval.run.scenario import load_scenario
 
 AT = 1.5
 CYCLE = 0.02

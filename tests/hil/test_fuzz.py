@@ -15,13 +15,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hil.actuator_map import ActuatorRequest, Gear
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import load_profile
-from hil.report_map import DrivingMode, EStopSource, VcuReport
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.actuator_map import ActuatorRequest, Gear
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.profile import load_profile
+from hil.link.report_map import DrivingMode, EStopSource, VcuReport
 from testbed.chassis import ChassisCommand
 from tests.hil.cmac_reference import RFC4493_KEY, cmac
 from tracks.pose import Pose

@@ -1,4 +1,4 @@
-"""The counter-copying injector (hil.injection_study): every forged steer frame passes ld3-dev's life counter
+"""The counter-copying injector (hil.emulator.injection_study): every forged steer frame passes ld3-dev's life counter
 and checksum and pushes the car sideways; under ld3-dev-secoc every one is rejected and the car holds its lane."""
 
 import math
@@ -6,10 +6,10 @@ import shutil
 
 import pytest
 
-from hil.codec import ChassisCodec, FrameRejected
-from hil.counter_injector import CounterCopyingInjector
-from hil.injection_study import main, measure_injection
-from hil.profile import PROFILES_DIR, load_profile
+from hil.emulator.counter_injector import CounterCopyingInjector
+from hil.emulator.injection_study import main, measure_injection
+from hil.link.codec import ChassisCodec, FrameRejected
+from hil.link.profile import PROFILES_DIR, load_profile
 
 
 def test_forged_frames_carry_the_successor_counter_and_the_offset():

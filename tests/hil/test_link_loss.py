@@ -18,10 +18,10 @@ from pathlib import Path
 import can
 import pytest
 
-from hil.bridge import CanChassisBridge
-from hil.bus_config import BusConfig
-from hil.ecu_process import READY_PREFIX, EcuProcess
-from hil.interruption import interruptible
+from hil.link.bridge import CanChassisBridge
+from hil.link.bus_config import BusConfig
+from hil.link.ecu_process import READY_PREFIX, EcuProcess
+from hil.link.interruption import interruptible
 from tests.hil.driving import run, start_odometry
 
 OUTPUTS = {"summary.json", "trajectory.csv", "birdseye.png", "can.asc"}

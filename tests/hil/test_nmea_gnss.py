@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from pynmeagps import GET, NMEAMessage
 
-from hil.geodetic import LocalTangentPlane, parse_origin
-from hil.nmea_gnss import NmeaGnssReader, fix_covariance, open_nmea
-from hil.nmea_out import gga_sentence
+from hil.vehicle.geodetic import LocalTangentPlane, parse_origin
+from hil.vehicle.nmea_gnss import NmeaGnssReader, fix_covariance, open_nmea
+from hil.vehicle.nmea_out import gga_sentence
 from testbed.localization.sensors import GnssFix
 
 PLANE = LocalTangentPlane(48.137, 11.575)

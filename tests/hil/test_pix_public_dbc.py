@@ -10,10 +10,10 @@ import can
 import cantools
 import pytest
 
-from hil.bridge import CanChassisBridge
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import load_profile
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.bridge import CanChassisBridge
+from hil.link.profile import load_profile
 from testbed.chassis import ChassisCommand
 
 PUBLIC = cantools.database.load_file(str(Path(__file__).parent / "data" / "pixmoving.dbc"), encoding="utf-8",

@@ -8,12 +8,12 @@ import uuid
 import can
 import pytest
 
-from hil.actuator_map import ActuatorRequest
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import PROFILES_DIR, ProfileError, load_profile
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.actuator_map import ActuatorRequest
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec
+from hil.link.profile import PROFILES_DIR, ProfileError, load_profile
 from testbed.chassis import ChassisCommand
 from testbed.cli import main
 

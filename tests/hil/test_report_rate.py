@@ -6,7 +6,7 @@ import random
 
 import pytest
 
-from hil.report_rate import ReportRateGuard
+from hil.link.report_rate import ReportRateGuard
 
 CYCLE = 0.02
 

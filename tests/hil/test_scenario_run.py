@@ -7,10 +7,10 @@ import math
 import can
 import pytest
 
-from hil.plants import plant_args_for, pybullet_plant, scenario_plant
-from hil.scenario_run import LinkConfig, run_hil_scenario
-from testbed.eval.runner import SimRun
-from testbed.eval.scenario import load_scenario
+from hil.emulator.plants import plant_args_for, pybullet_plant, scenario_plant
+from hil.emulator.scenario_run import LinkConfig, run_hil_scenario
+from testbed.eval.run.runner import SimRun
+from testbed.eval.run.scenario import load_scenario
 from testbed.rates import PHYSICS_HZ
 
 TOLERANCE_M = 0.05

@@ -5,8 +5,8 @@ import threading
 
 import pytest
 
-from hil import scheduling
-from hil.scheduling import normal_scheduling, realtime_scheduling
+from hil.link import scheduling
+from hil.link.scheduling import normal_scheduling, realtime_scheduling
 
 
 def _in_thread(work):

@@ -9,20 +9,20 @@ import uuid
 import can
 import pytest
 
-from hil.actuator_map import ActuatorRequest
-from hil.bridge import CanChassisBridge
-from hil.codec import ChassisCodec, FrameRejected
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import PROFILES_DIR, ProfileError, load_profile
-from hil.report_map import DrivingMode, EStopSource
-from hil.scenario_run import HilLink, LinkConfig, run_hil_scenario
-from hil.secoc import FreshnessMonitor, aes_cmac
-from hil.secoc_key import SecocKeyError, link_key
-from hil.timing import ClockMode
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.emulator.scenario_run import HilLink, LinkConfig, run_hil_scenario
+from hil.link.actuator_map import ActuatorRequest
+from hil.link.bridge import CanChassisBridge
+from hil.link.codec import ChassisCodec, FrameRejected
+from hil.link.profile import PROFILES_DIR, ProfileError, load_profile
+from hil.link.report_map import DrivingMode, EStopSource
+from hil.link.secoc import FreshnessMonitor, aes_cmac
+from hil.link.secoc_key import SecocKeyError, link_key
+from hil.link.timing import ClockMode
 from testbed.chassis import ChassisCommand
 from testbed.cli import main
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.scenario import load_scenario
 from tests.hil.cmac_reference import RFC4493_EXAMPLES, RFC4493_KEY, RFC4493_SUBKEYS, cmac, subkeys
 
 SECOC = load_profile("ld3-dev-secoc")

@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from hil.scenario_run import run_hil_scenario
+from hil.emulator.scenario_run import run_hil_scenario
 from testbed.cli import main
-from testbed.eval.outputs import read_trajectory
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run.outputs import read_trajectory
+from testbed.eval.run.scenario import load_scenario
 
 ATTACKED = ["hil", "parking-lot", "--localization", "msf", "--speed", "4", "--duration", "12", "--attack",
             "trace:default,start=3", "--defense", "ld3"]

@@ -6,10 +6,10 @@ import threading
 import can
 import pytest
 
-from hil.bridge import CanChassisBridge
-from hil.bus_config import BusConfig
-from hil.ecu_process import EcuProcess
-from hil.slcan_pty import SlcanPtyBus
+from hil.link.bridge import CanChassisBridge
+from hil.link.bus_config import BusConfig
+from hil.link.ecu_process import EcuProcess
+from hil.link.slcan_pty import SlcanPtyBus
 from tests.hil.driving import direct_run, run, start_odometry
 
 

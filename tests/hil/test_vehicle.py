@@ -14,10 +14,10 @@ import cv2
 import numpy as np
 import pytest
 
-from hil.ecu_process import EcuProcess
-from hil.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
-from hil.nmea_out import gga_sentence
-from hil.timing import ClockMode
+from hil.link.ecu_process import EcuProcess
+from hil.link.timing import ClockMode
+from hil.vehicle.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
+from hil.vehicle.nmea_out import gga_sentence
 from testbed.cli import main
 from testbed.localization.sensors import GnssFix
 from testbed.presets import build_track

@@ -10,12 +10,12 @@ from pathlib import Path
 import can
 import pytest
 
-from hil.bridge import CanChassisBridge
-from hil.ecu import EcuEmulator
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.profile import PROFILES_DIR, load_profile
-from hil.wheels import WheelGeometry
-from hil.yaw_rate import BICYCLE, REPORTED, WHEEL_SPEEDS, YawRateChassis
+from hil.emulator.ecu import EcuEmulator
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.bridge import CanChassisBridge
+from hil.link.profile import PROFILES_DIR, load_profile
+from hil.link.wheels import WheelGeometry
+from hil.link.yaw_rate import BICYCLE, REPORTED, WHEEL_SPEEDS, YawRateChassis
 from testbed.chassis import ChassisCommand
 from vehicles.params import get_vehicle
 

@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 from pynmeagps import GET, NMEAMessage
 
-from hil.bus_config import BusConfig
-from hil.ecu import EcuEmulator, EcuLimits
-from hil.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
-from hil.kinematic_plant import KinematicBicyclePlant
-from hil.nmea_gnss import UERE_M
-from hil.profile import load_profile
-from hil.timing import ClockMode
-from hil.wheels import WheelGeometry
+from hil.emulator.ecu import EcuEmulator, EcuLimits
+from hil.emulator.kinematic_plant import KinematicBicyclePlant
+from hil.link.bus_config import BusConfig
+from hil.link.profile import load_profile
+from hil.link.timing import ClockMode
+from hil.link.wheels import WheelGeometry
+from hil.vehicle.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
+from hil.vehicle.nmea_gnss import UERE_M
 from testbed.presets import build_track, vehicle
 from tracks.map_api import OffMapError
 from tracks.pose import Pose

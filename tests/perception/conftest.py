@@ -30,8 +30,8 @@ def pose_on(track: Track, lane: int, s: float, offset: float = 0.0, dyaw: float 
 @pytest.fixture(scope="session")
 def heldout_frames() -> list:
     """28 frames rendered now from held-out track seeds (day on a straight road, dusk on the highway)."""
-    from testbed.perception.dataset import Episode, render_episode
-    from testbed.perception.seeds import HELD_OUT_SEEDS
+    from testbed.perception.training.dataset import Episode, render_episode
+    from testbed.perception.training.seeds import HELD_OUT_SEEDS
 
     eps = (Episode("urban-straight", HELD_OUT_SEEDS[3], "day"), Episode("highway", HELD_OUT_SEEDS[7], "dusk"))
     return [frame for ep in eps for frame in render_episode(ep, 14)]

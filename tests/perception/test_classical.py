@@ -3,7 +3,7 @@ import pytest
 
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame
-from testbed.perception.classical import ClassicalLaneDetector, ego_pair
+from testbed.perception.detectors.classical import ClassicalLaneDetector, ego_pair
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from testbed.errors import UserError
+from testbed.perception.detectors.registry import TRAFFIC_WEIGHTS
 from testbed.perception.lab import closed_loop
 from testbed.perception.lab.closed_loop import (
     drive,
@@ -11,8 +12,7 @@ from testbed.perception.lab.closed_loop import (
     run_closed_loop,
     write_report,
 )
-from testbed.perception.registry import TRAFFIC_WEIGHTS
-from testbed.perception.seeds import Cell, cells, check_cells
+from testbed.perception.training.seeds import Cell, cells, check_cells
 from testbed.rates import CONTROL_HZ
 
 

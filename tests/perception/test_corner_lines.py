@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.labels import X_MAX, ego_lines
-from testbed.perception.oracle import OracleLaneDetector
+from testbed.perception.detectors.labels import X_MAX, ego_lines
+from testbed.perception.detectors.oracle import OracleLaneDetector
 from tracks.geometry import Arc, ReferenceLine, Straight
 from tracks.layout import Edge
 from tracks.pose import Pose

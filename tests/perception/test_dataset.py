@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from testbed.conditions import CONDITIONS
-from testbed.perception.dataset import build_dataset, episodes, erase_stretches
-from testbed.perception.labels import VISIBLE_FRACTION
-from testbed.perception.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
+from testbed.perception.detectors.labels import VISIBLE_FRACTION
+from testbed.perception.training.dataset import build_dataset, episodes, erase_stretches
+from testbed.perception.training.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from tracks.layout import MARKING_KINDS
 from tracks.presets import PRESETS
 
@@ -57,7 +57,7 @@ def test_erased_stretches_keep_the_runs_tiling_the_road(track):
 
 
 def test_same_episode_renders_the_same_bytes():
-    from testbed.perception.dataset import Episode, render_episode
+    from testbed.perception.training.dataset import Episode, render_episode
 
     ep = Episode("local", TRAIN_SEEDS[41], "night")
     first, second = (list(render_episode(ep, 3)) for _ in range(2))
@@ -74,7 +74,7 @@ def test_same_episode_renders_the_same_bytes():
 
 
 def test_label_redraws_leave_the_frames_and_labels_unchanged():
-    from testbed.perception.dataset import Episode, render_episode
+    from testbed.perception.training.dataset import Episode, render_episode
 
     ep = Episode("urban-straight", TRAIN_SEEDS[7], "worn")
     plain = list(render_episode(ep, 2))
@@ -89,7 +89,7 @@ def test_label_redraws_leave_the_frames_and_labels_unchanged():
 
 
 def test_traffic_shows_cars_at_the_same_poses_and_records_what_they_hide():
-    from testbed.perception.dataset import Episode, render_episode
+    from testbed.perception.training.dataset import Episode, render_episode
 
     ep = Episode("urban-curvy", TRAIN_SEEDS[12], "day")
     plain = list(render_episode(ep, 4))
@@ -108,7 +108,7 @@ def test_traffic_shows_cars_at_the_same_poses_and_records_what_they_hide():
 
 
 def test_traffic_on_a_road_too_short_for_every_car_places_what_fits():
-    from testbed.perception.dataset import OTHERS_RANGE_M, TRAFFIC_CAR, traffic_poses
+    from testbed.perception.training.dataset import OTHERS_RANGE_M, TRAFFIC_CAR, traffic_poses
     from tracks.presets import load_track
     from vehicles.params import get_vehicle
 

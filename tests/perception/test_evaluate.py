@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from testbed.lane_detection import LaneDetection, LaneDetector
-from testbed.perception.dataset import load_frames, write_shard
-from testbed.perception.evaluate import evaluate, markdown_table, write_report
+from testbed.perception.training.dataset import load_frames, write_shard
+from testbed.perception.training.evaluate import evaluate, markdown_table, write_report
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from testbed.perception.existence_head import hidden_features, negative_frames, refit_existence
-from testbed.perception.neural import FRAME_SHAPE, X_ANCHORS, load_model, preprocess
+from testbed.perception.detectors.neural import FRAME_SHAPE, X_ANCHORS, load_model, preprocess
+from testbed.perception.training.existence_head import hidden_features, negative_frames, refit_existence
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 

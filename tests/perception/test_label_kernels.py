@@ -1,5 +1,5 @@
-"""The compiled line fit (testbed/perception/label_kernels.pyx) gives the map's true ego lines to the bit as the
-pure-Python path does, on every preset and two held-out layouts: poses along and across the lanes, yawed, near
+"""The compiled line fit (testbed/perception/detectors/label_kernels.pyx) gives the map's true ego lines to the bit
+as the pure-Python path does, on every preset and two held-out layouts: poses along and across the lanes, yawed, near
 and beyond the road's ends (lines carried on straight, lines that do not cross x = 0 beside the car), and a car
 turned across the road."""
 
@@ -8,13 +8,13 @@ import shutil
 import numpy as np
 import pytest
 
-from testbed.perception import labels
+from testbed.perception.detectors import labels
 from tracks.compiled import compiled_module
 from tracks.map_api import OffMapError
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
 
-KERNELS = compiled_module("testbed.perception.label_kernels")
+KERNELS = compiled_module("testbed.perception.detectors.label_kernels")
 compiled = pytest.mark.skipif(KERNELS is None, reason="the Cython kernels are not built (no C compiler at install)")
 
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from testbed.perception.labels import ego_lines
+from testbed.perception.detectors.labels import ego_lines
 from tests.perception.conftest import ARC_R, LANE_W, pose_on
 from tracks.map_api import OffMapError
 from tracks.pose import Pose

@@ -7,7 +7,7 @@ import torch
 
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.lane_detection import CameraFrame
-from testbed.perception.neural import (
+from testbed.perception.detectors.neural import (
     ANCHOR_WEIGHTS,
     DEFAULT_WEIGHTS,
     GEOMETRY,
@@ -20,9 +20,9 @@ from testbed.perception.neural import (
     fit_matrices,
 )
 
-WEIGHTS_SHIPPED = (resources.files("testbed.perception") / "weights" / DEFAULT_WEIGHTS).is_file()
+WEIGHTS_SHIPPED = (resources.files("testbed.perception.detectors") / "weights" / DEFAULT_WEIGHTS).is_file()
 needs_weights = pytest.mark.skipif(
-    not WEIGHTS_SHIPPED, reason="no trained weights ship (testbed/perception/weights/)")
+    not WEIGHTS_SHIPPED, reason="no trained weights ship (testbed/perception/detectors/weights/)")
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +32,7 @@ def detector() -> NeuralLaneDetector:
 
 @needs_weights
 def test_shipped_weights_are_small_and_packaged():
-    ref = resources.files("testbed.perception") / "weights" / "lanenet.pt"
+    ref = resources.files("testbed.perception.detectors") / "weights" / "lanenet.pt"
     assert ref.is_file()
     assert len(ref.read_bytes()) <= 5 * 1024 * 1024
 

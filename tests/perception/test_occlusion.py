@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from testbed.perception.occlusion import hidden, occluded_fraction
+from testbed.perception.training.occlusion import hidden, occluded_fraction
 from tests.perception.conftest import pose_on
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig

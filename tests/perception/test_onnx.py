@@ -3,11 +3,11 @@ import pytest
 import torch
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.neural import FRAME_SHAPE, INPUT_WIDTH, LaneNet, NeuralLaneDetector, load_model
+from testbed.perception.detectors.neural import FRAME_SHAPE, INPUT_WIDTH, LaneNet, NeuralLaneDetector, load_model
 
 pytest.importorskip("onnxruntime")
 
-from testbed.perception.onnx_runtime import OnnxLaneDetector, OnnxLaneNet, export_onnx
+from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector, OnnxLaneNet, export_onnx
 
 
 @pytest.fixture(scope="module")

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.neural import FRAME_SHAPE, NeuralLaneDetector, load_model
-from testbed.perception.onnx_file import FRAME_SHAPE as FILE_FRAME_SHAPE
+from testbed.perception.detectors.neural import FRAME_SHAPE, NeuralLaneDetector, load_model
+from testbed.perception.detectors.onnx_file import FRAME_SHAPE as FILE_FRAME_SHAPE
 
 pytest.importorskip("onnxruntime")
 
-from testbed.perception.onnx_detector_graph import export_detector_onnx
-from testbed.perception.onnx_file import OnnxFileLaneDetector
+from testbed.perception.detectors.onnx_file import OnnxFileLaneDetector
+from testbed.perception.training.onnx_detector_graph import export_detector_onnx
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_the_detector_graph_detects_as_the_torch_detector(graph, heldout_frames)
 
 
 def test_a_network_only_file_is_refused_with_the_fix(tmp_path):
-    from testbed.perception.onnx_runtime import export_onnx
+    from testbed.perception.detectors.onnx_runtime import export_onnx
 
     export_onnx(load_model(), tmp_path / "net.onnx")
     with pytest.raises(ValueError, match="not a detector graph"):
@@ -65,7 +65,7 @@ def test_the_detector_graph_runs_without_torch_and_opencv(graph, heldout_frames,
         sys.meta_path.insert(0, Refuse())
         import numpy as np
         from testbed.lane_detection import CameraFrame
-        from testbed.perception.registry import make_detector
+        from testbed.perception.detectors.registry import make_detector
         detector = make_detector("neural-onnx", track=None, rig=None, params={{"weights": "{graph}"}})
         ld = detector.detect(CameraFrame(0.0, np.load("{tmp_path / 'frame.npy'}")))
         print(ld.left_prob, ld.right_prob)

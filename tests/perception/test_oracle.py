@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.labels import ego_lines
-from testbed.perception.oracle import OracleLaneDetector
-from testbed.perception.registry import make_detector
+from testbed.perception.detectors.labels import ego_lines
+from testbed.perception.detectors.oracle import OracleLaneDetector
+from testbed.perception.detectors.registry import make_detector
 from tests.perception.conftest import pose_on
 from tracks.pose import Pose
 

@@ -1,7 +1,7 @@
 import pytest
 
-from testbed.eval.runner import SimRun
-from testbed.eval.scenario import ScenarioError, load_scenario
+from testbed.eval.run.runner import SimRun
+from testbed.eval.run.scenario import ScenarioError, load_scenario
 
 
 def _scenario(**overrides):
@@ -34,7 +34,7 @@ def test_the_tracker_runs_after_the_ld_side_tamper_and_feeds_the_recorded_d_ld()
 
 
 def test_the_scenarios_detector_tracking_key_switches_the_tracker():
-    from testbed.eval.scenario import apply_settings
+    from testbed.eval.run.scenario import apply_settings
 
     on = SimRun(_scenario(detector="classical"))
     off = SimRun(apply_settings(_scenario(detector="classical"), ["detector.tracking=false"]))
@@ -46,7 +46,7 @@ def test_the_scenarios_detector_tracking_key_switches_the_tracker():
 
 
 def test_tracking_is_refused_for_a_detector_without_a_camera():
-    from testbed.eval.scenario import apply_settings
+    from testbed.eval.run.scenario import apply_settings
 
     with pytest.raises(ScenarioError, match=r"\[detector oracle\] unknown parameter 'tracking'"):
         apply_settings(_scenario(detector="oracle"), ["detector.tracking=true"])

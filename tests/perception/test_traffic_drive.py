@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from testbed.errors import UserError
-from testbed.eval import run_build
-from testbed.eval.scenario import load_scenario
+from testbed.eval.run import build as run_build
+from testbed.eval.run.scenario import load_scenario
 from testbed.perception.lab import traffic_drive as td
-from testbed.perception.seeds import cells
+from testbed.perception.training.seeds import cells
 from testbed.traffic.config import TrafficConfig
 from testbed.traffic.fleet import Fleet
 from tracks.presets import PRESETS, load_track

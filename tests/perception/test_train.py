@@ -5,16 +5,9 @@ import pytest
 import torch
 
 from testbed.lane_detection import CameraFrame
-from testbed.perception.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
-from testbed.perception.neural import N_COLS, LaneNet, NeuralLaneDetector, load_model
-from testbed.perception.train import (
-    TrainConfig,
-    load_tensors,
-    mirror,
-    negative_tensors,
-    to_tensors,
-    train,
-)
+from testbed.perception.detectors.neural import N_COLS, LaneNet, NeuralLaneDetector, load_model
+from testbed.perception.training.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
+from testbed.perception.training.train import TrainConfig, load_tensors, mirror, negative_tensors, to_tensors, train
 
 
 def _tiny_dataset(path, n=12, shard=0):

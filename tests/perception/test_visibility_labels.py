@@ -8,7 +8,7 @@ import pytest
 
 from testbed.camera import FrontCamera
 from testbed.conditions import get_condition
-from testbed.perception.labels import (
+from testbed.perception.detectors.labels import (
     VISIBLE_CONTRAST,
     VISIBLE_FRACTION,
     FrameVisibility,

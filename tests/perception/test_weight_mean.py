@@ -4,9 +4,9 @@ import pytest
 import torch
 
 from testbed.errors import UserError
-from testbed.perception.neural import LaneNet, load_model
-from testbed.perception.train import save_checkpoint
-from testbed.perception.weight_mean import mean_checkpoint
+from testbed.perception.detectors.neural import LaneNet, load_model
+from testbed.perception.training.train import save_checkpoint
+from testbed.perception.training.weight_mean import mean_checkpoint
 
 
 def _checkpoint(path, seed, width=8):

@@ -6,10 +6,10 @@ import re
 
 import pytest
 
-from testbed.eval.runner import run_scenario
-from testbed.eval.scenario import Scenario, ScenarioError, load_scenario
-from testbed.perception.registry import TRAFFIC_WEIGHTS
-from testbed.perception.weights import SHIPPED, resolve
+from testbed.eval.run.runner import run_scenario
+from testbed.eval.run.scenario import Scenario, ScenarioError, load_scenario
+from testbed.perception.detectors.registry import TRAFFIC_WEIGHTS
+from testbed.perception.detectors.weights import SHIPPED, resolve
 
 
 def test_shipped_checkpoints_resolve_inside_the_package_and_other_values_are_paths(tmp_path):

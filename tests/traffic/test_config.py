@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from testbed.eval.scenario import Scenario, ScenarioError, apply_settings
+from testbed.eval.run.scenario import Scenario, ScenarioError, apply_settings
 from testbed.presets import build_track
 from testbed.traffic.config import TrafficConfig
 from testbed.traffic.fleet import EgoOnRoad, Fleet, PlacementError

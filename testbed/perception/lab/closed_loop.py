@@ -9,7 +9,7 @@ A preset too short for the duration is driven slower, so that it lasts the durat
 
 With traffic (`traffic` cars, `testbed.perception.lab.traffic_drive`: a lead car `lead_gap` m ahead in the ego lane,
 every car starting at rest with the ego) each frame also gets its occluded fraction
-(`testbed.perception.occlusion`: the share of the ego lines' points in the detector's range that a car hides
+(`testbed.perception.training.occlusion`: the share of the ego lines' points in the detector's range that a car hides
 from the camera), held per tick like D_LD, and the tables split the ticks into occluded (fraction > 0) and
 clear. A neural detector given no weights then reads the traffic weights, as any run with traffic does
 (`Scenario.run_detector_params`).
@@ -30,14 +30,14 @@ from tqdm import tqdm
 from testbed.conditions import get_condition
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
-from testbed.eval.runner import SimRun
-from testbed.eval.scenario import END_MARGIN_M, Scenario, load_scenario
+from testbed.eval.run.runner import SimRun
+from testbed.eval.run.scenario import END_MARGIN_M, Scenario, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.params import ParamsError
+from testbed.perception.detectors.registry import DETECTORS, make_detector
 from testbed.perception.lab.traffic_drive import LEAD_GAP_M, traffic_drive
-from testbed.perception.occlusion import FAR_M, NEAR_M, occluded_fraction
-from testbed.perception.registry import DETECTORS, make_detector
-from testbed.perception.seeds import Cell, cells, check_cells
+from testbed.perception.training.occlusion import FAR_M, NEAR_M, occluded_fraction
+from testbed.perception.training.seeds import Cell, cells, check_cells
 from testbed.presets import TRACKS
 from tracks.map_api import OffMapError
 from tracks.pose import Pose

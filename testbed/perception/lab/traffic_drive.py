@@ -1,6 +1,6 @@
 """The `[traffic]` of a lane-detection drive in traffic (`ld3 ld closed-loop --traffic`, the `benign-traffic`
 campaign): a lead car close ahead in the ego lane, hiding the far part of the ego lines
-(`testbed.perception.occlusion`), and the other cars ahead of it in every lane (an oncoming lane's from as far
+(`testbed.perception.training.occlusion`), and the other cars ahead of it in every lane (an oncoming lane's from as far
 ahead as the lead car, coming towards the ego).
 
 Every car's desired speed is the ego's, without spread, and the IDM time headway and jam distance are 0: at
@@ -22,7 +22,7 @@ from typing import Any
 
 from testbed.control.idm import IdmParams
 from testbed.errors import UserError
-from testbed.eval.scenario import END_MARGIN_M
+from testbed.eval.run.scenario import END_MARGIN_M
 from tracks.road import Track
 from vehicles.params import get_vehicle
 

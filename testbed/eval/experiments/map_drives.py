@@ -1,0 +1,88 @@
+"""`ld3 campaign maps --maps DIR|FILE…`: every OpenDRIVE file's default route driven with LD3 at a cruise speed
+of CRUISE (the planner slows for curves): benign with the oracle and with the campaign's lane detector, and once
+under the default trace injection; a table per file. A file the reader refuses gets no runs and its one line in
+the table."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from testbed.errors import UserError
+from testbed.eval.campaign.driver import CampaignRun
+from testbed.eval.run.scenario import load_scenario
+from testbed.presets import TrackFileError, build_track
+
+CRUISE = 15.0  # m/s
+SLOWER = 1.6  # the simulated time allowed over the route's length at the cruise speed (curves, start, stop)
+ATTACK_AT = 10.0  # s: the trace injection's start, or a third of the route's time at the cruise speed on short routes
+
+
+def map_files(maps: Sequence[str]) -> list[Path]:
+    """The .xodr files named: each FILE, and every `*.xodr` in each DIR (sorted); UserError for anything else."""
+    files: list[Path] = []
+    for name in maps:
+        path = Path(name)
+        if path.is_dir():
+            found = sorted(path.glob("*.xodr"))
+            if not found:
+                raise UserError(f"--maps {name}: no .xodr file in the folder")
+            files += found
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise UserError(f"--maps {name}: no such file or folder")
+    return files
+
+
+def map_runs(detector: str, maps: Sequence[str]) -> list[CampaignRun]:
+    """Per file, its default route: benign LD3 with the oracle and with `detector`, and attacked with `detector`
+    (runs `FILE-benign-oracle`, `FILE-benign-DETECTOR`, `FILE-attacked-DETECTOR`)."""
+    runs = []
+    base = load_scenario("local")
+    for path in map_files(maps):
+        spec = f"xodr:{path}"
+        try:
+            track = build_track(spec)
+        except TrackFileError as exc:
+            print(f"maps: {exc}", file=sys.stderr)
+            continue
+        travel = track.length / CRUISE * SLOWER
+        duration = round(travel + 10.0)
+        drive = base.with_overrides(track=spec, speed=CRUISE, duration=float(duration), localization="msf",
+                                    defense="ld3", lane=None, name=f"maps-{path.stem}")
+        trace = {"kind": "trace", "trace": "default", "start": round(min(ATTACK_AT, travel / 3.0), 2)}
+        drives = [("benign", det, None) for det in dict.fromkeys(("oracle", detector))]
+        for kind, det, attack in [*drives, ("attacked", detector, trace)]:
+            tags = {"file": path.name, "kind": kind, "detector": det, "route_m": round(track.length)}
+            if attack is not None:
+                tags["attack_s"] = attack["start"]
+            runs.append(CampaignRun(f"{path.stem}-{kind}-{det}", drive.with_overrides(detector=det, attack=attack),
+                                    tags))
+    return runs
+
+
+def map_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+    """One table per file: each drive's consequence, alarm, largest |D| and how it ended; benign drives must reach
+    the route's end without an alarm, attacked ones stop in lane on an alarm raised after the attack's start (an
+    earlier one is a false alarm, marked "before the attack")."""
+    by_file: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    for run, s in done:
+        by_file.setdefault(run.tags["file"], []).append((run, s))
+    lines = [f"Cruise speed {CRUISE:g} m/s; pass: benign reaches the route's end with no alarm, attacked stops in "
+             "lane."]
+    for name, items in by_file.items():
+        lines += ["", f"### {name} (default route, {items[0][0].tags['route_m']} m)", "",
+                  "| drive | detector | consequence | alarm | max abs dev (m) | simulated (s) | pass |",
+                  "|---|---|---|---|---|---|---|"]
+        for run, s in items:
+            want = "reach_destination" if run.tags["kind"] == "benign" else "stop_in_lane"
+            early = s["detected"] and s["detection_time_s"] < run.tags.get("attack_s", 0.0)
+            ok = s["consequence"] == want and not early and (run.tags["kind"] == "attacked" or not s["detected"])
+            alarm = f"{s['detection_time_s']:.2f} s" if s["detected"] else "none"
+            alarm += " (before the attack)" if early else ""
+            lines.append(f"| {run.tags['kind']} | {run.tags['detector']} | {s['consequence']} | {alarm} "
+                         f"| {s['max_abs_dev_m']:.3f} | {s['sim_time_s']:.1f} | {'yes' if ok else 'NO'} |")
+    return "\n".join(lines)

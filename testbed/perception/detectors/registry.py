@@ -1,0 +1,119 @@
+"""The lane-detector registry: built-in detectors and the `ld3.detectors` entry points.
+
+A detector component's factory is `factory(track, rig, rng, **params)` (the run's track, camera rig and
+detector random stream, and the `[detector]` parameters its `params` model validated, less `tracking`,
+which the loop acts on), returning a `LaneDetector` (or None for `none`). What it `provides` says whether
+lane detections reach the defense and whether it reads rendered camera frames (then the run renders them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import Field, field_validator
+
+from testbed.lane_detection import LaneDetector
+from testbed.params import Params
+from testbed.perception.detectors.weights import SHIPPED, resolve
+from testbed.registry import Capability, Component, Registry
+
+_LD = frozenset({Capability.LANE_DETECTOR})
+_CAMERA = frozenset({Capability.LANE_DETECTOR, Capability.CAMERA_IMAGE})
+
+
+class CameraDetectorParams(Params):
+    """Parameters of every detector that reads the camera: whether the loop tracks its lines."""
+
+    tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
+                                             "(testbed.lane_tracker), between the detector and LD3")
+
+
+class NeuralParams(CameraDetectorParams):
+    """Parameters of the neural detectors (torch and onnxruntime)."""
+
+    weights: str | None = Field(None, description="checkpoint path, or a shipped checkpoint by name: lanenet.pt (the "
+                                                  "default without traffic), lanenet-traffic.pt (fine-tuned with cars "
+                                                  "in view; the default with traffic); for neural-onnx also a "
+                                                  "detector graph (.onnx) from `ld3 ld export-onnx`")
+
+    @field_validator("weights")
+    @classmethod
+    def _exists(cls, value: str | None) -> str | None:
+        if value is not None and not resolve(value).is_file():
+            raise ValueError(f"no checkpoint at {value}: name a shipped one ({', '.join(SHIPPED)}), train one with "
+                             f"`ld3 ld train` or drop detector.weights")
+        return value
+
+
+class OracleParams(Params):
+    """Parameters of the oracle detector."""
+
+    noise_std: float = Field(0.0, ge=0.0, description="std of the noise added to each line's offset c0 (m)")
+    dropout: float = Field(0.0, ge=0.0, le=1.0, description="probability that a present line is dropped")
+
+
+def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+    from testbed.perception.detectors.neural import NeuralLaneDetector, load_model
+
+    return NeuralLaneDetector(load_model(resolve(weights) if weights is not None else None))
+
+
+def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+    if weights is not None and weights.endswith(".onnx"):  # an exported detector graph: no torch needed
+        from testbed.perception.detectors.onnx_file import OnnxFileLaneDetector
+
+        return OnnxFileLaneDetector(Path(weights).expanduser())
+    from testbed.perception.detectors.neural import load_model
+    from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
+
+    return OnnxLaneDetector(load_model(resolve(weights) if weights is not None else None))
+
+
+def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
+    from testbed.perception.detectors.classical import ClassicalLaneDetector
+
+    return ClassicalLaneDetector(rig)
+
+
+def _oracle(track, rig, rng: np.random.Generator, noise_std: float = 0.0, dropout: float = 0.0) -> LaneDetector:
+    from testbed.perception.detectors.oracle import OracleLaneDetector
+
+    return OracleLaneDetector(track, rng, noise_std, dropout)
+
+
+DETECTORS: Registry[Component] = Registry("lane detector", Component, "ld3.detectors")
+DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA,
+                        params=NeuralParams))
+DETECTORS.add(Component("neural-onnx", _neural_onnx, "LaneNet exported to ONNX, run with onnxruntime (the onnx extra)",
+                        provides=_CAMERA, params=NeuralParams))
+DETECTORS.add(Component("classical", _classical, "inverse perspective mapping and a sliding-window fit on the camera",
+                        provides=_CAMERA, params=CameraDetectorParams))
+DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD,
+                        params=OracleParams))
+DETECTORS.add(Component("none", lambda track, rig, rng: None, "no lane detector"))
+
+
+TRAFFIC_WEIGHTS = "lanenet-traffic.pt"
+"""The shipped checkpoint a neural detector reads in a run with traffic when it names no weights."""
+
+
+def params_in_traffic(name: str, params: Mapping[str, Any]) -> dict[str, Any]:
+    """`[detector]` parameters of detector `name` as run with traffic cars: a neural detector that names no
+    `weights` reads `TRAFFIC_WEIGHTS` (the default weights misread the lines behind a close lead car)."""
+    if issubclass(DETECTORS.get(name).params, NeuralParams) and params.get("weights") is None:
+        return {**params, "weights": TRAFFIC_WEIGHTS}
+    return dict(params)
+
+
+def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = None,
+                  params: dict[str, Any] | None = None) -> LaneDetector | None:
+    """The detector of the registered component `name` with its `[detector]` parameters (None for `none`;
+    UnknownComponent if unknown, ParamsError for bad parameters)."""
+    component = DETECTORS.get(name)
+    settings = component.settings(params or {}, f"detector {name}").model_dump(exclude_unset=True,
+                                                                              exclude={"tracking"})
+    return component.factory(track, rig, rng if rng is not None else np.random.default_rng(0), **settings)
+
