@@ -1,4 +1,6 @@
-"""CAN bridge: chassis profiles, codec, chassis port over python-can, ECU emulator, and scenario runs over CAN.
+"""The loop over CAN, in rooms: the CAN link (`link`: chassis profiles, codec, SecOC, the bridge over python-can),
+the simulated chassis behind it (`emulator`: the ECU emulator, scenario runs over CAN, drills) and a real vehicle
+(`vehicle`: NMEA GNSS, camera, `ld3 vehicle`, replay); the commands at the top (`cli`, `vehicle_cli`, ...).
 
 The loop drives a `CanChassisBridge` (a ChassisPort) instead of the PyBullet car. A chassis profile
 (hil/link/profiles/<name>/: chassis.dbc + profile.toml; shipped: ld3-dev, ld3-dev-secoc, pix-hooke) says which

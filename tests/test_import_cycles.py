@@ -145,17 +145,23 @@ LAYERS: dict[str, int] = {
     "tracks": 0, "vehicles": 0,
     # 1 the core a chassis computer runs (no PyBullet, no torch): contracts, localization, defense, control, loop
     "testbed": 1, "testbed.errors": 1, "testbed.registry": 1, "testbed.params": 1, "testbed.rates": 1,
-    "testbed.lane_detection": 1, "testbed.localization": 1, "testbed.defense": 1, "testbed.control": 1,
-    "testbed.attacks": 1, "testbed.chassis": 1, "testbed.loop": 1, "testbed.assembly": 1, "testbed.presets": 1,
-    "testbed.extras": 1,
-    # 2 the simulation: world, camera, detectors, traffic
+    "testbed.lane_detection": 1, "testbed.lane_tracker": 1, "testbed.localization": 1, "testbed.defense": 1,
+    "testbed.control": 1, "testbed.attacks": 1, "testbed.chassis": 1, "testbed.loop": 1, "testbed.assembly": 1,
+    "testbed.presets": 1, "testbed.extras": 1,
+    # 2 the simulation: world, camera, the run-time lane detectors, traffic
     "testbed.world": 2, "testbed.ground": 2, "testbed.camera": 2, "testbed.conditions": 2,
     "testbed.perception": 2, "testbed.traffic": 2, "testbed.direct_chassis": 2,
-    # 3 evaluation (runs, campaigns, search, reports) and the CAN link and vehicle beside it
-    "testbed.eval": 3, "testbed.api": 3, "testbed.gym_env": 3, "hil": 3, "testbed.perception.lab": 3,
-    # 4 the commands
-    "testbed.cli": 4, "testbed.perception.commands": 4, "hil.cli": 4, "hil.vehicle_cli": 4, "hil.replay_cli": 4,
-    "hil.detect_cli": 4, "hil.__main__": 4,
+    # 3 one run (scenario, build, runner, summary, outputs), the CAN link and the vehicle beside it, and the lane
+    # detectors' training
+    "testbed.eval.run": 3, "testbed.perception.training": 3, "hil": 3, "hil.link": 3, "hil.vehicle": 3,
+    # 4 many runs: campaigns and their backends, the search, reports, the paper's experiments, analysis; the ECU
+    # emulator's scenarios and drills; the lane detectors' lab drives; the Python API
+    "testbed.eval": 4, "testbed.eval.campaign": 4, "testbed.eval.search": 4, "testbed.eval.report": 4,
+    "testbed.eval.experiments": 4, "testbed.eval.analysis": 4, "hil.emulator": 4, "testbed.perception.lab": 4,
+    "testbed.api": 4, "testbed.gym_env": 4,
+    # 5 the commands
+    "testbed.cli": 5, "testbed.perception.commands": 5, "hil.cli": 5, "hil.vehicle_cli": 5, "hil.replay_cli": 5,
+    "hil.detect_cli": 5, "hil.__main__": 5,
 }
 """Module prefix -> layer (the longest prefix decides); a module imports only from its own layer or lower ones."""
 

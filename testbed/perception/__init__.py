@@ -1,1 +1,2 @@
-"""Lane detectors (torch net, classical OpenCV, map oracle), their training and shipped weights."""
+"""Lane detection beyond the core's contract, in rooms: the run-time detectors and their shipped weights
+(`detectors`), their training (`training`) and lab drives (`lab`); `commands` is `ld3 ld`."""
