@@ -3,7 +3,8 @@ bus) and `ld3 ecu` (the ECU emulator); `python -m hil ecu|replay ...` runs the l
 
 An ECU plant is named by `--plant`: "kinematic" (hil.emulator.kinematic_plant), "pybullet"
 (hil.emulator.plants.pybullet_plant, the scenario's PyBullet car) or "package.module:factory", called with the
-`--plant-arg KEY=VALUE` pairs as keyword strings and returning a ChassisPort; `--scenario NAME` selects the PyBullet car of that scenario.
+`--plant-arg KEY=VALUE` pairs as keyword strings and returning a ChassisPort; `--scenario NAME` selects the
+PyBullet car of that scenario.
 `--profile NAME|PATH` picks the chassis protocol of both commands (hil.link.profile).
 
 Exit codes: 0 done; 2 a usage error; 3 the run ended on a chassis fault (the car braked to standstill in lane;
