@@ -24,7 +24,6 @@ from testbed.defense.registry import DEFENSES
 from testbed.errors import UserError
 from testbed.eval.run.folder import SUMMARY, run_folder
 from testbed.eval.run.scenario import Scenario
-from testbed.eval.search.bound_on_car import identify
 from testbed.presets import build_track, vehicle
 
 RESIDUAL_STD: dict[str, tuple[float, float]] = {
@@ -112,6 +111,8 @@ def bound_rows(setting: BoundSetting, speeds: Sequence[float], k_sigma: float = 
         signed = deviation_bound(loop, setting.lateral, setting.heading, k_sigma, one_signed=True)
         car = None
         if on_car is not None:
+            from testbed.eval.search.bound_on_car import identify  # the simulation: loaded only to identify
+
             car = deviation_bound(identify(on_car, v, DEFAULT_HORIZON_S).loop, setting.lateral, setting.heading,
                                   k_sigma).bound_m
         rows.append(BoundRow(v, free.bound_m, signed.bound_m, setting.straddle_m, free.converged, car))
