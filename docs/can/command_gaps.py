@@ -6,7 +6,7 @@ DriveCtrl (0x130) frames the bridge sent, read back from can.asc with python-can
 
 The emulator stands for the chassis's own controller, which has its own CPU: with `--ecu-fifo` its threads (and
 the GNSS feed's) run at SCHED_FIFO 20, so that what is measured is the run's timing, not the emulator's.
-Run from the repository root: python docs/can/command_gaps.py virtual|slcan [--hogs 4] [--ecu-fifo]
+Run from the repository root: PYTHONPATH=. python docs/can/command_gaps.py virtual|slcan [--hogs 4] [--ecu-fifo]
 [--duration 10] [--out runs/gaps] [more ld3 vehicle arguments, e.g. --rt-priority 0]
 """
 
