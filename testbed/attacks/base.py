@@ -10,6 +10,7 @@ what a white-box attacker knows (`WhiteBox`: the map, the defense's public param
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 from abc import ABC, abstractmethod
@@ -24,7 +25,7 @@ from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from testbed.localization.sensors import GnssFix
-from tracks.map_api import SemanticMap
+from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose, wrap_angle
 
 
@@ -90,6 +91,18 @@ def msf_error(est: LocalizationEstimate, view: AttackerView, whitebox: WhiteBox)
     less the true one (m, + left) and its yaw less the true yaw (rad); OffMapError where the map cannot place it."""
     lateral = float(whitebox.smap.lane_dev(est.pose, whitebox.lane)) - view.phys_dev
     return lateral, wrap_angle(est.pose.yaw - view.true_pose.yaw)
+
+
+def sent_estimate(est: LocalizationEstimate, view: AttackerView, whitebox: WhiteBox, offset: float, yaw: float,
+                  cancel: bool = True) -> LocalizationEstimate:
+    """`est` moved `offset` m left of the lane and its yaw by `yaw` (rad); with `cancel` the MSF's own error is
+    taken out first, so the defense sees exactly the attacker's input (a pose the map cannot place keeps it)."""
+    error = (0.0, 0.0)
+    if cancel and est.pose.is_finite():
+        with contextlib.suppress(OffMapError):
+            error = msf_error(est, view, whitebox)
+    moved = shift_pose(est.pose, view.lane_heading, offset - error[0])
+    return LocalizationEstimate(est.t, Pose(moved.x, moved.y, moved.yaw + (yaw - error[1])), est.cov)
 
 
 def shift_pose(pose: Pose, heading: float, offset: float) -> Pose:

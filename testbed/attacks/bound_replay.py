@@ -9,19 +9,16 @@ attack releases there."""
 
 from __future__ import annotations
 
-import contextlib
 import math
 from typing import Any
 
 import numpy as np
 
-from testbed.attacks.base import Attack, AttackerView, WhiteBox, msf_error, shift_pose
+from testbed.attacks.base import Attack, AttackerView, WhiteBox, sent_estimate
 from testbed.attacks.profile import check_finite, side_sign
 from testbed.attacks.threat import ThreatCapability
 from testbed.control.attack_bound import Budget, deviation_bound, lateral_loop
 from testbed.localization.estimate import LocalizationEstimate
-from tracks.map_api import OffMapError
-from tracks.pose import Pose
 
 PAPER_YAW_LIMIT = 0.15
 """Yaw bias (rad) the program may use against a defense without a heading check (else it is unbounded)."""
@@ -76,13 +73,7 @@ class BoundReplay(Attack):
         self.stage = REPLAY
         self.offset = self.sign * self.scale * float(offsets[i])
         yaw = self.sign * self.scale * float(yaws[i])
-        error = (0.0, 0.0)
-        if self.cancel and est.pose.is_finite():
-            with contextlib.suppress(OffMapError):  # a pose the map cannot place is sent as it is
-                error = msf_error(est, view, self.whitebox)
-        moved = shift_pose(est.pose, view.lane_heading, self.offset - error[0])
-        yaw -= error[1]
-        return LocalizationEstimate(est.t, Pose(moved.x, moved.y, moved.yaw + yaw), est.cov)
+        return sent_estimate(est, view, self.whitebox, self.offset, yaw, self.cancel)
 
     def state(self) -> dict[str, Any]:
         return {"stage": self.stage, "switch_time": None, "offset": self.offset}

@@ -7,16 +7,13 @@ linear program of the deviation bound solved on the car (`testbed.eval.search.bo
 
 from __future__ import annotations
 
-import contextlib
 from typing import Any
 
-from testbed.attacks.base import Attack, AttackerView, WhiteBox, msf_error, shift_pose
+from testbed.attacks.base import Attack, AttackerView, WhiteBox, sent_estimate
 from testbed.attacks.profile import check_finite
 from testbed.attacks.threat import ThreatCapability
 from testbed.errors import UserError
 from testbed.localization.estimate import LocalizationEstimate
-from tracks.map_api import OffMapError
-from tracks.pose import Pose
 
 IDLE, CANCEL, PULSE = "idle", "cancel", "pulse"
 SPEED_TOL_MPS = 0.05
@@ -53,11 +50,7 @@ class IdentificationPulse(Attack):
         on = self.pulse_time is not None and view.t < self.pulse_time + self._period - 1e-9
         self.stage = PULSE if on else CANCEL
         offset, yaw = (self.pulse_offset, self.pulse_yaw) if on else (0.0, 0.0)
-        error = (0.0, 0.0)
-        with contextlib.suppress(OffMapError):  # a pose the map cannot place is sent as it is
-            error = msf_error(est, view, self.whitebox)
-        moved = shift_pose(est.pose, view.lane_heading, offset - error[0])
-        return LocalizationEstimate(est.t, Pose(moved.x, moved.y, moved.yaw + yaw - error[1]), est.cov)
+        return sent_estimate(est, view, self.whitebox, offset, yaw)
 
     def state(self) -> dict[str, Any]:
         return {"stage": self.stage, "switch_time": self.pulse_time,
