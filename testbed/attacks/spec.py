@@ -34,9 +34,15 @@ def attack_settings(table: Mapping[str, Any]) -> tuple[Component, Params]:
     return component, component.settings({k: v for k, v in table.items() if k != "kind"}, f"attack {kind}")
 
 
-def _is_text(component: Component, key: str) -> bool:
+def _value(component: Component, key: str, value: str) -> Any:
+    """A spec's value as the parameter's type reads it: text for a text field, a boolean for a `true`/`false` (any
+    case, as a search's spec writes them) of a boolean field, else a number where it reads as one."""
     field = component.params.model_fields.get(key)
-    return field is not None and field.annotation is str
+    if field is not None and field.annotation is str:
+        return value
+    if field is not None and field.annotation is bool and value.lower() in ("true", "false"):
+        return value.lower() == "true"
+    return _number_or_text(value)
 
 
 def attack_spec_to_dict(spec: str) -> dict[str, Any]:
@@ -59,7 +65,7 @@ def attack_spec_to_dict(spec: str) -> dict[str, Any]:
         key, value = key.strip(), value.strip()
         if key == "kind" or key in table:
             raise UserError(f"attack spec {spec!r}: parameter {key!r} given twice")
-        table[key] = value if _is_text(component, key) else _number_or_text(value)
+        table[key] = _value(component, key, value)
     return table
 
 

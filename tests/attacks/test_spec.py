@@ -8,6 +8,7 @@ from testbed.attacks.fusionripper import FusionRipper
 from testbed.attacks.spec import attack_from_dict, attack_spec_to_dict, parse_attack
 from testbed.attacks.stealthy import StealthyAttack
 from testbed.attacks.trace import TraceInjection
+from testbed.errors import UserError
 
 
 def test_cli_specs_build_the_right_attacks(tmp_path):
@@ -29,6 +30,14 @@ def test_spec_to_dict_is_the_scenario_table_form():
     assert table == {"kind": "fusionripper", "d": 0.7, "direction": "right"}
     assert attack_from_dict(table).describe()["direction"] == "right"
     assert attack_spec_to_dict("trace:default") == {"kind": "trace", "trace": "default"}
+
+
+def test_a_boolean_parameter_reads_true_and_false_in_any_case():
+    assert attack_spec_to_dict("bound-replay:cancel=false")["cancel"] is False
+    assert attack_spec_to_dict("bound-replay:cancel=True")["cancel"] is True  # as a search's spec writes it
+    assert attack_from_dict(attack_spec_to_dict("bound-replay:cancel=FALSE")).describe()["cancel"] is False
+    with pytest.raises(UserError, match="cancel"):
+        attack_from_dict(attack_spec_to_dict("bound-replay:cancel=maybe"))
 
 
 def test_stealthy_knows_the_defense_cusum():

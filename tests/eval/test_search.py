@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from testbed.attacks.spec import attack_spec_to_dict
 from testbed.attacks.threat import parse_threat
 from testbed.errors import UserError
 from testbed.eval.run.scenario import load_scenario
@@ -18,6 +19,7 @@ from testbed.eval.search.attack_search import (
     CRASH_BONUS_M,
     AttackSearch,
     SearchSpec,
+    attack_spec,
     families_for,
     is_loss,
     outcome_of,
@@ -65,6 +67,11 @@ def test_attack_starts_follow_the_drive_when_the_road_ends_before_the_duration(t
     assert all(0.0 <= o.attack["start"] <= 6.25 for o in outcomes if o.family == "zone")  # its own 0–30 s
     with pytest.raises(UserError, match=r"reaches the road's end 2\.5 s in at 4 m/s"):
         SearchSpec(victim.replace(start_s=40.0), parse_threat("msf-output"), 4)
+
+
+def test_a_trials_attack_spec_reads_back_as_its_table():
+    table = {"kind": "bound-replay", "start": 22.6321, "scale": 0.9187, "cancel": True, "direction": "left"}
+    assert attack_spec_to_dict(attack_spec(table)) == table
 
 
 def test_a_killed_search_resumes_to_the_trials_of_an_uninterrupted_one(tmp_path):
