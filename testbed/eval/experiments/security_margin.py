@@ -28,7 +28,7 @@ from testbed.eval.campaign.driver import RunExecutor, campaign_backend, load_sum
 from testbed.eval.experiments.adaptive import Victim
 from testbed.eval.run.scenario import Scenario, load_scenario
 from testbed.eval.search.attack_search import AttackSearch, SearchSpec, attack_spec, csv_cell
-from testbed.eval.search.bound_table import bound_rows, bound_setting
+from testbed.eval.search.bound_table import BoundSetting, bound_on_car, bound_rows, bound_setting
 from testbed.eval.search.report import write_search_report
 from tracks.presets import PRESETS, parse_track_spec
 
@@ -199,13 +199,19 @@ def cell_bound(cell: Cell) -> float | None:
 
 
 @functools.cache
-def _road_bound(road: str, defended: Victim) -> float | None:
+def _road_setting(road: str, defended: Victim) -> tuple[Scenario, BoundSetting] | None:
+    """The victim and its bound's setting; None for a defense without LD3's checks."""
     victim = victim_scenario(road, defended)
     try:
-        setting = bound_setting(victim)
+        return victim, bound_setting(victim)
     except UserError:
         return None
-    return bound_rows(setting, [victim.speed])[0].bound_m
+
+
+@functools.cache
+def _road_bound(road: str, defended: Victim) -> float | None:
+    found = _road_setting(road, defended)
+    return None if found is None else bound_rows(found[1], [found[0].speed])[0].bound_m
 
 
 def cell_bound_on_car(cell: Cell, cache: Path) -> float | None:
@@ -215,16 +221,14 @@ def cell_bound_on_car(cell: Cell, cache: Path) -> float | None:
     if path.exists():
         kept = json.loads(path.read_text())
         return math.inf if kept["bound_on_car_m"] == "inf" else kept["bound_on_car_m"]
-    victim = cell.victim()
-    try:
-        setting = bound_setting(victim)
-    except UserError:
+    found = _road_setting(cell.road, cell.defended)
+    if found is None:
         return None
-    value = bound_rows(setting, [victim.speed], on_car=victim)[0].on_car_m
+    victim, setting = found
+    value = bound_on_car(setting, victim, victim.speed)
     cache.mkdir(parents=True, exist_ok=True)
     _write_atomic(path, json.dumps({"road": cell.road, "defense": cell.defended.label, "speed_mps": victim.speed,
-                                    "bound_on_car_m": "inf" if value is not None and math.isinf(value) else value})
-                  + "\n")
+                                    "bound_on_car_m": "inf" if math.isinf(value) else value}) + "\n")
     return value
 
 

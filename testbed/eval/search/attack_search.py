@@ -11,6 +11,7 @@ search resumes from its journal (`study.log`): trials asked but not told are run
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import math
 import sys
@@ -93,7 +94,7 @@ class SearchSpec:
         if self.objective not in OBJECTIVES:
             raise UserError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
 
-    @property
+    @functools.cached_property
     def latest_start(self) -> float:
         """The latest attack start (s): `START_SLACK_S` before the victim's drive ends, at its duration or sooner at
         the road's end, reached at the earliest at cruise speed (the car never drives faster)."""

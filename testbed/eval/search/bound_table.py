@@ -102,21 +102,25 @@ def bound_rows(setting: BoundSetting, speeds: Sequence[float], k_sigma: float = 
     for v in speeds:
         if v <= 0:
             raise UserError(f"speeds must be > 0 m/s, got {v:g}")
+        car = None if on_car is None else bound_on_car(setting, on_car, v, k_sigma)
         if setting.lateral is None or setting.heading is None:
-            rows.append(BoundRow(v, math.inf, math.inf, setting.straddle_m, True,
-                                 None if on_car is None else math.inf))
+            rows.append(BoundRow(v, math.inf, math.inf, setting.straddle_m, True, car))
             continue
         loop = lateral_loop(setting.controller, v, setting.every)
         free = deviation_bound(loop, setting.lateral, setting.heading, k_sigma)
         signed = deviation_bound(loop, setting.lateral, setting.heading, k_sigma, one_signed=True)
-        car = None
-        if on_car is not None:
-            from testbed.eval.search.bound_on_car import identify  # the simulation: loaded only to identify
-
-            car = deviation_bound(identify(on_car, v, DEFAULT_HORIZON_S).loop, setting.lateral, setting.heading,
-                                  k_sigma).bound_m
         rows.append(BoundRow(v, free.bound_m, signed.bound_m, setting.straddle_m, free.converged, car))
     return rows
+
+
+def bound_on_car(setting: BoundSetting, sc: Scenario, speed: float, k_sigma: float = DEFAULT_K_SIGMA) -> float:
+    """The bound at `speed` on `sc`'s closed loop identified on the car (inf in paper mode, with nothing run)."""
+    if setting.lateral is None or setting.heading is None:
+        return math.inf
+    from testbed.eval.search.bound_on_car import identify  # the simulation: loaded only to identify
+
+    loop = identify(sc, speed, DEFAULT_HORIZON_S).loop
+    return deviation_bound(loop, setting.lateral, setting.heading, k_sigma).bound_m
 
 
 def _m(v: float) -> str:
