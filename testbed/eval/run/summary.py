@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, field_serializer
+from pydantic import BaseModel, ConfigDict, ValidationError, field_serializer
 
 from testbed.errors import UserError
 from testbed.eval.run.consequence import Consequence
@@ -85,7 +85,7 @@ class RunSummary(BaseModel):
         return [f.model_dump(exclude_none=True) for f in faults]
 
     def as_dict(self) -> dict[str, Any]:
-        """The summary as the plain dict that campaigns and reports read."""
+        """The summary as a plain dict (what the Python API, `testbed.api`, hands out)."""
         return self.model_dump()
 
     def write(self, path: Path) -> None:
@@ -154,15 +154,40 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
+def _refuse_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number a summary holds (non-finite numbers are written as null)")
+
+
 def read_summary_object(path: Path) -> dict[str, Any]:
-    """The JSON object a run's summary.json holds, its fields unchecked; a file that cannot be read, is not JSON
-    or holds no JSON object is a one-line UserError naming it."""
+    """The JSON object a run's summary.json holds, its fields unchecked; a file that cannot be read, is not JSON,
+    holds a non-finite number (`write` writes those as null) or holds no JSON object is a one-line UserError
+    naming it."""
     try:
-        data = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(path.read_text(), parse_constant=_refuse_constant)
+    except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
         raise UserError(f"{path} is not readable JSON: {exc}") from None
     except OSError as exc:
         raise UserError(f"cannot read {path}: {exc.strerror}") from None
     if not isinstance(data, dict):
         raise UserError(f"{path} is not a run's summary (not a JSON object)")
     return data
+
+
+def summary_from(data: dict[str, Any], source: Path) -> RunSummary:
+    """`data` (a summary.json's object) as its typed summary: a `VehicleSummary` for a drive on a vehicle, a
+    `HilSummary` for a run over CAN, else a `RunSummary`; a field missing, unknown or of the wrong type is a
+    one-line UserError naming `source` and the field."""
+    kind = VehicleSummary if "consequence_basis" in data else HilSummary if "interface" in data else RunSummary
+    try:
+        return kind.model_validate(data)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(part) for part in first["loc"]) or "the summary"
+        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        raise UserError(f"{source} is not a run summary of this version: {field}: {first['msg']}{more}") from None
+
+
+def read_summary(path: Path) -> RunSummary:
+    """The typed summary a run's summary.json holds (`summary_from`); any problem is a one-line UserError
+    naming the file."""
+    return summary_from(read_summary_object(path), path)
