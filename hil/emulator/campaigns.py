@@ -11,13 +11,13 @@ entry point, so that testbed never imports hil.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from hil.link.profile import DEFAULT_PROFILE
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.experiments.campaigns import CampaignSpec
 from testbed.eval.report.summary_stats import consequences, fmt_mean_sd, response_max_dev, stop_dev
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import HilSummary, RunSummary
 
 SPEEDS = (2.0, 4.0)
 REPETITIONS = 3
@@ -47,15 +47,15 @@ def chassis_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
-def run_over_can(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+def run_over_can(run: CampaignRun, run_dir: Path) -> RunSummary:
     """Executor: the run over the virtual CAN bus against the in-process ECU emulator (lockstep). The simulator
     is imported here, on a worker, so that listing campaigns loads no physics engine."""
     from hil.emulator.scenario_run import LinkConfig, run_hil_scenario
 
-    return run_hil_scenario(run.scenario, run_dir, LinkConfig("virtual", profile=DEFAULT_PROFILE)).summary
+    return run_hil_scenario(run.scenario, run_dir, LinkConfig("virtual", profile=DEFAULT_PROFILE)).record
 
 
-def chassis_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def chassis_table(done: list[tuple[CampaignRun, HilSummary]], out: Path) -> str:
     lines = ["Deviations are |physical D| in m, (mean, std) over the repetitions: detection = before the alarm, "
              "max = during the response (attacked LD3 and NaiveAR) or the whole run, stop = at standstill or the "
              "end.", "",
@@ -66,12 +66,12 @@ def chassis_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> 
             sums = [s for r, s in done if r.tags["speed"] == speed and r.tags["setting"] == setting]
             if not sums:
                 continue
-            lines.append(f"| {speed:g} m/s | {setting} | {len(sums)} | {sum(bool(s['detected']) for s in sums)}"
-                         f"/{len(sums)} | {fmt_mean_sd(s['detection_dev_m'] for s in sums)} "
+            lines.append(f"| {speed:g} m/s | {setting} | {len(sums)} | {sum(bool(s.detected) for s in sums)}"
+                         f"/{len(sums)} | {fmt_mean_sd(s.detection_dev_m for s in sums)} "
                          f"| {fmt_mean_sd(response_max_dev(s) for s in sums)} "
                          f"| {fmt_mean_sd(stop_dev(s) for s in sums)} | {consequences(sums)} "
-                         f"| {sum(s['can_frames_tx'] for s in sums)} / {sum(s['can_frames_rx'] for s in sums)} / "
-                         f"{sum(s['can_frames_rejected'] for s in sums)} |")
+                         f"| {sum(s.can_frames_tx for s in sums)} / {sum(s.can_frames_rx for s in sums)} / "
+                         f"{sum(s.can_frames_rejected for s in sums)} |")
     return "\n".join(lines)
 
 

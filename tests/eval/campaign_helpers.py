@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import multiprocessing as mp
 import os
@@ -14,6 +13,8 @@ from pathlib import Path
 
 from testbed.eval.campaign.driver import CampaignRun, run_campaign
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
+from tests.eval.summary_helpers import write_fake_summary
 
 PARTS = 20
 PART_PERIOD_S = 0.05
@@ -28,15 +29,15 @@ def _log(path: Path, line: str) -> None:
         os.close(fd)
 
 
-def warning_writer(run: CampaignRun, run_dir: Path) -> dict:
-    """Logs a warning naming the run (as the loop's fault log does), then writes its summary."""
+def warning_writer(run: CampaignRun, run_dir: Path) -> RunSummary:
+    """Logs a warning naming the run (as the loop's fault log does), then writes its summary (its scenario: the
+    run id)."""
     logging.getLogger("testbed.defense.faults").warning("t=1.000 no-lane-lines: %s", run.run_id)
-    (run_dir / "summary.json").write_text(json.dumps({"run": run.run_id}))
-    return {"run": run.run_id}
+    return write_fake_summary(run_dir, scenario=run.run_id)
 
 
-def slow_writer(run: CampaignRun, run_dir: Path) -> dict:
-    """Writes `part-0` … `part-19` 0.05 s apart, then summary.json, then logs the run id in
+def slow_writer(run: CampaignRun, run_dir: Path) -> RunSummary:
+    """Writes `part-0` … `part-19` 0.05 s apart, then summary.json (its scenario: the run id), then logs the run id in
     `completed.log` beside the run folders. Tags: `fail` raises, `die` ends the process, `hang` sleeps
     (after logging its pid in `pids.log`), `deaf` sleeps with SIGALRM blocked (no in-process alarm ends it)."""
     if run.tags.get("fail"):
@@ -52,26 +53,22 @@ def slow_writer(run: CampaignRun, run_dir: Path) -> dict:
     for i in range(run.tags.get("parts", PARTS)):
         (run_dir / f"part-{i}").write_text(f"{run.run_id} {i}\n")
         time.sleep(PART_PERIOD_S)
-    summary = {"run": run.run_id, "consequence": "reach_destination"}
-    (run_dir / "summary.json").write_text(json.dumps(summary))
+    summary = write_fake_summary(run_dir, scenario=run.run_id)
     _log(run_dir.parent / "completed.log", run.run_id)
     return summary
 
 
-def process_probe(run: CampaignRun, run_dir: Path) -> dict:
-    """Records the process it runs in and how many child processes that process has."""
-    summary = {"pid": os.getpid(), "children": len(mp.active_children())}
-    (run_dir / "summary.json").write_text(json.dumps(summary))
-    return summary
+def process_probe(run: CampaignRun, run_dir: Path) -> RunSummary:
+    """Records the process it runs in and how many child processes that process has (as the summary's
+    attack_state)."""
+    return write_fake_summary(run_dir, attack_state={"pid": os.getpid(), "children": len(mp.active_children())})
 
 
-def thread_probe(run: CampaignRun, run_dir: Path) -> dict:
-    """Records how many threads torch computes on in the process it runs in."""
+def thread_probe(run: CampaignRun, run_dir: Path) -> RunSummary:
+    """Records how many threads torch computes on in the process it runs in (as the summary's attack_state)."""
     import torch
 
-    summary = {"torch_threads": torch.get_num_threads()}
-    (run_dir / "summary.json").write_text(json.dumps(summary))
-    return summary
+    return write_fake_summary(run_dir, attack_state={"torch_threads": torch.get_num_threads()})
 
 
 def crash_runs(n: int = 8) -> list[CampaignRun]:

@@ -7,7 +7,6 @@ runs a toy search into the folder given, each trial taking `TOY_SLEEP_S` seconds
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -17,7 +16,9 @@ from typing import Any
 from testbed.attacks.threat import parse_threat
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.eval.search.attack_search import AttackSearch, SearchSpec
+from tests.eval.summary_helpers import write_fake_summary
 
 
 def toy_deviation(attack: dict[str, Any]) -> float:
@@ -26,14 +27,12 @@ def toy_deviation(attack: dict[str, Any]) -> float:
     return 0.5 * abs(float(attack.get("start", 0.0))) / 30.0
 
 
-def toy_executor(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+def toy_executor(run: CampaignRun, run_dir: Path) -> RunSummary:
     time.sleep(float(os.environ.get("TOY_SLEEP_S", "0")))
     dev = toy_deviation(run.scenario.attack)
-    summary = {"detected": dev < 1.0, "detection_time_s": 12.0 if dev < 1.0 else None,
-               "detection_dev_m": dev if dev < 1.0 else None, "max_abs_dev_m": dev,
-               "consequence": "hit_curb" if dev > 1.5 else "stop_in_lane", "lane_straddle_dev_m": 0.7}
-    (run_dir / "summary.json").write_text(json.dumps(summary))
-    return summary
+    return write_fake_summary(run_dir, detected=dev < 1.0, detection_time_s=12.0 if dev < 1.0 else None,
+                              detection_dev_m=dev if dev < 1.0 else None, max_abs_dev_m=dev,
+                              consequence="hit_curb" if dev > 1.5 else "stop_in_lane", lane_straddle_dev_m=0.7)
 
 
 def toy_spec(budget: int, seed: int = 0, batch: int = 4) -> SearchSpec:

@@ -5,6 +5,7 @@ from testbed.eval.experiments.campaigns import BENIGN_TRAFFIC_PRESETS, CAMPAIGNS
 from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
 from testbed.perception.lab.traffic_drive import LEAD_GAP_M
 from testbed.traffic.fleet import Fleet
+from tests.eval.summary_helpers import fake_summary
 from tracks.presets import load_track
 from vehicles.params import get_vehicle
 
@@ -37,7 +38,7 @@ def test_benign_traffic_table_pools_the_tracked_errors_and_counts_alarms(tmp_pat
                                                              str(ld)}
             rows.append(",".join(values[c] for c in TRAJECTORY_COLUMNS))
         (run_dir / "trajectory.csv").write_text("\n".join(rows) + "\n")
-        done.append((run, {"detected": alarm, "max_abs_dev_m": 0.1, "consequence": "reach_destination"}))
+        done.append((run, fake_summary(detected=alarm, max_abs_dev_m=0.1, consequence="reach_destination")))
     table = benign_traffic_table(done, tmp_path)
     cells = [c.strip() for c in next(line for line in table.splitlines() if line.startswith("| local")).split("|")]
     assert cells[2:7] == ["rain", "3", "6", "12.00", "1"]

@@ -1,10 +1,14 @@
 """Campaign plumbing: custom executors, resuming, failures; the run lists of the grid and ROC campaigns."""
 
+import csv
 import json
 from collections import Counter
 from pathlib import Path
 
+import pytest
+
 from testbed.defense.config import PAPER_MODE, DefenseConfig
+from testbed.errors import UserError
 from testbed.eval.campaign.driver import CampaignRun, run_campaign
 from testbed.eval.experiments.ablation import ATTACKS, VARIANTS, ablation_runs, is_default
 from testbed.eval.experiments.campaigns import (
@@ -17,31 +21,49 @@ from testbed.eval.experiments.campaigns import (
 )
 from testbed.eval.experiments.roc import record_detection_run, roc_runs
 from testbed.eval.run.scenario import load_scenario
-from testbed.eval.run.summary import SCHEMA_VERSION
+from testbed.eval.run.summary import SCHEMA_VERSION, RunSummary
+from tests.eval.summary_helpers import fake_summary
+from tests.eval.summary_helpers import write_fake_summary as write_summary
 
 
-def write_fake_summary(run: CampaignRun, run_dir: Path) -> dict:
+def write_fake_summary(run: CampaignRun, run_dir: Path) -> RunSummary:
     """Executor double: fails for runs tagged `fail`, else writes a summary counting its calls."""
     if run.tags.get("fail"):
         raise RuntimeError("boom")
-    run_dir.mkdir(parents=True, exist_ok=True)
     calls = run_dir.parent / "calls.txt"
     calls.write_text(calls.read_text() + run.run_id + "\n" if calls.exists() else run.run_id + "\n")
-    summary = {"run": run.run_id, "consequence": "reach_destination"}
-    (run_dir / "summary.json").write_text(json.dumps(summary))
-    return summary
+    return write_summary(run_dir, scenario=run.run_id)
 
 
 def test_custom_executor_resume_and_failures(tmp_path):
     sc = load_scenario("slr")
     runs = [CampaignRun("a", sc, {"k": 1}), CampaignRun("b", sc, {"k": 2, "fail": True}), CampaignRun("c", sc, {})]
     done = run_campaign(runs, tmp_path, workers=1, progress=False, execute=write_fake_summary)
-    assert [r.run_id for r, _ in done] == ["a", "c"]
+    assert [(r.run_id, s.scenario) for r, s in done] == [("a", "a"), ("c", "c")]
+    assert all(isinstance(s, RunSummary) for _, s in done)
     assert "b: RuntimeError: boom" in (tmp_path / "failures.txt").read_text()
-    rows = (tmp_path / "runs.csv").read_text().splitlines()
-    assert rows == ["run_id,k,run,consequence", "a,1,a,reach_destination", "c,,c,reach_destination"]
+    with (tmp_path / "runs.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["run_id"], r["k"], r["scenario"], r["consequence"]) for r in rows] == [
+        ("a", "1", "a", "reach_destination"), ("c", "", "c", "reach_destination")]
     run_campaign(runs[:1] + runs[2:], tmp_path, workers=1, progress=False, execute=write_fake_summary)
     assert (tmp_path / "calls.txt").read_text().split() == ["a", "c"]  # the rerun resumed: nothing ran twice
+
+
+def test_a_run_whose_summary_is_not_of_this_version_is_named_in_one_line(tmp_path):
+    sc = load_scenario("slr")
+    runs = [CampaignRun("a", sc, {}), CampaignRun("b", sc, {})]
+    run_campaign(runs, tmp_path, workers=1, progress=False, execute=write_fake_summary)
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    del summary["max_abs_dev_m"]
+    (tmp_path / "b" / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(UserError, match=r"b/summary.json .*max_abs_dev_m") as err:
+        run_campaign(runs, tmp_path, workers=1, progress=False, execute=write_fake_summary)
+    assert "\n" not in str(err.value)
+    summary["max_abs_dev_m"] = "far"
+    (tmp_path / "b" / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(UserError, match=r"b/summary.json .*max_abs_dev_m"):
+        run_campaign(runs, tmp_path, workers=1, progress=False, execute=write_fake_summary)
 
 
 def test_grid_runs_cover_every_cell_with_20_drives_drive_outermost():
@@ -118,7 +140,7 @@ def test_benign_table_reports_msf_lateral_error_per_track(tmp_path):
             values = {c: "0" for c in TRAJECTORY_COLUMNS} | {"phys_dev": "0.3", "msf_dev": str(0.3 + e)}
             rows.append(",".join(values[c] for c in TRAJECTORY_COLUMNS))
         (run_dir / "trajectory.csv").write_text("\n".join(rows) + "\n")
-        done.append((run, {"detected": False, "max_abs_dev_m": 0.1, "consequence": "reach_destination"}))
+        done.append((run, fake_summary(detected=False, max_abs_dev_m=0.1, consequence="reach_destination")))
     row = next(line for line in benign_table(done, tmp_path).splitlines() if line.startswith("| local"))
     cells = [c.strip() for c in row.split("|")]
     assert cells[5] == "0.129 (worst run)"  # sqrt((0 + 0.01 + 0.04) / 3)

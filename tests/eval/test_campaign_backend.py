@@ -145,7 +145,7 @@ def test_a_backend_added_by_entry_point_runs_a_campaign_and_is_a_cli_choice(back
     assert CAMPAIGN_BACKENDS.names() == ("local", "ray", "reversed")
     runs = [CampaignRun(f"r{i}", load_scenario("slr"), {}) for i in range(3)]
     done = run_campaign(runs, tmp_path / "c", progress=False, execute=warning_writer, backend="reversed")
-    assert [s["run"] for _, s in done] == ["r0", "r1", "r2"]
+    assert [s.scenario for _, s in done] == ["r0", "r1", "r2"]
     assert sys.modules["ld3_backendplugin"].ORDER == ["r2", "r1", "r0"]
     assert not list((tmp_path / "c").glob(".*.tmp-*"))
     with pytest.raises(ValueError, match=r"a cluster address \('auto'\) needs the ray backend: add --backend ray"):
@@ -214,7 +214,7 @@ def test_the_cost_of_a_run_depends_on_whether_its_detector_reads_the_camera():
 def test_local_workers_compute_on_one_thread_each_as_rays_do(tmp_path):
     runs = [CampaignRun(f"r{i}", load_scenario("slr"), {}) for i in range(2)]
     done = run_campaign(runs, tmp_path, workers=2, progress=False, execute=thread_probe)
-    assert [s["torch_threads"] for _, s in done] == [1, 1]
+    assert [s.attack_state["torch_threads"] for _, s in done] == [1, 1]
 
 
 def test_the_same_run_is_byte_identical_on_the_local_and_the_ray_backend(tmp_path):
@@ -231,7 +231,7 @@ def test_the_same_run_is_byte_identical_on_the_local_and_the_ray_backend(tmp_pat
         assert sorted(p.name for p in b.iterdir()) == sorted(p.name for p in a.iterdir())
         assert (b / "trajectory.csv").read_bytes() == (a / "trajectory.csv").read_bytes()
         assert (b / "birdseye.png").read_bytes() == (a / "birdseye.png").read_bytes()
-        strip = [{k: v for k, v in s.items() if k not in WALL_FIELDS} for s in (s_local, s_ray)]
+        strip = [{k: v for k, v in s.model_dump(mode="json").items() if k not in WALL_FIELDS} for s in (s_local, s_ray)]
         assert strip[0] == strip[1] == {k: v for k, v in json.loads((b / "summary.json").read_text()).items()
                                         if k not in WALL_FIELDS}
     assert not list((tmp_path / "ray").glob(".*.tmp-*"))
@@ -303,7 +303,7 @@ def test_ray_kept_warm_connects_once_for_every_batch_and_shuts_down_after(tmp_pa
         runs = [CampaignRun(f"{name}{i}", sc, {}) for i in range(4)]
         done = run_campaign(runs, tmp_path / name, workers=2, progress=False, execute=process_probe,
                             backend="ray")
-        return {s["pid"] for _, s in done}
+        return {s.attack_state["pid"] for _, s in done}
 
     with campaign_backend("ray", None).kept_warm():
         first = batch("a")

@@ -65,7 +65,7 @@ def test_a_killed_campaign_leaves_no_writer_and_a_restart_finishes_every_run_onc
     assert [r.run_id for r, _ in done] == [f"run-{i}" for i in range(8)]
     assert not _temps(out)
     for run, summary in done:
-        assert summary["run"] == run.run_id
+        assert summary.scenario == run.run_id
         assert {p.name for p in (out / run.run_id).iterdir()} == {"summary.json"} | {f"part-{i}" for i in range(PARTS)}
     completed_after = (out / "completed.log").read_text().split()[len(completed_before):]
     assert not counted & set(completed_after), "a run counted before the kill was run again"
@@ -103,7 +103,7 @@ def test_a_corrupt_or_incomplete_run_is_redone_and_named(tmp_path, capsys):
     assert (tmp_path / "completed.log").read_text().split() == ["a", "b", "a", "b"]  # c was done: not rerun
     assert (tmp_path / "grp" / "completed.log").read_text().split() == ["grp/c"]
     assert not list((tmp_path / "grp").glob(".c.tmp-*"))
-    assert json.loads(summary.read_text())["run"] == "a"
+    assert json.loads(summary.read_text())["scenario"] == "a"
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -136,7 +136,7 @@ def test_a_worker_that_dies_is_a_failure_and_is_replaced(tmp_path):
 def test_workers_1_runs_in_this_process_without_a_pool(tmp_path):
     runs = [CampaignRun(f"r{i}", load_scenario("slr"), {}) for i in range(2)]
     done = run_campaign(runs, tmp_path, workers=1, progress=False, execute=process_probe)
-    assert [s for _, s in done] == [{"pid": os.getpid(), "children": 0}] * 2
+    assert [s.attack_state for _, s in done] == [{"pid": os.getpid(), "children": 0}] * 2
 
 
 def test_one_campaign_process_per_folder(tmp_path):
@@ -200,7 +200,7 @@ def test_workers_kept_warm_serve_every_batch_and_a_dead_one_is_replaced(tmp_path
     def batch(name: str, n: int, **tags) -> list[int]:
         runs = [CampaignRun(f"{name}{i}", sc, dict(tags)) for i in range(n)]
         done = run_campaign(runs, tmp_path / name, workers=2, progress=False, execute=process_probe)
-        return sorted(s["pid"] for _, s in done)
+        return sorted(s.attack_state["pid"] for _, s in done)
 
     cold = [batch("cold-a", 4), batch("cold-b", 4)]
     assert not set(cold[0]) & set(cold[1])  # without: each batch starts its own workers

@@ -7,6 +7,7 @@ from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.experiments.campaigns import GRID_D, GRID_F, fr_grid_table
 from testbed.eval.run.consequence import ATTACK_GOAL_M
 from testbed.eval.run.scenario import load_scenario
+from tests.eval.summary_helpers import fake_summary
 
 
 def fabricated_grid() -> list[tuple[CampaignRun, dict]]:
@@ -19,12 +20,12 @@ def fabricated_grid() -> list[tuple[CampaignRun, dict]]:
                 hit = d == 1.0 and f == 1.5
                 tags = {"track": "local", "d": d, "f": f, "start": 8.0}
                 done.append((CampaignRun(f"local-d{d:g}-f{f:g}-drive{k}", sc, tags),
-                             {"max_abs_dev_m": ATTACK_GOAL_M["local"] + (0.2 if hit else -0.5),
-                              "consequence": "reach_destination", "attack_state": {"switch_time": 10.0}}))
+                             fake_summary(max_abs_dev_m=ATTACK_GOAL_M["local"] + (0.2 if hit else -0.5),
+                                          consequence="reach_destination", attack_state={"switch_time": 10.0})))
         for f in GRID_F:
             tags = {"track": "highway", "d": 0.3, "f": f, "start": 8.0}
             done.append((CampaignRun(f"highway-d0.3-f{f:g}-drive{k}", sc, tags),
-                         {"max_abs_dev_m": 0.1, "consequence": "reach_destination", "attack_state": None}))
+                         fake_summary(max_abs_dev_m=0.1, consequence="reach_destination", attack_state=None)))
     return done
 
 

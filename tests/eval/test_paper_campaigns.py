@@ -27,12 +27,14 @@ from testbed.eval.experiments.stealthy_bound import (
     stealthy_runs,
 )
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
+from tests.eval.summary_helpers import fake_summary
 
 
-def summary(**fields) -> dict:
+def summary(**fields) -> RunSummary:
     base = {"consequence": "stop_in_lane", "detected": True, "detection_dev_m": 0.3, "max_abs_dev_m": 0.5,
             "ar_max_dev_m": 0.5, "ar_stop_dev_m": -0.4, "final_dev_m": -0.4, "lane_straddle_dev_m": 0.83}
-    return {**base, **fields}
+    return fake_summary(**{**base, **fields})
 
 
 def test_sim_table_runs_cover_every_scenario_setting_and_start():

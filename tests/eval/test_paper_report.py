@@ -20,6 +20,8 @@ from testbed.eval.experiments.paper_report import (
     write_paper_report,
 )
 from testbed.eval.run.scenario import ScenarioError, load_scenario
+from testbed.eval.run.summary import RunSummary
+from tests.eval.summary_helpers import fake_summary
 
 TRAJECTORY = ("t", "speed", "mode", "phys_dev", "msf_dev", "ld_dev", "ld_fresh")
 
@@ -115,11 +117,11 @@ def result(name: str, folder: Path, done: list) -> CampaignResult:
     return CampaignResult(name, folder / name, f"ld3 campaign {name}", [r for r, _ in done], done)
 
 
-def summary(**fields) -> dict:
+def summary(**fields) -> RunSummary:
     base = {"consequence": "stop_in_lane", "detected": True, "detection_dev_m": 0.3, "max_abs_dev_m": 0.5,
             "ar_max_dev_m": 0.5, "ar_stop_dev_m": -0.4, "final_dev_m": -0.4, "lane_straddle_dev_m": 0.83,
             "defense": "ld3"}
-    return {**base, **fields}
+    return fake_summary(**{**base, **fields})
 
 
 def test_report_puts_the_papers_values_beside_ours(tmp_path):

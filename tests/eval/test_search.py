@@ -27,6 +27,7 @@ from testbed.eval.search.attack_search import (
 )
 from testbed.eval.search.report import write_search_report
 from tests.eval.search_helpers import toy_executor, toy_search, toy_spec
+from tests.eval.summary_helpers import fake_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -142,14 +143,15 @@ def test_families_follow_the_threat_model_and_the_victim():
 
 
 def test_score_puts_the_deviation_before_detection_first():
-    undetected = {"detected": False, "detection_dev_m": None, "max_abs_dev_m": 1.0}
-    caught_late = {"detected": True, "detection_dev_m": 0.9, "max_abs_dev_m": 3.0}
+    undetected = fake_summary(detected=False, detection_dev_m=None, max_abs_dev_m=1.0)
+    caught_late = fake_summary(detected=True, detection_dev_m=0.9, max_abs_dev_m=3.0)
     assert score(undetected, "undetected")[0] > score(caught_late, "undetected")[0]
     assert score(undetected, "overall")[0] < score(caught_late, "overall")[0]
     assert score(caught_late, "undetected")[1:] == (0.9, 3.0)
-    crashed = {"detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.8, "consequence": "hit_curb"}
-    caught_crash = {**caught_late, "consequence": "hit_curb"}
-    assert score(crashed, "undetected")[0] > score({**caught_late, "detection_dev_m": 1.2}, "undetected")[0]
+    crashed = fake_summary(detected=False, detection_dev_m=None, max_abs_dev_m=0.8, consequence="hit_curb")
+    caught_crash = fake_summary(detected=True, detection_dev_m=0.9, max_abs_dev_m=3.0, consequence="hit_curb")
+    caught_later = fake_summary(detected=True, detection_dev_m=1.2, max_abs_dev_m=3.0)
+    assert score(crashed, "undetected")[0] > score(caught_later, "undetected")[0]
     assert score(caught_crash, "undetected")[0] == score(caught_late, "undetected")[0]
     assert score(caught_crash, "overall")[0] > score(caught_late, "overall")[0]
 
@@ -158,12 +160,14 @@ def test_loss_counts_any_departure_or_contact_detected_or_not_and_ranks_by_how_f
     straddle = {"lane_straddle_dev_m": 0.7}
     stopped = {**straddle, "detected": True, "detection_dev_m": 0.3, "max_abs_dev_m": 0.45,
                "consequence": "stop_in_lane"}
-    straddling = {**stopped, "max_abs_dev_m": 0.75, "consequence": "stop_with_lane_straddle"}
-    detected_crash = {**stopped, "detection_dev_m": 0.1, "max_abs_dev_m": 0.9, "consequence": "hit_barrier"}
-    undetected_crash = {**straddle, "detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.8,
-                        "consequence": "hit_curb"}
-    wide_but_reached = {**straddle, "detected": False, "detection_dev_m": None, "max_abs_dev_m": 0.72,
-                        "consequence": "reach_destination"}
+    straddling = fake_summary(**{**stopped, "max_abs_dev_m": 0.75, "consequence": "stop_with_lane_straddle"})
+    detected_crash = fake_summary(**{**stopped, "detection_dev_m": 0.1, "max_abs_dev_m": 0.9,
+                                     "consequence": "hit_barrier"})
+    undetected_crash = fake_summary(**straddle, detected=False, detection_dev_m=None, max_abs_dev_m=0.8,
+                                    consequence="hit_curb")
+    wide_but_reached = fake_summary(**straddle, detected=False, detection_dev_m=None, max_abs_dev_m=0.72,
+                                    consequence="reach_destination")
+    stopped = fake_summary(**stopped)
     assert not is_loss("stop_in_lane", 0.45, 0.7)
     assert is_loss("stop_with_lane_straddle", 0.5, 0.7) and is_loss("wrong_way", 0.1, 0.7)
     assert is_loss("reach_destination", 0.72, 0.7) and not is_loss("reach_destination", 0.72, None)

@@ -18,6 +18,7 @@ from hil.emulator.campaigns import (
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.experiments.campaigns import CampaignSpec
 from testbed.eval.run.scenario import load_scenario
+from tests.eval.summary_helpers import fake_hil_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,10 +44,11 @@ def test_chassis_table_rows_per_speed_and_setting():
             "ar_max_dev_m": 0.4, "ar_stop_dev_m": -0.3, "final_dev_m": -0.3, "can_frames_tx": 10,
             "can_frames_rx": 30, "can_frames_rejected": 0}
     done = [(CampaignRun(f"4mps/ld3-rep{k}", sc, {"speed": 4.0, "setting": "ld3", "rep": k}),
-             {**base, "ar_max_dev_m": 0.4 + 0.2 * k}) for k in range(2)]
+             fake_hil_summary(**{**base, "ar_max_dev_m": 0.4 + 0.2 * k})) for k in range(2)]
     done.append((CampaignRun("4mps/none-rep0", sc, {"speed": 4.0, "setting": "none", "rep": 0}),
-                 {**base, "detected": False, "detection_dev_m": None, "ar_max_dev_m": None, "ar_stop_dev_m": None,
-                  "max_abs_dev_m": 2.5, "final_dev_m": 2.4, "consequence": "out_of_lane"}))
+                 fake_hil_summary(**{**base, "detected": False, "detection_dev_m": None, "ar_max_dev_m": None,
+                                     "ar_stop_dev_m": None, "max_abs_dev_m": 2.5, "final_dev_m": 2.4,
+                                     "consequence": "out_of_lane"})))
     table = chassis_table(done, Path("."))
     assert "| 4 m/s | ld3 | 2 | 2/2 | 0.10, 0.00 | 0.50, 0.10 | 0.30, 0.00 | stop_in_lane ×2 | 20 / 60 / 0 |" in table
     assert "| 4 m/s | none | 1 | 0/1 | – | 2.50, 0.00 | 2.40, 0.00 | out_of_lane ×1 | 10 / 30 / 0 |" in table

@@ -13,7 +13,8 @@ Runs execute on a registered backend (`CAMPAIGN_BACKENDS`: `local`, `ray`, and t
 entry-point group `ld3.campaign_backends`; `testbed.eval.campaign.backend`), which yields each run as it
 finishes; this process settles every run the same way, whatever the backend. One campaign process
 at a time may use a folder (`.campaign.lock`). The collected summaries go to `runs.csv` (nested fields as
-dotted columns) and the campaign's own table to `report.md`.
+dotted columns) and the campaign's own table to `report.md`; the summaries are read typed (`RunSummary`), and a
+run folder whose summary is not one of this version is a one-line error naming its file.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from testbed.eval.campaign.backend import CampaignBackend
 from testbed.eval.campaign.local_backend import LocalBackend
 from testbed.eval.campaign.ray_backend import RayBackend
 from testbed.eval.campaign.run import TMP_MARK, CampaignRun, RunExecutor, failure_record, remove_path, temp_dir
+from testbed.eval.run.summary import RunSummary, read_summary
 from testbed.registry import Registry
 
 try:
@@ -55,23 +57,24 @@ class CampaignBusyError(RuntimeError):
     """Another campaign process holds the folder's lock."""
 
 
-def run_and_write(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+def run_and_write(run: CampaignRun, run_dir: Path) -> RunSummary:
     """The default executor: the run's standard outputs into the campaign's temporary run folder."""
     from testbed.eval.run.runner import run_into
 
-    return run_into(run.scenario, run_dir).summary
+    return run_into(run.scenario, run_dir).record
 
 
-def run_and_write_data(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+def run_and_write_data(run: CampaignRun, run_dir: Path) -> RunSummary:
     """The executor of runs whose figures are drawn on demand (a search's trials): the standard outputs with
     believed.csv in place of birdseye.png and ar_fusion.png (`ld3 figures` draws them from the folder)."""
     from testbed.eval.run.runner import run_into
 
-    return run_into(run.scenario, run_dir, figures=False).summary
+    return run_into(run.scenario, run_dir, figures=False).record
 
 
 def load_summary(run_dir: Path) -> dict[str, Any] | str:
-    """The run's summary, or why there is none (summary.json missing, unreadable or not a JSON object)."""
+    """The folder's summary.json object, fields unchecked, or why there is none (missing, unreadable or not a JSON
+    object): whether a run (or a search cell) in the folder is complete."""
     try:
         summary = json.loads((run_dir / "summary.json").read_text())
     except FileNotFoundError:
@@ -79,6 +82,16 @@ def load_summary(run_dir: Path) -> dict[str, Any] | str:
     except (OSError, ValueError) as exc:
         return f"summary.json unreadable ({type(exc).__name__}: {exc})"
     return summary if isinstance(summary, dict) else "summary.json is not a JSON object"
+
+
+def typed_summary(run_dir: Path) -> RunSummary | str:
+    """The run's typed summary, or why there is none (`load_summary`'s reasons, or a summary not of this version)."""
+    if isinstance(problem := load_summary(run_dir), str):
+        return problem
+    try:
+        return read_summary(run_dir / "summary.json")
+    except UserError as exc:
+        return str(exc)
 
 
 def settle(run: CampaignRun, out: Path, tmp: Path, error: str | None) -> str | None:
@@ -160,7 +173,7 @@ def campaign_backend(name: str, address: str | None) -> CampaignBackend:
 
 def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = None, progress: bool = True,
                  execute: RunExecutor = run_and_write, timeout: float | None = None, backend: str = "local",
-                 address: str | None = None) -> list[tuple[CampaignRun, dict[str, Any]]]:
+                 address: str | None = None) -> list[tuple[CampaignRun, RunSummary]]:
     """Run every campaign run not yet done with `execute`, each within `timeout` seconds (default
     `run_timeout` per run), on the registered `backend` with at most `workers` in flight (its default when
     None) and the cluster `address` where it takes one; returns (run, summary) for all runs that are done."""
@@ -180,9 +193,16 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = N
         with tqdm(total=len(todo), desc=out.name, disable=not progress or not todo) as bar:
             failures = _execute(chosen, todo, out, execute, timeout, workers, address, bar) if todo else []
         _write_record(out / "failures.txt", failures)
-        done = [(run, summary) for run in runs if isinstance(summary := load_summary(out / run.run_id), dict)]
+        done = done_runs(runs, out)
         _write_runs_csv(out / "runs.csv", done)
     return done
+
+
+def done_runs(runs: Iterable[CampaignRun], out: Path) -> list[tuple[CampaignRun, RunSummary]]:
+    """(run, its typed summary) for each of `runs` complete in `out`; a summary that is not one of this version is a
+    one-line UserError naming its file."""
+    return [(run, read_summary(out / run.run_id / "summary.json")) for run in runs
+            if isinstance(load_summary(out / run.run_id), dict)]
 
 
 def _execute(backend: CampaignBackend, todo: Sequence[CampaignRun], out: Path, execute: RunExecutor,
@@ -221,8 +241,8 @@ def flatten(value: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def _write_runs_csv(path: Path, done: Iterable[tuple[CampaignRun, dict[str, Any]]]) -> None:
-    rows = [{"run_id": r.run_id, **r.tags, **flatten(s)} for r, s in done]
+def _write_runs_csv(path: Path, done: Iterable[tuple[CampaignRun, RunSummary]]) -> None:
+    rows = [{"run_id": r.run_id, **r.tags, **flatten(s.model_dump(mode="json"))} for r, s in done]
     if not rows:
         return
     keys: list[str] = []

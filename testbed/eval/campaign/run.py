@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from testbed.eval.run.scenario import Scenario
+from testbed.eval.run.summary import RunSummary
 
 TMP_MARK = ".tmp-"
 RUN_LOG = "run.log"
@@ -37,9 +38,10 @@ class CampaignRun:
     tags: dict[str, Any]
 
 
-RunExecutor = Callable[[CampaignRun, Path], dict[str, Any]]
+RunExecutor = Callable[[CampaignRun, Path], RunSummary]
 """Runs one campaign run into the folder it is given (a temporary folder, already created) and returns its
-summary; it must write summary.json there. A module-level function, so that worker processes can import it."""
+summary; it must write summary.json there (the campaign reads that file back, not what is returned). A
+module-level function, so that worker processes can import it."""
 
 
 class RunTimeout(BaseException):

@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 
 _W20 = {"window": 20, "p_source": "constant", "r_power": 1.0}
 VARIANTS: dict[str, dict[str, Any]] = {
@@ -85,15 +86,15 @@ def _mean_sd(values: list[float | None]) -> str:
 IN_LANE = ("stop_in_lane", "reach_destination")
 
 
-def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, dict[str, Any]]]) -> None:
+def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, RunSummary]]) -> None:
     """One panel per attack: each variant's AR max |D| over its runs (dots, mean bar), out-of-lane runs in red."""
     fig = Figure(figsize=(3.2 * len(ATTACKS), 0.35 * len(VARIANTS) + 1.5))
     axes = fig.subplots(1, len(ATTACKS), sharey=True)
     for ax, attack in zip(axes, ATTACKS, strict=True):
         for i, variant in enumerate(VARIANTS):
             sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
-            devs = [(s["ar_max_dev_m"] if s["ar_max_dev_m"] is not None else s["max_abs_dev_m"] or 0.0,
-                     s["consequence"] in IN_LANE) for s in sums]
+            devs = [(s.ar_max_dev_m if s.ar_max_dev_m is not None else s.max_abs_dev_m or 0.0,
+                     s.consequence in IN_LANE) for s in sums]
             if not devs:
                 continue
             ax.barh(i, np.mean([d for d, _ in devs]), color="0.85")
@@ -109,7 +110,7 @@ def _save_ablation_plot(path: Path, done: list[tuple[CampaignRun, dict[str, Any]
     fig.savefig(path, dpi=110)
 
 
-def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def ablation_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     """Per attack, one row per variant (paper mode first): in-lane rate, detection, deviations; and
     `ablation.png`."""
     _save_ablation_plot(out / "ablation.png", done)
@@ -122,17 +123,17 @@ def ablation_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
             sums = [s for run, s in done if run.tags["variant"] == variant and run.tags["attack"] == attack]
             if not sums:
                 continue
-            in_lane = sum(s["consequence"] in IN_LANE for s in sums)
+            in_lane = sum(s.consequence in IN_LANE for s in sums)
             label = f"{variant} (default)" if is_default(VARIANTS[variant]) else variant
             cons: dict[str, int] = {}
             for s in sums:
-                cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
-            stop = [abs(s["ar_stop_dev_m"]) if s["ar_stop_dev_m"] is not None else None for s in sums]
+                cons[s.consequence] = cons.get(s.consequence, 0) + 1
+            stop = [abs(s.ar_stop_dev_m) if s.ar_stop_dev_m is not None else None for s in sums]
             lines.append(f"| {label} | {len(sums)} | {in_lane}/{len(sums)} ({100 * in_lane / len(sums):.0f}%) "
-                         f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
-                         f"| {_mean_sd([s['max_abs_dev_m'] for s in sums])} "
-                         f"| {_mean_sd([s['detection_dev_m'] for s in sums])} "
-                         f"| {_mean_sd([s['ar_max_dev_m'] for s in sums])} | {_mean_sd(stop)} "
+                         f"| {sum(bool(s.detected) for s in sums)}/{len(sums)} "
+                         f"| {_mean_sd([s.max_abs_dev_m for s in sums])} "
+                         f"| {_mean_sd([s.detection_dev_m for s in sums])} "
+                         f"| {_mean_sd([s.ar_max_dev_m for s in sums])} | {_mean_sd(stop)} "
                          f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} |")
         lines.append("")
     return "\n".join(lines)

@@ -29,6 +29,7 @@ from testbed.eval.report.summary_stats import consequences
 from testbed.eval.run.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.run.outputs import read_trajectory
 from testbed.eval.run.scenario import add_attacks, apply_settings, load_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.registry import Capability, Registry
 
 
@@ -40,7 +41,8 @@ class CampaignSpec:
     name: str
     help: str
     build: Callable[[str], list[CampaignRun]]
-    table: Callable[[list[tuple[CampaignRun, dict[str, Any]]], Path], str]
+    table: Callable[[list[tuple[CampaignRun, Any]], Path], str]
+    """The report table from (run, its `RunSummary`), or for a campaign of searches (cell, the cell's summary)."""
     execute: RunExecutor = run_and_write
     needs: frozenset[Capability] = frozenset()
     searches: Callable[..., list[tuple[CampaignRun, dict[str, Any]]]] | None = None
@@ -66,10 +68,10 @@ def _span(values: list[float]) -> str:
     return f"{lo:.2f}" if f"{lo:.2f}" == f"{hi:.2f}" else f"{lo:.2f}–{hi:.2f}"
 
 
-def _margin(sums: list[dict[str, Any]]) -> str:
+def _margin(sums: list[RunSummary]) -> str:
     """Smallest lane straddle deviation − max |D| over the runs that stayed in lane ('–' if none did)."""
-    margins = [s["lane_straddle_dev_m"] - (s["max_abs_dev_m"] or 0.0) for s in sums
-               if s["consequence"] in ("stop_in_lane", "reach_destination")]
+    margins = [s.lane_straddle_dev_m - (s.max_abs_dev_m or 0.0) for s in sums
+               if s.consequence in ("stop_in_lane", "reach_destination")]
     return f"{min(margins):.2f}" if margins else "–"
 
 
@@ -136,31 +138,31 @@ def msf_error_cells(run_dirs: list[Path]) -> str:
     return f"{rms:.3f} (worst run) | {max(float(np.abs(e).max()) for e in errs):.3f}"
 
 
-def lane_keeping_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def lane_keeping_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["| run | max abs dev (m) | limit (m) | final dev (m) | cruise speed error max (m/s) | consequence "
              "| stop time (s) |", "|---|---|---|---|---|---|---|"]
     for run, s in done:
         err = cruise_speed_error(out / run.run_id, run.tags["speed"], run.scenario.stop_at)
-        lines.append(f"| {run.run_id} | {_fmt(s['max_abs_dev_m'])} | {LANE_KEEPING_LIMIT_M[run.tags['track']]:.2f} "
-                     f"| {_fmt(s['final_dev_m'])} | {_fmt(err)} | {s['consequence']} "
-                     f"| {_fmt(s.get('stop_time_s'))} |")
+        lines.append(f"| {run.run_id} | {_fmt(s.max_abs_dev_m)} | {LANE_KEEPING_LIMIT_M[run.tags['track']]:.2f} "
+                     f"| {_fmt(s.final_dev_m)} | {_fmt(err)} | {s.consequence} "
+                     f"| {_fmt(s.stop_time_s)} |")
     return "\n".join(lines)
 
 
-def lane_keeping_msf_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def lane_keeping_msf_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = [f"Steering on the MSF; limit = the true-pose limit + {MSF_ALLOWANCE_M:.2f} m. One row per track and "
              f"speed over seeds {MSF_SEEDS.start}–{MSF_SEEDS.stop - 1}.", "",
              "| run | seeds | max abs dev per seed (m) | worst (m) | limit (m) | within | MSF lateral error RMS (m) "
              "| MSF lateral error max (m) | consequences |", "|---|---|---|---|---|---|---|---|---|"]
-    groups: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    groups: dict[str, list[tuple[CampaignRun, RunSummary]]] = {}
     for run, s in done:
         groups.setdefault(f"{run.tags['track']}-{run.tags['speed']:g}", []).append((run, s))
     for key, items in groups.items():
         limit = LANE_KEEPING_LIMIT_M[items[0][0].tags["track"]] + MSF_ALLOWANCE_M
-        devs = [s["max_abs_dev_m"] for _, s in items]
+        devs = [s.max_abs_dev_m for _, s in items]
         worst = max(devs)
         within = sum(d <= limit for d in devs)
-        cons = sorted({s["consequence"] for _, s in items})
+        cons = sorted({s.consequence for _, s in items})
         lines.append(f"| {key} | {len(items)} | {' / '.join(f'{d:.3f}' for d in devs)} | {worst:.3f} | {limit:.2f} "
                      f"| {within}/{len(items)} | {msf_error_cells([out / run.run_id for run, _ in items])} "
                      f"| {', '.join(cons)} |")
@@ -180,26 +182,26 @@ def table4_runs(detector: str) -> list[CampaignRun]:
         {"defense": d, "start": start}) for d in DEFENSES for start in TABLE4_STARTS]
 
 
-def defense_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def defense_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["Margin = lane straddle deviation − max |D|, the smallest over the row's runs that stayed in lane.",
              "", "| defense | runs | lane straddle dev (m) | max dev (m) | margin (m) | consequences | detected "
              "| detection dev (m) | AR max dev (m) | stop dev (m) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
-    by_def: dict[str, list[dict[str, Any]]] = {}
+    by_def: dict[str, list[RunSummary]] = {}
     for run, s in done:
-        by_def.setdefault(f"{run.tags.get('track', '')} {s['defense']}".strip(), []).append(s)
+        by_def.setdefault(f"{run.tags.get('track', '')} {s.defense}".strip(), []).append(s)
     for key, sums in by_def.items():
         cons: dict[str, int] = {}
         for s in sums:
-            cons[s["consequence"]] = cons.get(s["consequence"], 0) + 1
+            cons[s.consequence] = cons.get(s.consequence, 0) + 1
         lines.append(
-            f"| {key} | {len(sums)} | {_span([s['lane_straddle_dev_m'] for s in sums])} "
-            f"| {_stats([s['max_abs_dev_m'] for s in sums])} "
+            f"| {key} | {len(sums)} | {_span([s.lane_straddle_dev_m for s in sums])} "
+            f"| {_stats([s.max_abs_dev_m for s in sums])} "
             f"| {_margin(sums)} "
             f"| {', '.join(f'{k} ×{v}' for k, v in sorted(cons.items()))} "
-            f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
-            f"| {_stats([s['detection_dev_m'] for s in sums])} | {_stats([s['ar_max_dev_m'] for s in sums])} "
-            f"| {_stats([abs(s['ar_stop_dev_m']) if s['ar_stop_dev_m'] is not None else None for s in sums])} |")
+            f"| {sum(bool(s.detected) for s in sums)}/{len(sums)} "
+            f"| {_stats([s.detection_dev_m for s in sums])} | {_stats([s.ar_max_dev_m for s in sums])} "
+            f"| {_stats([abs(s.ar_stop_dev_m) if s.ar_stop_dev_m is not None else None for s in sums])} |")
     return "\n".join(lines)
 
 
@@ -264,19 +266,19 @@ def benign_runs(detector: str) -> list[CampaignRun]:
         name=f"benign-{p}"), {"track": p, "seed": seed}) for p in BENIGN_PRESETS for seed in range(5)]
 
 
-def benign_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def benign_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = [f"MSF lateral error target: RMS ≤ {MSF_TARGET_RMS_M:.2f} m, max ≤ {MSF_TARGET_MAX_M:.2f} m.", "",
              "| track | runs | false alarms | max abs dev (m) | MSF lateral error RMS (m) | MSF lateral error max (m) "
              "| consequences |", "|---|---|---|---|---|---|---|"]
-    by_track: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    by_track: dict[str, list[tuple[CampaignRun, RunSummary]]] = {}
     for run, s in done:
         by_track.setdefault(run.tags["track"], []).append((run, s))
     for track, items in by_track.items():
         sums = [s for _, s in items]
-        lines.append(f"| {track} | {len(sums)} | {sum(bool(s['detected']) for s in sums)} "
-                     f"| {_stats([s['max_abs_dev_m'] for s in sums])} "
+        lines.append(f"| {track} | {len(sums)} | {sum(bool(s.detected) for s in sums)} "
+                     f"| {_stats([s.max_abs_dev_m for s in sums])} "
                      f"| {msf_error_cells([out / run.run_id for run, _ in items])} "
-                     f"| {', '.join(sorted({s['consequence'] for s in sums}))} |")
+                     f"| {', '.join(sorted({s.consequence for s in sums}))} |")
     return "\n".join(lines)
 
 
@@ -319,13 +321,13 @@ def tracked_ld_error(run_dir: Path) -> np.ndarray:
     return err[np.isfinite(err)]
 
 
-def benign_traffic_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def benign_traffic_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["Tracked |D_LD error| (the D_LD LD3 read, against the physical D) pooled over the seeds' ticks; "
              "target p99 ≤ 0.20 m. False alarms must be 0.", "",
              "| track | condition | runs | cars | speed (m/s) | false alarms | tracked D_LD err mean (m) "
              "| tracked D_LD err p99 (m) | max abs dev (m) | consequences |",
              "|---|---|---|---|---|---|---|---|---|---|"]
-    groups: dict[tuple[str, str], list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    groups: dict[tuple[str, str], list[tuple[CampaignRun, RunSummary]]] = {}
     for run, s in done:
         groups.setdefault((run.tags["track"], run.tags["condition"]), []).append((run, s))
     worst, alarms = 0.0, 0
@@ -334,12 +336,12 @@ def benign_traffic_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Pa
         err = np.concatenate([tracked_ld_error(out / run.run_id) for run, _ in items])
         p99 = float(np.percentile(err, 99)) if err.size else None
         worst = max(worst, p99 or 0.0)
-        detected = sum(bool(s["detected"]) for s in sums)
+        detected = sum(bool(s.detected) for s in sums)
         alarms += detected
         sc = items[0][0].scenario
         lines.append(f"| {track} | {cond} | {len(sums)} | {sc.traffic.vehicles} | {sc.speed:.2f} "
                      f"| {detected} | {_fmt(float(err.mean()) if err.size else None)} "
-                     f"| {_fmt(p99)} | {_stats([s['max_abs_dev_m'] for s in sums])} | {consequences(sums)} |")
+                     f"| {_fmt(p99)} | {_stats([s.max_abs_dev_m for s in sums])} | {consequences(sums)} |")
     lines += ["", f"All: {len(done)} runs, {alarms} false alarms, largest tracked D_LD err p99 {worst:.3f} m."]
     return "\n".join(lines)
 
@@ -399,13 +401,13 @@ def _save_grid_heatmap(path: Path, cells: dict[tuple[str, float, float], list[bo
     fig.savefig(path, dpi=110)
 
 
-def fr_grid_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def fr_grid_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     cells: dict[tuple[str, float, float], list[bool]] = {}
     giveway: dict[tuple[str, float, float], list[float]] = {}
     for run, s in done:
         key = (run.tags["track"], run.tags["d"], run.tags["f"])
-        cells.setdefault(key, []).append(attack_succeeded(run.tags["track"], s["max_abs_dev_m"], s["consequence"]))
-        state = s.get("attack_state") or {}
+        cells.setdefault(key, []).append(attack_succeeded(run.tags["track"], s.max_abs_dev_m, s.consequence))
+        state = s.attack_state or {}
         if state.get("switch_time") is not None:
             giveway.setdefault(key, []).append(state["switch_time"] - run.tags["start"])
     lines = []

@@ -14,7 +14,6 @@ the shipped τ and at that smallest clean τ, whose best b is the earliest clean
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -27,6 +26,7 @@ from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.experiments.roc import LD3_BS, LOG_NAME
 from testbed.eval.run.outputs import read_trajectory
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.perception.training.seeds import Cell, cells, check_cells
 
 FIT_PRESETS = ("slr", "urban-straight", "urban-curvy", "highway", "local", "parking-lot")
@@ -134,7 +134,7 @@ def smallest_clean_b(rows: list[dict[str, float]], tau: float, headroom: float =
     return min(ok, key=lambda r: r["b"]) if ok else None
 
 
-def _series(out: Path, done: list[tuple[CampaignRun, dict[str, Any]]]):
+def _series(out: Path, done: list[tuple[CampaignRun, RunSummary]]):
     benign: list[tuple[CampaignRun, ResidualSeries]] = []
     attacked: list[tuple[ResidualSeries, np.ndarray, np.ndarray]] = []
     for run, _ in done:
@@ -151,7 +151,7 @@ def _f(v: float) -> str:
     return "–" if not np.isfinite(v) else f"{v:.3f}"
 
 
-def cusum_fit_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def cusum_fit_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     benign, attacked = _series(out, done)
     if not benign or not attacked:
         return (f"{len(benign)} benign and {len(attacked)} attacked drives finished; the refit needs at least one "

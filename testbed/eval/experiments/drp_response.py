@@ -11,11 +11,11 @@ own (a patch that raises no alarm cannot steer the car, which still drives on th
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.report.summary_stats import abs_or_none, consequences, fmt_mean_sd
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 
 TRACE_ROADS = {"local": 12.0, "highway": 27.0, "urban-straight": 12.0}
 TRACE_STARTS = (10.0, 15.0)
@@ -51,19 +51,19 @@ def drp_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
-def drp_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def drp_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["AR max / stop dev = max |physical D| during the response and |D| at the stop, (mean, std) in m over "
              "the runs that raised the alarm; max dev = over the whole run, all runs.", "",
              "| attack | road | runs | alarm raised | AR max dev (m) | stop dev (m) | max dev (m) "
              "| lane straddle dev (m) | consequences |", "|---|---|---|---|---|---|---|---|---|"]
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    groups: dict[tuple[str, str], list[RunSummary]] = {}
     for run, summary in done:
         groups.setdefault((run.tags["attack"], run.tags["road"]), []).append(summary)
     for (attack, road), sums in groups.items():
-        alarmed = [s for s in sums if s["detected"]]
+        alarmed = [s for s in sums if s.detected]
         lines.append(f"| {attack} | {road} | {len(sums)} | {len(alarmed)}/{len(sums)} "
-                     f"| {fmt_mean_sd(s['ar_max_dev_m'] for s in alarmed)} "
-                     f"| {fmt_mean_sd(abs_or_none(s['ar_stop_dev_m']) for s in alarmed)} "
-                     f"| {fmt_mean_sd(s['max_abs_dev_m'] for s in sums)} | {sums[0]['lane_straddle_dev_m']:.2f} "
+                     f"| {fmt_mean_sd(s.ar_max_dev_m for s in alarmed)} "
+                     f"| {fmt_mean_sd(abs_or_none(s.ar_stop_dev_m) for s in alarmed)} "
+                     f"| {fmt_mean_sd(s.max_abs_dev_m for s in sums)} | {sums[0].lane_straddle_dev_m:.2f} "
                      f"| {consequences(sums)} |")
     return "\n".join(lines)

@@ -8,11 +8,11 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from testbed.errors import UserError
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.presets import TrackFileError, build_track
 
 CRUISE = 15.0  # m/s
@@ -64,11 +64,11 @@ def map_runs(detector: str, maps: Sequence[str]) -> list[CampaignRun]:
     return runs
 
 
-def map_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def map_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     """One table per file: each drive's consequence, alarm, largest |D| and how it ended; benign drives must reach
     the route's end without an alarm, attacked ones stop in lane on an alarm raised after the attack's start (an
     earlier one is a false alarm, marked "before the attack")."""
-    by_file: dict[str, list[tuple[CampaignRun, dict[str, Any]]]] = {}
+    by_file: dict[str, list[tuple[CampaignRun, RunSummary]]] = {}
     for run, s in done:
         by_file.setdefault(run.tags["file"], []).append((run, s))
     lines = [f"Cruise speed {CRUISE:g} m/s; pass: benign reaches the route's end with no alarm, attacked stops in "
@@ -79,10 +79,10 @@ def map_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
                   "|---|---|---|---|---|---|---|"]
         for run, s in items:
             want = "reach_destination" if run.tags["kind"] == "benign" else "stop_in_lane"
-            early = s["detected"] and s["detection_time_s"] < run.tags.get("attack_s", 0.0)
-            ok = s["consequence"] == want and not early and (run.tags["kind"] == "attacked" or not s["detected"])
-            alarm = f"{s['detection_time_s']:.2f} s" if s["detected"] else "none"
+            early = s.detected and s.detection_time_s < run.tags.get("attack_s", 0.0)
+            ok = s.consequence == want and not early and (run.tags["kind"] == "attacked" or not s.detected)
+            alarm = f"{s.detection_time_s:.2f} s" if s.detected else "none"
             alarm += " (before the attack)" if early else ""
-            lines.append(f"| {run.tags['kind']} | {run.tags['detector']} | {s['consequence']} | {alarm} "
-                         f"| {s['max_abs_dev_m']:.3f} | {s['sim_time_s']:.1f} | {'yes' if ok else 'NO'} |")
+            lines.append(f"| {run.tags['kind']} | {run.tags['detector']} | {s.consequence} | {alarm} "
+                         f"| {s.max_abs_dev_m:.3f} | {s.sim_time_s:.1f} | {'yes' if ok else 'NO'} |")
     return "\n".join(lines)

@@ -13,12 +13,14 @@ import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from testbed.errors import UserError
-from testbed.eval.campaign.driver import CampaignRun, load_summary
+from testbed.eval.campaign.driver import CampaignRun, done_runs, load_summary
 from testbed.eval.experiments.campaigns import CAMPAIGNS, run_named, selected_runs
 from testbed.eval.experiments.paper_report import CampaignResult, write_paper_report
 from testbed.eval.run.scenario import ScenarioError, check_needs
+from testbed.eval.run.summary import RunSummary
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,10 @@ def run_experiment(exp: Experiment, options: PaperOptions) -> CampaignResult:
     run_named(exp.campaign, folder, detector=options.detector, workers=options.workers, progress=options.progress,
               select=select, timeout=options.timeout, backend=options.backend, address=options.address)
     planned = selected_runs(exp.campaign, options.detector, select)
-    done = [(run, summary) for run in planned if isinstance(summary := load_summary(folder / run.run_id), dict)]
+    if CAMPAIGNS.get(exp.campaign).searches is None:
+        done: list[tuple[CampaignRun, RunSummary | dict[str, Any]]] = [*done_runs(planned, folder)]
+    else:  # a campaign of searches: each cell's own summary (`testbed.eval.experiments.adaptive`)
+        done = [(run, cell) for run in planned if isinstance(cell := load_summary(folder / run.run_id), dict)]
     return CampaignResult(exp.campaign, folder, campaign_command(exp, options), planned, done)
 
 

@@ -35,6 +35,7 @@ from testbed.eval.report.summary_stats import (
 )
 from testbed.eval.run.consequence import ATTACK_GOAL_M, attack_succeeded
 from testbed.eval.run.outputs import read_trajectory
+from testbed.eval.run.summary import RunSummary
 
 
 @dataclass(frozen=True)
@@ -45,10 +46,11 @@ class CampaignResult:
     folder: Path
     command: str
     planned: list[CampaignRun]
-    done: list[tuple[CampaignRun, dict[str, Any]]]
+    done: list[tuple[CampaignRun, Any]]
+    """(run, its `RunSummary`); for a campaign of searches (adaptive), (cell, the cell's summary dict)."""
 
 
-Done = list[tuple[CampaignRun, dict[str, Any]]]
+Done = list[tuple[CampaignRun, RunSummary]]
 Section = Callable[[dict[str, CampaignResult], dict[str, Any], Path], str]
 
 SIM_SETTINGS = {"ld3": "ld3", "naive": "ld3-naive-ar", "none": "none", "benign": "benign"}
@@ -84,7 +86,7 @@ def _rel(path: Path, out: Path) -> str:
     return Path(os.path.relpath(path, out)).as_posix()
 
 
-def _tagged(done: Done, **tags: Any) -> list[dict[str, Any]]:
+def _tagged(done: Done, **tags: Any) -> list[RunSummary]:
     return [s for r, s in done if all(r.tags.get(k) == v for k, v in tags.items())]
 
 
@@ -101,8 +103,8 @@ def sim_section(results: dict[str, CampaignResult], values: dict[str, Any], out:
     for row in paper["rows"]:
         for key, setting in SIM_SETTINGS.items():
             sums = _tagged(res.done, scenario=row["ours"], setting=setting)
-            ours = mean_sd(s["max_abs_dev_m"] for s in sums)
-            straddle = f"{sums[0]['lane_straddle_dev_m']:.2f}" if sums else "–"
+            ours = mean_sd(s.max_abs_dev_m for s in sums)
+            straddle = f"{sums[0].lane_straddle_dev_m:.2f}" if sums else "–"
             glob = f"{row['ours']}/{setting}-*"
             lines.append(f"| {row['scenario']} ({row['ours']}) | {setting} | {row['lane_straddle_dev']:.2f} / "
                          f"{straddle} | {_f(_stat(row[key]['max_dev']))} | {_f(ours)} | {row[key]['consequence']} "
@@ -141,16 +143,16 @@ def chassis_section(results: dict[str, CampaignResult], values: dict[str, Any], 
         ld3_dirs = [res.folder / r.run_id for r, _ in res.done
                     if r.tags["speed"] == speed and r.tags["setting"] == "ld3"]
         rows: list[tuple[str, Stat, Stat, int]] = [
-            ("LD3 detection dev", _stat(row["ld3_detection_dev"]), mean_sd(s["detection_dev_m"] for s in ld3),
+            ("LD3 detection dev", _stat(row["ld3_detection_dev"]), mean_sd(s.detection_dev_m for s in ld3),
              len(ld3)),
             ("LD3 max dev (response)", _stat(row["ld3_max_dev"]), mean_sd(response_max_dev(s) for s in ld3), len(ld3)),
             ("LD3 stop dev", _stat(row["ld3_stop_dev"]), mean_sd(stop_dev(s) for s in ld3), len(ld3)),
             ("LD3 response deceleration (m/s²)", None, mean_sd(ar_deceleration(d) for d in ld3_dirs), len(ld3)),
             ("NaiveAR max dev (response)", None, mean_sd(response_max_dev(s) for s in naive), len(naive)),
             ("NaiveAR stop dev", None, mean_sd(stop_dev(s) for s in naive), len(naive)),
-            ("no defense max dev", (row["none_max_dev"], 0.0), mean_sd(s["max_abs_dev_m"] for s in none), len(none)),
+            ("no defense max dev", (row["none_max_dev"], 0.0), mean_sd(s.max_abs_dev_m for s in none), len(none)),
             ("no defense stop dev", (row["none_max_dev"], 0.0), mean_sd(stop_dev(s) for s in none), len(none)),
-            ("benign LD3 max dev", (row["benign_max_dev"], 0.0), mean_sd(s["max_abs_dev_m"] for s in benign),
+            ("benign LD3 max dev", (row["benign_max_dev"], 0.0), mean_sd(s.max_abs_dev_m for s in benign),
              len(benign)),
             ("benign LD3 stop dev", (row["benign_stop_dev"], 0.0), mean_sd(stop_dev(s) for s in benign), len(benign)),
         ]
@@ -179,35 +181,35 @@ def fr_section(results: dict[str, CampaignResult], values: dict[str, Any], out: 
              "|---|---|" + "---|" * len(tracks)]
     per_track = {t: _tagged(closed.done, track=t) for t in tracks}
 
-    def row(name: str, paper_text: str, cell: Callable[[str, list[dict[str, Any]]], str]) -> None:
+    def row(name: str, paper_text: str, cell: Callable[[str, list[RunSummary]], str]) -> None:
         lines.append(f"| {name} | {paper_text} | " + " | ".join(cell(t, per_track[t]) for t in tracks) + " |")
 
-    def over(field: Callable[[dict[str, Any]], float | None], limit: Callable[[dict[str, Any]], float]):
+    def over(field: Callable[[RunSummary], float | None], limit: Callable[[RunSummary], float]):
         return lambda t, sums: f"{sum((field(s) or 0.0) > limit(s) for s in sums)}/{len(sums)}"
 
-    row("detected", "all (TPR 100 %)", lambda t, sums: f"{sum(bool(s['detected']) for s in sums)}/{len(sums)}")
+    row("detected", "all (TPR 100 %)", lambda t, sums: f"{sum(bool(s.detected) for s in sums)}/{len(sums)}")
     row("detection dev (mean, std)", f"mean < {paper['detection_dev_mean_below']} on every trace",
-        lambda t, sums: _f(mean_sd(s["detection_dev_m"] for s in sums)))
-    row("detected beyond lane straddle", "0", over(lambda s: s["detection_dev_m"], lambda s: s["lane_straddle_dev_m"]))
-    row("response max dev (mean, std)", "–", lambda t, sums: _f(mean_sd(s["ar_max_dev_m"] for s in sums)))
+        lambda t, sums: _f(mean_sd(s.detection_dev_m for s in sums)))
+    row("detected beyond lane straddle", "0", over(lambda s: s.detection_dev_m, lambda s: s.lane_straddle_dev_m))
+    row("response max dev (mean, std)", "–", lambda t, sums: _f(mean_sd(s.ar_max_dev_m for s in sums)))
     row("response max dev beyond lane straddle", f"{paper['highway_ar_max_over_straddle']} (highway traces)",
-        over(lambda s: s["ar_max_dev_m"], lambda s: s["lane_straddle_dev_m"]))
-    def beyond_goal(track: str, sums: list[dict[str, Any]]) -> str:
-        hits = sum(attack_succeeded(track, s["max_abs_dev_m"], s["consequence"]) for s in sums)
+        over(lambda s: s.ar_max_dev_m, lambda s: s.lane_straddle_dev_m))
+    def beyond_goal(track: str, sums: list[RunSummary]) -> str:
+        hits = sum(attack_succeeded(track, s.max_abs_dev_m, s.consequence) for s in sums)
         return f"{hits}/{len(sums)} (goal {ATTACK_GOAL_M[track]} m)"
 
     row("beyond the attack goal", "0", beyond_goal)
     row("stop dev (mean, std)", "all within the lane",
-        lambda t, sums: _f(mean_sd(abs_or_none(s["ar_stop_dev_m"]) for s in sums)))
+        lambda t, sums: _f(mean_sd(abs_or_none(s.ar_stop_dev_m) for s in sums)))
     row("stopped in lane", "all",
-        lambda t, sums: f"{sum(s['consequence'] == 'stop_in_lane' for s in sums)}/{len(sums)}")
+        lambda t, sums: f"{sum(s.consequence == 'stop_in_lane' for s in sums)}/{len(sums)}")
 
     ld3 = [s for r, s in sim.done if r.tags["setting"] == "ld3"]
     naive = [s for r, s in sim.done if r.tags["setting"] == "ld3-naive-ar"]
-    quantities = [("detection dev", _stat(replay["detection_dev"]), mean_sd(s["detection_dev_m"] for s in ld3)),
-                  ("response max dev", _stat(replay["ar_max_dev"]), mean_sd(s["ar_max_dev_m"] for s in ld3)),
-                  ("stop dev", _stat(replay["stop_dev"]), mean_sd(abs_or_none(s["ar_stop_dev_m"]) for s in ld3))]
-    naive_over = sum(s["max_abs_dev_m"] > ATTACK_GOAL_M["local"] for s in naive)
+    quantities = [("detection dev", _stat(replay["detection_dev"]), mean_sd(s.detection_dev_m for s in ld3)),
+                  ("response max dev", _stat(replay["ar_max_dev"]), mean_sd(s.ar_max_dev_m for s in ld3)),
+                  ("stop dev", _stat(replay["stop_dev"]), mean_sd(abs_or_none(s.ar_stop_dev_m) for s in ld3))]
+    naive_over = sum(s.max_abs_dev_m > ATTACK_GOAL_M["local"] for s in naive)
     lines += ["", f"**Trace replay**: the paper's most aggressive FusionRipper trace injected into the localization "
               f"({replay['title']}); ours: the same trace (`trace:default`) in the simulator-table runs, all "
               "scenarios pooled.", "", "| quantity | paper | ours LD3 |", "|---|---|---|"]
@@ -227,7 +229,7 @@ def grid_section(results: dict[str, CampaignResult], values: dict[str, Any], out
     cells: dict[tuple[str, float, float], list[bool]] = {}
     for run, s in res.done:
         key = (run.tags["track"], run.tags["d"], run.tags["f"])
-        cells.setdefault(key, []).append(attack_succeeded(run.tags["track"], s["max_abs_dev_m"], s["consequence"]))
+        cells.setdefault(key, []).append(attack_succeeded(run.tags["track"], s.max_abs_dev_m, s.consequence))
     lines = [_header("FusionRipper d × f grid without defense", paper["label"], [res], out),
              "Success = max |physical D| beyond the attack goal or off the road (the paper's rule).", "",
              "| paper trace | road | paper best d, f | paper success | ours at the paper's d, f | ours best d, f "
@@ -278,7 +280,7 @@ def stealthy_section(results: dict[str, CampaignResult], values: dict[str, Any],
             stats = fluctuation_stats(res.folder, [r for r, _ in cell])
             bound = " / ".join(f"{v:.2f}" for v in run_bound(*stats, cell[0][0])) if stats else "–"
             reached = max(cell, key=lambda rs: undetected_dev(rs[1]) or 0.0)
-            alarms = sum(bool(s["detected"]) for _, s in cell)
+            alarms = sum(bool(s.detected) for _, s in cell)
             lines.append(f"| ours {det} {track} | {_f(stats, 3)} | {bound} "
                          f"| {undetected_dev(reached[1]) or 0.0:.2f} (margin {reached[0].tags['margin_sigma']:g} σ) "
                          f"| {alarms}/{len(cell)} |")
@@ -295,8 +297,8 @@ def drp_section(results: dict[str, CampaignResult], values: dict[str, Any], out:
              "| quantity | paper | " + " | ".join(f"ours {a}" for a in ("drp-trace", "drp-patch")) + " |",
              "|---|---|---|---|"]
     by_attack = {a: _tagged(res.done, attack=a) for a in ("drp-trace", "drp-patch")}
-    alarmed = {a: [s for s in sums if s["detected"]] for a, sums in by_attack.items()}
-    stats = {a: (mean_sd(s["ar_max_dev_m"] for s in al), mean_sd(abs_or_none(s["ar_stop_dev_m"]) for s in al))
+    alarmed = {a: [s for s in sums if s.detected] for a, sums in by_attack.items()}
+    stats = {a: (mean_sd(s.ar_max_dev_m for s in al), mean_sd(abs_or_none(s.ar_stop_dev_m) for s in al))
              for a, al in alarmed.items()}
     lines.append("| alarm raised | – | " + " | ".join(f"{len(alarmed[a])}/{len(by_attack[a])}" for a in by_attack)
                  + " |")
@@ -305,10 +307,10 @@ def drp_section(results: dict[str, CampaignResult], values: dict[str, Any], out:
     lines.append(f"| stop dev (mean, std) | {_f(_stat(paper['stop_dev']))} | "
                  + " | ".join(_f(stats[a][1]) for a in by_attack) + " |")
     lines.append("| runs beyond lane straddle | 0 | " + " | ".join(
-        f"{sum(s['max_abs_dev_m'] > s['lane_straddle_dev_m'] for s in by_attack[a])}/{len(by_attack[a])}"
+        f"{sum(s.max_abs_dev_m > s.lane_straddle_dev_m for s in by_attack[a])}/{len(by_attack[a])}"
         for a in by_attack) + " |")
     lines.append("| max dev over the run (mean, std) | – | " + " | ".join(
-        _f(mean_sd(s["max_abs_dev_m"] for s in by_attack[a])) for a in by_attack) + " |")
+        _f(mean_sd(s.max_abs_dev_m for s in by_attack[a])) for a in by_attack) + " |")
     labels = [f"{a} {q}" for a in by_attack for q in ("response max", "stop")]
     paper_vs_ours(out / "drp_ar.png", "DRP during the response", labels,
                   [_stat(paper["ar_max_dev"]), _stat(paper["stop_dev"])] * 2,
@@ -333,7 +335,7 @@ def benign_section(results: dict[str, CampaignResult], values: dict[str, Any], o
              "LD3 on every benign run of `benign` and `sim-table`.", "",
              "| track | runs | false alarms (paper 0) | max \\|D_MSF − D_LD\\| (m) | max \\|D\\| (m) | consequences |",
              "|---|---|---|---|---|---|"]
-    rows: dict[str, list[tuple[Path, dict[str, Any]]]] = {}
+    rows: dict[str, list[tuple[Path, RunSummary]]] = {}
     for run, s in benign.done:
         rows.setdefault(run.tags["track"], []).append((benign.folder / run.run_id, s))
     for run, s in sim.done:
@@ -342,9 +344,9 @@ def benign_section(results: dict[str, CampaignResult], values: dict[str, Any], o
     for track, items in rows.items():
         sums = [s for _, s in items]
         residual = finite(residual_max(d) for d, _ in items)
-        lines.append(f"| {track} | {len(sums)} | {sum(bool(s['detected']) for s in sums)} "
+        lines.append(f"| {track} | {len(sums)} | {sum(bool(s.detected) for s in sums)} "
                      f"| {residual.max() if residual.size else float('nan'):.2f} "
-                     f"| {max(s['max_abs_dev_m'] for s in sums):.2f} | {consequences(sums)} |")
+                     f"| {max(s.max_abs_dev_m for s in sums):.2f} | {consequences(sums)} |")
     return "\n".join(lines)
 
 
@@ -362,10 +364,10 @@ def ablation_section(results: dict[str, CampaignResult], values: dict[str, Any],
             if not sums:
                 continue
             label = f"{variant} (default)" if is_default(VARIANTS[variant]) else variant
-            in_lane = sum(s["consequence"] in IN_LANE for s in sums)
+            in_lane = sum(s.consequence in IN_LANE for s in sums)
             lines.append(f"| {attack} | {label} | {in_lane}/{len(sums)} "
-                         f"| {_f(mean_sd(s['ar_max_dev_m'] for s in sums))} "
-                         f"| {_f(mean_sd(abs_or_none(s['ar_stop_dev_m']) for s in sums))} |")
+                         f"| {_f(mean_sd(s.ar_max_dev_m for s in sums))} "
+                         f"| {_f(mean_sd(abs_or_none(s.ar_stop_dev_m) for s in sums))} |")
     lines += ["", f"![ablation]({_rel(res.folder / 'ablation.png', out)})"]
     return "\n".join(lines)
 
@@ -384,9 +386,14 @@ SECTIONS: tuple[Section, ...] = (sim_section, chassis_section, fr_section, grid_
                                  stealthy_section, drp_section, benign_section, ablation_section, adaptive_section)
 
 
-def _sources(done: Done) -> str:
+def _commit(summary: RunSummary | dict[str, Any]) -> str | None:
+    """The git commit a run's summary records; a search cell's summary (a dict, not a run) records none."""
+    return summary.git_commit if isinstance(summary, RunSummary) else summary.get("git_commit")
+
+
+def _sources(done: list[tuple[CampaignRun, Any]]) -> str:
     """The git commits (short; `-dirty`: uncommitted changes) that produced `done`, with their run counts."""
-    counts = Counter(s.get("git_commit") or "unknown" for _, s in done)
+    counts = Counter(_commit(s) or "unknown" for _, s in done)
     return ", ".join(f"{c.split('-')[0][:9]}{'-dirty' if c.endswith('-dirty') else ''}: {n}"
                      for c, n in counts.most_common()) or "–"
 
@@ -405,7 +412,7 @@ def write_paper_report(out: Path, results: dict[str, CampaignResult], *, quick: 
             "| campaign | runs done | source (git commit: runs) | command |", "|---|---|---|---|"]
     head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | {_sources(r.done)} | `{r.command}` |"
              for r in results.values()]
-    commits = {s.get("git_commit") for r in results.values() for _, s in r.done}
+    commits = {_commit(s) for r in results.values() for _, s in r.done}
     if len(commits) > 1:
         head += ["", f"**The runs come from {len(commits)} source trees**: a rerun after a code change resumes "
                      "with the new code, so these results mix versions; start from an empty folder to compare one."]

@@ -11,7 +11,6 @@ sweeps (b, τ) for both detectors (testbed.defense.roc) and draws `roc.png`.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -25,6 +24,7 @@ from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.run.consequence import attack_succeeded
 from testbed.eval.run.outputs import read_trajectory
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 
 ROC_TRACKS = {"local": 12.0, "highway": 27.0}
 ROC_ATTACKS = ({"d": 1.0, "f": 1.5}, {"d": 0.5, "f": 1.2})
@@ -61,7 +61,7 @@ def roc_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
-def record_detection_run(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
+def record_detection_run(run: CampaignRun, run_dir: Path) -> RunSummary:
     """Executor: the run with a `DetectionRecorder` as its defense; its outputs plus detection_log.npz."""
     from testbed.eval.run.runner import SimRun, prepare_out_dir
 
@@ -73,7 +73,7 @@ def record_detection_run(run: CampaignRun, run_dir: Path) -> dict[str, Any]:
         result = sim.run()
         recorder.log.save(run_dir / LOG_NAME)
         sim.write_outputs(run_dir, result, title_suffix=" · detection recorder")
-        return result.summary
+        return result.record
     finally:
         sim.close()
 
@@ -90,7 +90,7 @@ def fit_savior(out: Path, runs: list[CampaignRun], wheelbase: float) -> BicycleC
     return fit_bicycle_coefficients(logs, wheelbase)
 
 
-def _series(out: Path, done: list[tuple[CampaignRun, dict[str, Any]]], coefficients: BicycleCoefficients,
+def _series(out: Path, done: list[tuple[CampaignRun, RunSummary]], coefficients: BicycleCoefficients,
             ) -> dict[str, dict[str, list[ResidualSeries]]]:
     """{track: {"ld3": [...], "savior": [...]}} over the benign runs and the attacked runs whose attack
     succeeded (paper Table 2's rule): a failed attack leaves nothing to detect (like the paper's traces,
@@ -100,7 +100,7 @@ def _series(out: Path, done: list[tuple[CampaignRun, dict[str, Any]]], coefficie
         if run.tags["role"] == "fit":
             continue
         if run.tags["role"] == "attacked" and not attack_succeeded(
-                run.tags["track"], summary["max_abs_dev_m"], summary["consequence"]):
+                run.tags["track"], summary.max_abs_dev_m, summary.consequence):
             continue
         log = load_detection_log(out / run.run_id / LOG_NAME)
         start = run.tags.get("start")
@@ -122,7 +122,7 @@ def _best(points: list[RocPoint], b0: float, tau0: float) -> RocPoint:
     return max(points, key=lambda p: (p.tpr - p.fpr, -distance(p)))
 
 
-def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def roc_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     from testbed.presets import vehicle
 
     fit_runs = [r for r, _ in done if r.tags["role"] == "fit"]
@@ -136,8 +136,8 @@ def roc_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
                 "attacked drive finished, so there is no ROC to sweep yet.")
     grids = {"ld3": (LD3_BS, LD3_TAUS, _DEFAULTS.b, _DEFAULTS.tau),
              "savior": (SAVIOR_BS, SAVIOR_TAUS, _SAVIOR_DEFAULTS.savior_b, _SAVIOR_DEFAULTS.savior_tau)}
-    failed = sum(r.tags["role"] == "attacked" and not attack_succeeded(r.tags["track"], s["max_abs_dev_m"],
-                                                                       s["consequence"]) for r, s in done)
+    failed = sum(r.tags["role"] == "attacked" and not attack_succeeded(r.tags["track"], s.max_abs_dev_m,
+                                                                       s.consequence) for r, s in done)
     lines = [f"SAVIOR bicycle model fitted on {len(fit_runs)} benign drives: {coefficients}.",
              f"Attacked runs whose attack failed (left out of the TPR): {failed}.", "",
              "| track | detector | benign runs | attacked runs | AUC | best (b, τ): FPR, TPR "

@@ -14,6 +14,7 @@ from typing import Any
 from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.report.summary_stats import consequences, fmt_mean_sd
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 
 SIM_SCENARIOS: dict[str, tuple[str, float]] = {
     "slr-low": ("slr", 10.0),
@@ -50,7 +51,7 @@ def sim_table_runs(detector: str) -> list[CampaignRun]:
     return runs
 
 
-def group_by_setting(done: list[tuple[CampaignRun, dict[str, Any]]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+def group_by_setting(done: list[tuple[CampaignRun, RunSummary]]) -> dict[tuple[str, str], list[RunSummary]]:
     """{(scenario, setting): summaries} in the order of `SIM_SCENARIOS` and `SETTINGS`."""
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {(k, s): [] for k in SIM_SCENARIOS for s in SETTINGS}
     for run, summary in done:
@@ -58,13 +59,13 @@ def group_by_setting(done: list[tuple[CampaignRun, dict[str, Any]]]) -> dict[tup
     return {key: sums for key, sums in groups.items() if sums}
 
 
-def sim_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def sim_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["Max dev = max |physical D| over the whole run, (mean, std) in m; benign = LD3 without attack.", "",
              "| scenario | setting | runs | lane straddle dev (m) | max dev (m) | detected | consequences |",
              "|---|---|---|---|---|---|---|"]
     for (key, setting), sums in group_by_setting(done).items():
-        straddle = sums[0]["lane_straddle_dev_m"]
+        straddle = sums[0].lane_straddle_dev_m
         lines.append(f"| {key} | {setting} | {len(sums)} | {straddle:.2f} "
-                     f"| {fmt_mean_sd(s['max_abs_dev_m'] for s in sums)} "
-                     f"| {sum(bool(s['detected']) for s in sums)}/{len(sums)} | {consequences(sums)} |")
+                     f"| {fmt_mean_sd(s.max_abs_dev_m for s in sums)} "
+                     f"| {sum(bool(s.detected) for s in sums)}/{len(sums)} | {consequences(sums)} |")
     return "\n".join(lines)

@@ -11,7 +11,6 @@ the attack), gives the paper's bound from it, and what the attacker reached in t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -20,6 +19,7 @@ from testbed.eval.campaign.driver import CampaignRun
 from testbed.eval.report.summary_stats import fmt_mean_sd, undetected_dev
 from testbed.eval.run.outputs import read_trajectory
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.run.summary import RunSummary
 
 LD_NOISE_STD: dict[str, dict[str, float]] = {
     "oracle": {"local": 0.0, "highway": 0.0},
@@ -78,7 +78,7 @@ def run_bound(mu: float, sigma: float, run: CampaignRun) -> tuple[float, float, 
     return paper_bound(mu, sigma, DefenseConfig.from_dict(run.scenario.defense_params))
 
 
-def stealthy_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) -> str:
+def stealthy_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
     lines = ["LD fluctuation = |D_LD − D_phys| before the attack, (μ, σ) in m. Bound = the paper's τ + b + F for "
              "F = 0 / μ / μ + 3σ. Reached = max |physical D| without an alarm (before detection, or the whole run), "
              "(mean, std) over the runs.", "",
@@ -97,7 +97,7 @@ def stealthy_table(done: list[tuple[CampaignRun, dict[str, Any]]], out: Path) ->
                 if not sums:
                     continue
                 lines.append(f"| {det} | {track} | {LD_NOISE_STD[det][track]:.3f} | {fluct} | {bound} | {k:g} σ "
-                             f"| {len(sums)} | {sum(bool(s['detected']) for s in sums)}/{len(sums)} "
+                             f"| {len(sums)} | {sum(bool(s.detected) for s in sums)}/{len(sums)} "
                              f"| {fmt_mean_sd(undetected_dev(s) for s in sums)} "
-                             f"| {', '.join(sorted({s['consequence'] for s in sums}))} |")
+                             f"| {', '.join(sorted({s.consequence for s in sums}))} |")
     return "\n".join(lines)

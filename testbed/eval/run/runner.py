@@ -43,7 +43,7 @@ physics body this tick: neither can close that gap within one control tick."""
 
 @dataclass
 class RunResult:
-    """A finished run: its summary (`record`, and as the plain dict campaigns read), one record per control tick,
+    """A finished run: its summary (`record`, and as the plain dict the Python API hands out), one record per tick,
     the believed (MSF) path, the stop time."""
 
     record: RunSummary

@@ -33,13 +33,14 @@ from testbed.eval.campaign.driver import (
     CampaignRun,
     RunExecutor,
     campaign_backend,
-    load_summary,
     run_and_write_data,
     run_campaign,
+    typed_summary,
 )
 from testbed.eval.run.consequence import Consequence
 from testbed.eval.run.scenario import END_MARGIN_M, Scenario, check_needs
 from testbed.eval.run.scenario_toml import scenario_document, write_scenario
+from testbed.eval.run.summary import RunSummary
 from testbed.eval.search.study_log import check_study_log
 from testbed.registry import FIXES, Component, missing_needs
 from tracks.presets import load_track
@@ -191,32 +192,32 @@ def sample_attack(trial: Trial, families: Sequence[Component], latest_start: flo
     return table
 
 
-def score(summary: dict[str, Any], objective: str) -> tuple[float, float, float]:
+def score(summary: RunSummary, objective: str) -> tuple[float, float, float]:
     """(score, deviation before detection, deviation at all) of a run's summary, in metres: the first criterion
     plus `SECONDARY_WEIGHT` × the second, plus `CRASH_BONUS_M` for a crash (undetected, for `undetected`; any
     loss of `is_loss`, for `loss`)."""
-    dev_all = float(summary.get("max_abs_dev_m") or 0.0)
-    detected = bool(summary.get("detected"))
-    before = summary.get("detection_dev_m") if detected else dev_all
+    dev_all = float(summary.max_abs_dev_m or 0.0)
+    detected = summary.detected
+    before = summary.detection_dev_m if detected else dev_all
     dev_before = float(before if before is not None else 0.0)
     first, second = (dev_before, dev_all) if objective == "undetected" else (dev_all, dev_before)
-    consequence = str(summary.get("consequence"))
+    consequence = str(summary.consequence)
     if objective == "loss":
-        lost = is_loss(consequence, dev_all, summary.get("lane_straddle_dev_m"))
+        lost = is_loss(consequence, dev_all, summary.lane_straddle_dev_m)
     else:
         lost = consequence in CRASHES and (objective == "overall" or not detected)
     return first + SECONDARY_WEIGHT * second + (CRASH_BONUS_M if lost else 0.0), dev_before, dev_all
 
 
-def outcome_of(number: int, attack: dict[str, Any], summary: dict[str, Any] | None, objective: str,
+def outcome_of(number: int, attack: dict[str, Any], summary: RunSummary | None, objective: str,
                failure: str = "") -> TrialOutcome:
     """A trial's outcome from its run's summary (None: the run failed, for the reason `failure`)."""
     if summary is None:
         return TrialOutcome(number, attack["kind"], attack, None, None, None, None, FAILED, None, None,
                             failure or "the run failed")
     value, dev_before, dev_all = score(summary, objective)
-    return TrialOutcome(number, attack["kind"], attack, bool(summary["detected"]), summary.get("detection_time_s"),
-                        dev_before, dev_all, str(summary["consequence"]), summary.get("lane_straddle_dev_m"), value)
+    return TrialOutcome(number, attack["kind"], attack, summary.detected, summary.detection_time_s,
+                        dev_before, dev_all, str(summary.consequence), summary.lane_straddle_dev_m, value)
 
 
 def trial_id(number: int) -> str:
@@ -317,7 +318,7 @@ class AttackSearch:
     def _read_told(self, study: optuna.Study) -> None:
         for t in study.get_trials(deepcopy=False):
             if t.state in (TrialState.COMPLETE, TrialState.FAIL):
-                summary = load_summary(self.out / TRIALS_DIR / trial_id(t.number))
+                summary = typed_summary(self.out / TRIALS_DIR / trial_id(t.number))
                 failure = ""
                 if isinstance(summary, str):
                     failure = f"{TRIALS_DIR}/{trial_id(t.number)}: {summary}"
@@ -325,7 +326,7 @@ class AttackSearch:
                         print(f"{self.out.name}: trial {t.number} was told but {failure}; it counts as {FAILED}",
                               file=sys.stderr)
                 self.outcomes[t.number] = outcome_of(t.number, t.user_attrs["attack"],
-                                                     summary if isinstance(summary, dict) else None,
+                                                     summary if isinstance(summary, RunSummary) else None,
                                                      self.spec.objective, failure)
 
     def _run_batch(self, study: optuna.Study, asked: list[tuple[int, dict[str, Any]]]) -> list[TrialOutcome]:
