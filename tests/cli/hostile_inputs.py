@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tests.cli.case import Case
+from tests.eval.summary_helpers import fake_summary
 
 PROFILE = Path(__file__).resolve().parents[2] / "hil" / "link" / "profiles" / "ld3-dev"
 GOOD = 'track = "slr"\nduration = 2.0\n'
@@ -184,9 +185,7 @@ DATASETS = [
          {"ds/dataset.json": "{}", "ds/shard_00000.npz": _pickled}),
 ]
 
-SUMMARY_OK = json.dumps({"scenario": "x", "consequence": "reach_destination", "defense": "none", "detected": False,
-                         "lane_width_m": 3.5, "lane_straddle_dev_m": 0.8, "detection_time_s": None,
-                         "detection_dev_m": None, "ar_max_dev_m": None, "ar_stop_dev_m": None, "max_abs_dev_m": 0.1})
+SUMMARY_OK = json.dumps(fake_summary(scenario="x", defense="none", max_abs_dev_m=0.1).model_dump(mode="json"))
 RUN_FOLDERS = [
     Case("compare-summary-list", ("compare", "{ws}/bad", "--out", "{ws}/cmp"), "summary.json",
          {"bad/summary.json": "[]", "bad/trajectory.csv": "t\n"}),

@@ -35,8 +35,8 @@ def run_demo(out: Path, progress: bool = False, detector: str | None = None) -> 
         sc = base.with_overrides(defense=defense, name=f"{DEMO_SCENARIO}-{defense}")
         run_dir = out / defense
         result = run_scenario(sc, run_dir, progress=progress, force=True)
-        rows.append(ReportRow(defense, run_dir, result.summary))
-        print(f"  {defense:13s} {result.summary['consequence']}")
+        rows.append(ReportRow(defense, run_dir, result.record))
+        print(f"  {defense:13s} {result.record.consequence}")
     seen_by = "on the rendered camera" if detector in ("neural", "classical") else "(map lines through the true pose)"
     notes = (f"Scenario `{DEMO_SCENARIO}` (sedan, 12 m/s, {detector} lane detector {seen_by}, MSF localization), "
              f"trace injection `default` from t = {DEMO_ATTACK['start']} s. Paper Table 4: LD3 stops in lane, "

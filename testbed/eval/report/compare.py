@@ -5,7 +5,6 @@ of the physical deviation of each run against time.
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -16,14 +15,16 @@ from matplotlib.figure import Figure
 
 from testbed.errors import UserError
 from testbed.eval.run.outputs import read_trajectory
-from testbed.eval.run.summary import read_summary_object
+from testbed.eval.run.summary import RunSummary, read_summary
 
 
 @dataclass(frozen=True)
 class ReportRow:
+    """One run of the report: its label, its folder and its typed summary."""
+
     label: str
     run_dir: Path
-    summary: dict
+    summary: RunSummary
 
 
 def _fmt(v, digits: int = 2) -> str:
@@ -46,14 +47,14 @@ def plot_deviations(path: Path, rows: Sequence[ReportRow], title: str) -> None:
     fig = Figure(figsize=(9, 4.5))
     ax = fig.subplots()
     first = rows[0].summary
-    half, straddle = first["lane_width_m"] / 2, first["lane_straddle_dev_m"]
+    half, straddle = first.lane_width_m / 2, first.lane_straddle_dev_m
     ax.axhspan(-straddle, straddle, color="0.92", label="no lane straddle")
     for edge in (-half, half):
         ax.axhline(edge, color="0.3", lw=1.2)
     for r in rows:
         t, d = _phys_dev(r.run_dir)
-        (line,) = ax.plot(t, d, label=f"{r.label}: {r.summary['consequence']}")
-        det = r.summary.get("detection_time_s")
+        (line,) = ax.plot(t, d, label=f"{r.label}: {r.summary.consequence}")
+        det = r.summary.detection_time_s
         if det is not None:
             ax.axvline(det, color=line.get_color(), ls=":", lw=1)
     ax.set_xlabel("time (s)")
@@ -74,42 +75,18 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r.summary
-        spec = s.get("attack")
+        spec = s.attack
         attack = spec.get("kind", "?") if isinstance(spec, dict) else _fmt(spec)
         lines.append(
-            f"| [{r.label}]({os.path.relpath(r.run_dir / 'birdseye.png', out_dir)}) | {s['defense']} | {attack} "
-            f"| {s['consequence']} "
-            f"| {_fmt(s['detected'])} | {_fmt(s['detection_time_s'])} | {_fmt(s['detection_dev_m'])} "
-            f"| {_fmt(s['ar_max_dev_m'])} | {_fmt(s['ar_stop_dev_m'])} | {_fmt(s['max_abs_dev_m'])} "
-            f"| {_fmt(s['lane_straddle_dev_m'])} |")
+            f"| [{r.label}]({os.path.relpath(r.run_dir / 'birdseye.png', out_dir)}) | {s.defense} | {attack} "
+            f"| {s.consequence} "
+            f"| {_fmt(s.detected)} | {_fmt(s.detection_time_s)} | {_fmt(s.detection_dev_m)} "
+            f"| {_fmt(s.ar_max_dev_m)} | {_fmt(s.ar_stop_dev_m)} | {_fmt(s.max_abs_dev_m)} "
+            f"| {_fmt(s.lane_straddle_dev_m)} |")
     lines += ["", "![physical deviation of each run](deviations.png)", ""]
     path = out_dir / "report.md"
     path.write_text("\n".join(lines))
     return path
-
-
-REPORT_NUMBERS = ("lane_width_m", "lane_straddle_dev_m", "detection_time_s", "detection_dev_m", "ar_max_dev_m",
-                  "ar_stop_dev_m", "max_abs_dev_m")
-REPORT_TEXTS = ("defense", "consequence")
-
-
-def read_summary(path: Path) -> dict:
-    """A run's summary.json with the fields a report reads checked (numbers finite or null, names text); a file
-    that is not one is a UserError naming it and the field."""
-    summary = read_summary_object(path)
-    for key in REPORT_NUMBERS:
-        value = summary.get(key)
-        if key not in summary or not (value is None or (isinstance(value, int | float) and not isinstance(value, bool)
-                                                          and math.isfinite(value))):
-            raise UserError(f"{path}: {key} must be a finite number or null, got {value!r}")
-    for key in REPORT_TEXTS:
-        if not isinstance(summary.get(key), str):
-            raise UserError(f"{path}: {key} must be text, got {summary.get(key)!r}")
-    if not isinstance(summary.get("detected"), bool):
-        raise UserError(f"{path}: detected must be true or false, got {summary.get('detected')!r}")
-    if summary["lane_width_m"] is None or summary["lane_straddle_dev_m"] is None:
-        raise UserError(f"{path}: lane_width_m and lane_straddle_dev_m must be numbers")
-    return summary
 
 
 def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
@@ -120,7 +97,10 @@ def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
         summary_path = run_dir / "summary.json"
         if not summary_path.is_file() or not (run_dir / "trajectory.csv").is_file():
             raise UserError(f"{run_dir} is not a finished run (no summary.json and trajectory.csv)")
-        rows.append(ReportRow(str(run_dir), run_dir, read_summary(summary_path)))
+        summary = read_summary(summary_path)
+        if summary.lane_straddle_dev_m is None:
+            raise UserError(f"{summary_path}: lane_straddle_dev_m must be a number to draw the lane")
+        rows.append(ReportRow(str(run_dir), run_dir, summary))
         read_trajectory(run_dir, ("t", "phys_dev"))  # a trajectory the plot cannot read is refused before writing
     if not rows:
         raise UserError("name at least one run folder to compare")
@@ -130,7 +110,7 @@ def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
 
 def _differing_defense_params(rows: Sequence[ReportRow]) -> str:
     """One line per run with the `[defense]` parameters whose values differ between the runs."""
-    params = [r.summary.get("defense_params") or {} for r in rows]
+    params = [r.summary.defense_params or {} for r in rows]
     keys = sorted({k for p in params for k in p if len({json.dumps(q.get(k)) for q in params}) > 1})
     if not keys:
         return "The runs share every recorded [defense] parameter."

@@ -6,7 +6,6 @@ trajectory.csv's rounding.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from testbed.defense.registry import declared_table
@@ -23,6 +22,7 @@ from testbed.eval.run.figures import (
 )
 from testbed.eval.run.runner import SimRun
 from testbed.eval.run.scenario import Scenario
+from testbed.eval.run.summary import read_summary
 
 
 def run_folders(root: Path) -> list[Path]:
@@ -42,9 +42,9 @@ def draw_later(run_dir: Path) -> bool:
     False (nothing drawn) for any other folder."""
     if (run_dir / BIRDSEYE).exists() or not (run_dir / BELIEVED).exists():
         return False
+    summary = read_summary(run_dir / "summary.json")
     try:
-        summary = json.loads((run_dir / "summary.json").read_text())
-        resolved = dict(summary["resolved_scenario"])
+        resolved = dict(summary.resolved_scenario)
         resolved["defense_params"] = declared_table(resolved["defense"], resolved["defense_params"])
         sc = Scenario.model_validate(resolved)
     except (ValueError, TypeError, KeyError, AttributeError) as exc:
@@ -56,9 +56,9 @@ def draw_later(run_dir: Path) -> bool:
         parts = sim.parts
         traffic = run_dir / "traffic.csv"
         inputs = FigureInputs(
-            parts.track, parts.lane_width, summary["lane_straddle_dev_m"], read_believed(run_dir / BELIEVED),
-            summary["detection_time_s"], summary["stop_time_s"],
-            f"{sc.name} · {sc.track} · defense {sc.defense} · {summary['consequence']}",
+            parts.track, parts.lane_width, summary.lane_straddle_dev_m, read_believed(run_dir / BELIEVED),
+            summary.detection_time_s, summary.stop_time_s,
+            f"{sc.name} · {sc.track} · defense {sc.defense} · {summary.consequence}",
             fusion_title=fusion_title(sc.name, sc.track, parts.attack),
             attack_t=parts.attack.start_time if parts.attack is not None else None,
             threshold=parts.defense.alarm_threshold,
