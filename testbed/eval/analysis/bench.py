@@ -190,8 +190,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     finally:
         sim.close()
     cpu = time.process_time() - cpu0
-    summary = result.summary
-    sim_time, wall = summary["sim_time_s"], summary["wall_time_s"]
+    sim_time, wall = result.record.sim_time_s, result.record.wall_time_s
     physics_hz = sc.rates.physics_hz
     steps = round(sim_time * physics_hz)
     bare = _bare_physics(sc, steps)
@@ -200,7 +199,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     _instrument(timed, timer)
     try:
         with StepSimulationClock() as in_loop:
-            timed_wall = timed.run().summary["wall_time_s"]
+            timed_wall = timed.run().record.wall_time_s
     finally:
         timed.close()
     split = {k: round(timer.seconds.get(k, 0.0) / timed_wall, 4) for k in LOOP_SECTIONS}
