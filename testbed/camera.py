@@ -4,18 +4,22 @@ A condition is a lighting set-up passed in full on every render (PyBullet's ligh
 sticky) and baked into the ground canvas, a sky, track painters (worn markings, shadow bands) and a
 sensor model applied to the image in this order: exposure and headlight cone (night), sky fill,
 contrast, blur, noise.
+
+The camera renders any `RenderScene` (a PyBullet client and the ground canvas): `testbed.world.TileStreamer`
+is one; the camera does not import the world.
 """
 
 from __future__ import annotations
+
+from typing import Protocol
 
 import cv2
 import numpy as np
 import pybullet as pb
 
 from testbed.conditions import Condition
-from testbed.ground import OPEN_GROUND_RGBA
+from testbed.ground import OPEN_GROUND_RGBA, GroundCanvas
 from testbed.lane_detection import CameraFrame
-from testbed.world import TileStreamer
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
@@ -91,11 +95,19 @@ class ImageEffects:
         return self._noise_bank[oy : oy + h, ox : ox + w]
 
 
+class RenderScene(Protocol):
+    """What the camera renders: a PyBullet client holding the roadside bodies (and the road's tile meshes when
+    there is no canvas), and the ground canvas the road surface is drawn from (None: no canvas)."""
+
+    client: int
+    canvas: GroundCanvas | None
+
+
 class FrontCamera:
     """Renders the rig's view: the road surface from the streamer's ground canvas (or TinyRenderer's
     ground meshes), roadside bodies from TinyRenderer, the sky, then the condition's effects."""
 
-    def __init__(self, streamer: TileStreamer, rig: CameraRig, condition: Condition, rng: np.random.Generator) -> None:
+    def __init__(self, streamer: RenderScene, rig: CameraRig, condition: Condition, rng: np.random.Generator) -> None:
         self.streamer = streamer
         self.client = streamer.client
         self.rig = rig

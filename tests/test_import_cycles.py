@@ -135,6 +135,11 @@ def test_type_checking_imports_and_relative_imports_are_read_as_python_runs_them
     assert find_cycle(import_graph(modules, type_checking=True)) == ["pkg.a", "pkg.b", "pkg.a"]
 
 
+def test_the_camera_renders_a_scene_without_importing_the_world():
+    graph = import_graph(module_files(first_party_packages()), type_checking=True)
+    assert "testbed.world" not in graph["testbed.camera"], "testbed/camera.py renders a RenderScene, not the world"
+
+
 def test_no_import_cycle_among_the_first_party_packages():
     cycle = find_cycle(import_graph(module_files(first_party_packages()), type_checking=True))
     assert cycle is None, "import cycle (type-checking imports included): " + " -> ".join(cycle or [])
