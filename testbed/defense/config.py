@@ -24,6 +24,7 @@ asks for in an emergency in-lane stop, so it is not NaiveAR's deceleration.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from pydantic import Field, model_validator
@@ -116,17 +117,26 @@ class DefenseConfig(Params):
     def explicit(self, reads: frozenset[str]) -> dict[str, Any]:
         """Every parameter a defense that `reads` these keys acts on, defaults written out (so that a scenario
         keeps its meaning when a default changes), less the ones the validators above refuse as inert."""
-        inert = set()
-        if self.heading not in ("ld", "fused"):
-            inert.add("heading_clamp")
-        if not self.fail_closed:
-            inert |= FAIL_CLOSED_KEYS
-        return {k: v for k, v in self.model_dump().items() if k in reads and k not in inert}
+        values = self.model_dump()
+        inert = inert_keys(values)
+        return {k: v for k, v in values.items() if k in reads and k not in inert}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> DefenseConfig:
         """Build from a TOML table; unknown keys and bad values raise ParamsError (a ValueError) naming the key."""
         return validate_params(cls, d, "defense")
+
+
+def inert_keys(table: Mapping[str, Any]) -> frozenset[str]:
+    """The keys that act on nothing under `table`'s own `heading` and `fail_closed` (absent: the defaults), which
+    `DefenseConfig`'s validators refuse when set: `heading_clamp` without a clamped heading, the fail-closed keys
+    without fail-closed."""
+    inert: set[str] = set()
+    if table.get("heading", DefenseConfig.model_fields["heading"].default) not in ("ld", "fused"):
+        inert.add("heading_clamp")
+    if not table.get("fail_closed", DefenseConfig.model_fields["fail_closed"].default):
+        inert |= FAIL_CLOSED_KEYS
+    return frozenset(inert)
 
 
 PAPER_CUSUM: dict[str, float] = {"b": 0.6, "tau": 0.1}

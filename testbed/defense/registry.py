@@ -15,7 +15,7 @@ from typing import Any
 
 from testbed.defense.base import Defense
 from testbed.defense.bicycle import BicycleCoefficients
-from testbed.defense.config import ALWAYS_READ, DefenseConfig
+from testbed.defense.config import ALWAYS_READ, DefenseConfig, inert_keys
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
 from testbed.defense.no_defense import NoDefense
@@ -73,8 +73,10 @@ def defense_settings(name: str, table: Mapping[str, Any]) -> tuple[DefenseConfig
 
 def declared_table(name: str, table: Mapping[str, Any]) -> dict[str, Any]:
     """The keys of a recorded `[defense]` table (summary.json's `defense_params`, which holds every built-in
-    defense's) that defense `name` declares or the loop reads."""
-    keys = defense_keys(DEFENSES.get(name)) | ALWAYS_READ
+    defense's, each at its default where the run did not set it) that defense `name` declares or the loop reads,
+    less those the table's own values make inert (`inert_keys`: a paper-mode run records `heading_clamp` and the
+    fail-closed keys at their defaults, which its settings would refuse as set)."""
+    keys = (defense_keys(DEFENSES.get(name)) | ALWAYS_READ) - inert_keys(table)
     return {k: v for k, v in table.items() if k in keys}
 
 

@@ -5,7 +5,7 @@ table as before the split."""
 import pytest
 from pydantic import Field
 
-from testbed.defense.config import DefenseConfig
+from testbed.defense.config import PAPER_MODE, DefenseConfig
 from testbed.defense.no_defense import NoDefense
 from testbed.defense.registry import DEFENSES, declared_table, defense_settings, explicit_table, resolved_table
 from testbed.defense.savior import SaviorConfig
@@ -69,3 +69,13 @@ def test_the_recorded_table_keeps_every_builtin_key_in_its_old_order(gentle):
     assert resolved_table(*defense_settings("gentle", {}))["patience"] == 2.0
     assert declared_table("savior", table) == {"existence_threshold": 0.5, "ar_decel": 4.0,
                                                **{k: SaviorConfig().model_dump()[k] for k in SAVIOR_KEYS}}
+
+
+@pytest.mark.parametrize("given", [PAPER_MODE, {**PAPER_MODE, "heading": "fused", "heading_clamp": 0.05},
+                                   {"heading": "msf"}, {"heading_clamp": 0.05}, {}],
+                         ids=["paper-mode", "paper-mode-clamped", "msf-heading", "clamp", "defaults"])
+def test_a_recorded_table_reads_back_as_the_settings_the_run_had(given):
+    """What `ld3 replay` and `ld3 figures` rebuild from summary.json: every key recorded, inert ones at their
+    defaults (a paper-mode run records heading_clamp and the fail-closed keys it does not run)."""
+    settings = defense_settings("ld3", dict(given))
+    assert defense_settings("ld3", declared_table("ld3", resolved_table(*settings))) == settings

@@ -10,6 +10,7 @@ import json
 import pytest
 
 from testbed.cli import main
+from testbed.defense.config import PAPER_MODE
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +34,29 @@ def test_replay_detects_when_the_closed_loop_run_did(drive, capsys):
     assert after and all(r["fused_dev"] != "" for r in after)  # the response's fusion runs as a shadow
     before = [r for r in rows if float(r["t"]) < 3.0]
     assert all(abs(float(r["msf_dev"]) - float(r["ld_dev"])) < 0.2 for r in before if r["ld_dev"])
+
+
+def _setting(key: str, value: object) -> str:
+    shown = str(value).lower() if isinstance(value, bool) else f'"{value}"' if isinstance(value, str) else value
+    return f"defense.{key}={shown}"
+
+
+@pytest.mark.parametrize("heading", [{}, {"heading": "fused", "heading_clamp": 0.05}], ids=["paper", "clamped"])
+def test_a_paper_mode_drive_replays_to_the_same_detection(heading, tmp_path, capsys):
+    """The recorded [defense] table holds heading_clamp and the fail-closed keys at their defaults, which paper
+    mode (MSF heading, fail_closed = false) does not run: the replay rebuilds the run's settings from it."""
+    settings = [arg for key, value in {**PAPER_MODE, **heading}.items() for arg in ("--set", _setting(key, value))]
+    assert main(["run", "parking-lot", "--localization", "msf", "--speed", "4", "--duration", "12", "--attack",
+                 "trace:default,start=3", "--defense", "ld3", *settings, "--record", "--out",
+                 str(tmp_path / "d")]) == 0
+    closed_loop = json.loads((tmp_path / "d" / "summary.json").read_text())
+    assert closed_loop["defense_params"]["fail_closed"] is False and closed_loop["detection_time_s"] is not None
+    capsys.readouterr()
+    assert main(["replay", str(tmp_path / "d")]) == 0, capsys.readouterr().err
+    rows = list(csv.DictReader((tmp_path / "d" / "replay" / "replay.csv").open()))
+    alarm = next(float(r["t"]) for r in rows if r["mode"] == "ar")
+    assert abs(alarm - closed_loop["detection_time_s"]) <= 0.05  # one detection period at 20 Hz
+    assert f"ld3 detects at {closed_loop['detection_time_s']:.2f} s" in capsys.readouterr().out
 
 
 def test_replay_takes_other_defense_parameters(drive, tmp_path, capsys):
