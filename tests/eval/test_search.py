@@ -80,7 +80,8 @@ def test_a_killed_search_resumes_to_the_trials_of_an_uninterrupted_one(tmp_path)
     out = tmp_path / "killed"
     env = {**os.environ, "TOY_SLEEP_S": "0.15",
            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, "-m", "tests.eval.search_helpers", str(out), "16"], cwd=ROOT, env=env)
+    proc = subprocess.Popen([sys.executable, "-m", "tests.eval.search_helpers", str(out), "16"], cwd=ROOT,
+                            env=env)
     try:
         deadline = time.monotonic() + 120.0
         while len(list((out / "trials").glob("trial-*"))) < 6:  # mid second batch of four
