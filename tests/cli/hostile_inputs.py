@@ -199,6 +199,12 @@ RUN_FOLDERS = [
          {"d/summary.json": "[]", "d/run.mcap": b"x"}),
     Case("replay-summary-garbage", ("replay", "{ws}/d/run.mcap", "--out", "{ws}/r"), "summary.json",
          {"d/summary.json": b"\xff\xfe{", "d/run.mcap": b"x"}),
+    Case("compare-summary-old-version", ("compare", "{ws}/bad", "--out", "{ws}/cmp"), "max_abs_dev_m",
+         {"bad/summary.json": SUMMARY_OK.replace('"max_abs_dev_m": 0.1', '"max_abs_dev_m": "far"'),
+          "bad/trajectory.csv": "t,phys_dev\n0,0\n"}),
+    Case("campaign-summary-old-version", ("campaign", "table4", "--runs", "ld3-start6", "--detector", "oracle",
+                                          "--out", "{ws}/camp"), "ld3-start6/summary.json",
+         {"camp/.campaign.lock": "", "camp/ld3-start6/summary.json": '{"scenario": "old", "consequence": "hit_curb"}'}),
 ]
 
 GNSS = [
