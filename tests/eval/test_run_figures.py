@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 
 from testbed.cli import main
+from testbed.defense.config import PAPER_MODE
 from testbed.eval.run.figures import BELIEVED, read_believed, read_rows
 from testbed.eval.run.runner import run_into
 from testbed.eval.run.scenario import load_scenario
@@ -57,3 +58,14 @@ def test_ld3_campaign_figures_later_runs_the_executor_without_figures(tmp_path, 
     argv = ["campaign", "table4", "--runs", "ld3-start6", "--out", str(tmp_path), "--workers", "1"]
     assert main([*argv, "--figures-later"]) == 0 and main(argv) == 0
     assert seen == [run_and_write_data, run_and_write]
+
+
+def test_a_paper_mode_run_has_its_figures_drawn_later(tmp_path, capsys):
+    """summary.json records heading_clamp and the fail-closed keys, which paper mode does not run: `ld3 figures`
+    rebuilds the scenario without them."""
+    sc = load_scenario("parking-lot").with_overrides(duration=4.0, detector="oracle", localization="msf",
+                                                     defense="ld3", defense_params=PAPER_MODE)
+    (tmp_path / "run").mkdir()
+    run_into(sc, tmp_path / "run", figures=False)
+    assert main(["figures", str(tmp_path / "run")]) == 0, capsys.readouterr().err
+    assert (tmp_path / "run" / "birdseye.png").is_file()
