@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -205,6 +206,13 @@ class ChassisProfile:
         return {self.frame_id(name): self.report_cycle_s(name) for name in self.reports.messages}
 
 
+MAX_CAN_BYTES = 8
+MAX_FD_BYTES = 64
+"""The most data bytes a classic CAN frame and a CAN FD frame carry."""
+DBC_MESSAGE = re.compile(r"^BO_\s+\d+\s+(\w+)\s*:\s*(\d+)", re.MULTILINE)
+"""A DBC message line: its name and its length in bytes."""
+
+
 class _Builder:
     """Checks a validated profile.toml against its DBC and builds the profile."""
 
@@ -213,6 +221,7 @@ class _Builder:
         self.dbc_path = root / doc.dbc
         if not self.dbc_path.is_file():
             raise self.error("dbc", f"file not found: {self.dbc_path}")
+        self.check_lengths()
         log = logging.getLogger("cantools")  # its warnings (a repeated frame id) are refused below, in one line
         level = log.level
         log.setLevel(logging.ERROR)
@@ -224,10 +233,28 @@ class _Builder:
             log.setLevel(level)
         self.check_dbc()
 
+    def check_lengths(self) -> None:
+        """Refuse a message longer than a CAN FD frame before cantools reads the file: its strict check of the
+        signals against the length takes minutes for a length of 99999 bytes."""
+        try:
+            text = self.dbc_path.read_bytes().decode("latin-1")
+        except OSError as exc:
+            raise self.error("dbc", f"cannot read {self.dbc_path.name}: {exc.strerror}") from None
+        for match in DBC_MESSAGE.finditer(text):
+            if int(match.group(2)) > MAX_FD_BYTES:
+                raise self.error("dbc", f"message {match.group(1)} is {match.group(2)} bytes long; a CAN FD frame "
+                                 f"carries at most {MAX_FD_BYTES}")
+
     def check_dbc(self) -> None:
-        """Refuse a DBC whose frame ids repeat or whose signals have a zero scale (no value could be decoded)."""
+        """Refuse a DBC whose frame ids repeat, whose frames are longer than a CAN frame carries (8 bytes, 64 for
+        CAN FD: a longer one made every encode of the emulator's frames crawl), or whose signals have a zero scale
+        (no value could be decoded)."""
         seen: dict[int, str] = {}
         for message in self.db.messages:
+            most = MAX_FD_BYTES if message.is_fd else MAX_CAN_BYTES
+            if not 0 <= message.length <= most:
+                raise self.error("dbc", f"message {message.name} is {message.length} bytes long; a "
+                                 f"{'CAN FD' if message.is_fd else 'CAN'} frame carries at most {most}")
             if message.frame_id in seen:
                 raise self.error("dbc", f"frame id {message.frame_id} (0x{message.frame_id:X}) is used by both "
                                  f"{seen[message.frame_id]} and {message.name} in {self.dbc_path.name}")

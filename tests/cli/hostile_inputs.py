@@ -89,6 +89,9 @@ PROFILES = [
     _profile("gear-huge", "drive", toml=_toml_of_profile("drive = 4", "drive = 99999")),
     _profile("dbc-garbage", "chassis.dbc", dbc="BO_ ][ \x00\x01 garbage"),
     _profile("dbc-escape", "chassis.dbc", dbc="\x1b[2J\x1b[31mBO_ x"),
+    _profile("frame-huge", "99999 bytes", dbc=_dbc("BO_ 1345 SIM_TruthMotion: 8 VCU",
+                                                   "BO_ 1345 SIM_TruthMotion: 99999 VCU")),
+    _profile("frame-long", "60 bytes", dbc=_dbc("BO_ 1345 SIM_TruthMotion: 8 VCU", "BO_ 1345 SIM_TruthMotion: 60 VCU")),
     Case("profile-symlink-loop", ("hil", "parking-lot", "--profile", "{ws}/loop", "--duration", "2", "--out",
                                   "{ws}/h"), "loop", links={"loop": "loop"}),
 ]
