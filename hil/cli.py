@@ -251,7 +251,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
           f"max |D| {s['max_abs_dev_m']:.3f} m, detected {s['detected']}, {s['sim_time_s']:.1f} s simulated "
           f"at {s['real_time_factor']:.1f}x real time")
     print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
-          f"{s['can_frames_rejected']} rejected; log {s['can_log']}")
+          f"{s['can_frames_rejected']} rejected; log {out / s['can_log']}")
     print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", run.mcap" if args.record else ""))
     faults = chassis_faults(s)
     if faults:

@@ -171,6 +171,16 @@ def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
     return sim.result()
 
 
+def _log_name(log_path: Path | None, out_dir: Path | None) -> str | None:
+    """The CAN log as the summary names it: relative to the run folder when it lies inside it (the folder may be
+    written under a temporary name and renamed into place), else the path given."""
+    if log_path is None:
+        return None
+    if out_dir is not None and log_path.is_relative_to(out_dir):
+        return log_path.relative_to(out_dir).as_posix()
+    return str(log_path)
+
+
 def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = LinkConfig(), *,
                      log_path: Path | None = None, progress: bool = False,
                      prepare: Callable[[HilLink], None] | None = None, reply_timeout: float = 5.0,
@@ -226,7 +236,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
             "profile": link.profile.name, "pose_source": "odometry",
             "yaw_rate_source": yaw_rate_source(link.profile), "odometry_error_max_m": bridge.odometry_error_max_m,
             "odometry_error_final_m": bridge.odometry_error_last_m,
-            "can_log": str(log_path) if log_path is not None else None,
+            "can_log": _log_name(log_path, out_dir),
             "can_frames_tx": bridge.frames_tx, "can_frames_rx": bridge.frames_rx,
             "can_frames_rejected": sum(bridge.rejected.values()),
             "can_frames_logged": recorder.frames if recorder is not None else 0,

@@ -307,7 +307,7 @@ class VehicleRun:
             "rates": self.settings.rates.model_dump(), "yaw_rate_source": yaw_source,
             "interface": self.interface, "loop_scheduling": self.scheduling,
             "command_pacer": self.bridge.pacer_scheduling, "profile": self.profile.name,
-            "can_log": str(self.out_dir / "can.asc"),
+            "can_log": "can.asc",  # in the run folder, named relative to it as a HIL run names its log
             "can_frames_tx": self.bridge.frames_tx, "can_frames_rx": self.bridge.frames_rx,
             "nmea_fixes": self.gnss.counts.fixes, "nmea_bad": self.gnss.counts.bad,
             "nmea_no_fix": self.gnss.counts.no_fix,

@@ -44,7 +44,8 @@ def test_virtual_bus_run_matches_the_direct_run_and_writes_the_outputs(tmp_path)
     assert summary["interface"] == "virtual" and summary["clock"] == "lockstep"
     assert summary["can_frames_rejected"] == 0 and summary["consequence"] == "reach_destination"
     assert (tmp_path / "trajectory.csv").is_file() and (tmp_path / "birdseye.png").is_file()
-    with can.LogReader(str(tmp_path / "can.asc")) as reader:
+    assert summary["can_log"] == "can.asc"  # inside the run folder, named relative to it (it may be renamed)
+    with can.LogReader(str(tmp_path / summary["can_log"])) as reader:
         logged = sum(1 for _ in reader)
     assert logged == summary["can_frames_logged"] == summary["can_frames_tx"] + summary["can_frames_rx"]
     assert summary["can_frames_tx"] >= 4 * len(result.rows) // 2  # a command cycle (3) + step per 20 ms at least
