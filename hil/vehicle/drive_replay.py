@@ -71,8 +71,12 @@ def drive_settings(path: Path) -> dict[str, Any]:
     if not summary.is_file():
         return {}
     data = read_summary_object(summary)
-    return {"track": data.get("track"), "defense": data.get("defense"),
-            "defense_params": data.get("defense_params") or {}}
+    settings = {"track": data.get("track"), "defense": data.get("defense"),
+                "defense_params": data.get("defense_params") or {}}
+    for key, kind in (("track", str), ("defense", str), ("defense_params", dict)):
+        if settings[key] is not None and not isinstance(settings[key], kind):
+            raise UserError(f"{summary}: {key} is not a {'table' if kind is dict else 'string'}")
+    return settings
 
 
 def replay_drive(path: Path, track: str, defense: str = "ld3",
