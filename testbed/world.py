@@ -219,11 +219,11 @@ class TileStreamer:
         self._traffic_shown = _place_bodies(self.client, self._traffic_bodies, poses, z, self._traffic_shown)
 
     def update(self, pose: Pose) -> None:
-        """Load the tiles from `behind` m behind to `ahead` m ahead of the pose, drop the others."""
-        half = 0.5 * (self.ahead + self.behind)
-        shift = half - self.behind
-        cx, cy = pose.x + shift * math.cos(pose.yaw), pose.y + shift * math.sin(pose.yaw)
-        wanted = set(self.track.tiles_near(cx, cy, half))
+        """Load the tiles from `behind` m behind to `ahead` m ahead of the pose's station, drop the others. The
+        station is the pose's own (on the road), never a point ahead of it: where the road turns, such a point is
+        off it and may lie nearest another part of a route that comes back beside itself."""
+        s, _ = self.track.reference.project(pose.x, pose.y)
+        wanted = set(self.track.tiles_along(s, self.behind, self.ahead))
         missing = wanted - self.loaded.keys()
         if self.canvas is None and self.textures_loaded + len(missing) > self.budget:
             self.resets += 1
