@@ -346,3 +346,47 @@ def test_fail_closed_is_a_key_ld3_and_naive_ar_read_and_others_refuse():
         assert sc.defense_params == {"fail_closed": False}
     with pytest.raises(ValueError, match="fail_closed"):
         load_scenario("local").with_overrides(defense="savior", defense_params={"fail_closed": False})
+
+
+# --- the lines' spacing against the map's lane width ----------------------------------------------------------
+
+def _wide(t: float, dev: float, extra: float) -> LaneDetection:
+    """Lines for a car `dev` m left of the lane-0 centre with the left one read `extra` m farther out (in when
+    negative: the nearer line, the one Alg. 3 reads)."""
+    return LaneDetection(t, np.array([HALF - dev + extra, 0, 0, 0.0]), np.array([-HALF - dev, 0, 0, 0.0]), 0.9,
+                         0.9, (0.0, 40.0))
+
+
+def _misread(d: Ld3Defense, smap: FakeStraightMap, drive: Drive, extra: float, msf: float, seconds: float) -> None:
+    """`seconds` of detections whose left line is read `extra` m out, the MSF pose `msf` m left of the car."""
+    for _ in range(round(seconds * 20)):
+        for _ in range(5):
+            d.on_odometry(drive.t, drive.speed, 0.0)
+            drive.ticks += 1
+        d.on_lane_detection(_wide(drive.t, 0.0, extra),
+                            LocalizationEstimate(drive.t, Pose(drive.x, msf, 0.0), np.eye(3) * 0.01), smap)
+
+
+def test_lines_read_narrower_than_the_lane_are_not_compared_and_the_msf_is_checked_by_odometry():
+    smap = FakeStraightMap()
+    benign = Ld3Defense(DefenseConfig())
+    _misread(benign, smap, Drive(benign, smap).run(1.0), extra=-1.0, msf=0.0, seconds=2.0)
+    assert benign.mode == "normal" and benign.faults.counts["width-lines"] == 40
+    compared = Ld3Defense(DefenseConfig(width_tolerance=1.5))  # the same lines compared: D_LD 1 m off, an alarm
+    _misread(compared, smap, Drive(compared, smap).run(1.0), extra=-1.0, msf=0.0, seconds=2.0)
+    assert compared.mode == "ar"
+    attacked = Ld3Defense(DefenseConfig())  # the MSF 1 m off while the lines are misread: odometry still sees it
+    _misread(attacked, smap, Drive(attacked, smap).run(1.0), extra=-1.0, msf=1.0, seconds=2.0)
+    assert attacked.mode == "ar"
+    close = Ld3Defense(DefenseConfig())  # within the tolerance the lines are compared as before
+    _misread(close, smap, Drive(close, smap).run(1.0), extra=0.25, msf=0.0, seconds=2.0)
+    assert close.faults.counts["width-lines"] == 0 and close.mode == "normal"
+
+
+def test_paper_mode_compares_lines_of_any_spacing():
+    smap = FakeStraightMap()
+    paper = Ld3Defense(DefenseConfig(**PAPER))
+    _misread(paper, smap, Drive(paper, smap).run(1.0), extra=-1.0, msf=0.0, seconds=2.0)  # the left line read 1 m in
+    assert paper.mode == "ar" and paper.faults.counts["width-lines"] == 0
+    with pytest.raises(ValueError, match="fail_closed = false"):
+        DefenseConfig(fail_closed=False, width_tolerance=0.5)
