@@ -68,10 +68,10 @@ class TrackerParams:
     min_existence: float = 0.05
     """A detected line with a lower existence probability does not update the filter."""
     max_heading: float = 0.35
-    """rad: a detected line whose slope at the car (|c1|) says the car points farther than this off it does not
-    update the filter: a car follows its lane within a few degrees, and a cubic fitted to a line turning on a town
-    corner reads its slope at the car 0.5-1.9 rad off (Town02); kept, it holds the tracked heading there and
-    gates out the true lines after the corner."""
+    """A detected line whose slope at the car |c1| exceeds this (about 19°) does not update the filter: a car
+    follows its lane within a few degrees, and a cubic fitted to a line turning on a town corner has a slope of
+    0.5-4.4 there (Town02); kept, it holds the tracked heading there and gates out the true lines after the
+    corner."""
     adapt_rate: float = 0.02
     min_offset_std: float = 0.03
     """m: floor of the adapted c0 noise std."""
@@ -88,7 +88,7 @@ class TrackerParams:
              "confirm_frames and width_confirm_frames must be >= 1"),
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
-            (self.max_heading > 0.0, "max_heading must be > 0 rad"),
+            (self.max_heading > 0.0, "max_heading must be > 0"),
             (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
         ]
         for ok, msg in checks:
