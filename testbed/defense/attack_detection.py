@@ -10,10 +10,8 @@ Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
 towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
-where they are absent: inside intersections (judged at that pose), on detections without a valid line and on
-those whose two lines lie apart by more than `width_tolerance` off the map's lane width (a kerb, a junction's
-mouth or a lane read as another width; their spacing does not depend on the car's pose) the residual is
-D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
+where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
+residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is anchored on
 them at its own station: an attacker who holds the residual just above b cannot leave odometry to drift until
 the response takes it for the car's place. D_MSF is
@@ -39,7 +37,7 @@ from collections.abc import Iterable
 from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
-from testbed.defense.ld_deviation import LdDeviation, lines_spacing
+from testbed.defense.ld_deviation import LdDeviation
 from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -117,16 +115,13 @@ class LaneConsistencyMonitor:
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
-                 along_gain: float = 1.0, lever: float = 0.0, width_tolerance: float = math.inf) -> None:
+                 along_gain: float = 1.0, lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
         self.along = along if along is not None else Cusum(0.0, math.inf)
         """The fail-closed along-lane check's CUSUM on |s_MSF − s_odometry| (m); never alarms when not given."""
         self.along_gain = along_gain
-        self.width_tolerance = width_tolerance
-        """Fail-closed: a detection whose two valid lines lie apart by more than this off the map's lane width (m)
-        is read as one without lines."""
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -210,10 +205,6 @@ class LaneConsistencyMonitor:
             self.in_intersection = False
             self.ld_dev.reset()
         width = self._lane_width(t, pose, smap, lane)
-        spacing = lines_spacing(ld, self.ld_dev.existence_threshold)
-        if width is not None and spacing is not None and abs(spacing - width) > self.width_tolerance:
-            return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "width-lines",
-                                        f"the lines lie {spacing:.2f} m apart on a {width:.2f} m lane")
         d_ld = None if width is None else self.ld_dev.update(ld, width)
         if d_ld is None or self.ld_dev.reused:
             return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "no-lane-lines",

@@ -39,7 +39,7 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "response_gate", "corner_radius", "width_tolerance"})
+                              "response_gate", "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
@@ -97,9 +97,6 @@ class DefenseConfig(Params):
                                  "the ego lane turns tighter than this radius within 12 m ahead of the dead-reckoned "
                                  "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
                                  "metres off); the MSF is then checked by odometry")
-    width_tolerance: float = Field(0.3, gt=0.0, description="fail-closed: a detection whose two lines lie apart by "
-                                   "more than this off the map's lane width is not compared (m; a kerb, a junction's "
-                                   "mouth or a lane read as another width); the MSF is then checked by odometry")
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:

@@ -25,13 +25,6 @@ def line_distance(coeffs: np.ndarray | None, prob: float, existence_threshold: f
     return abs(values[0])
 
 
-def lines_spacing(ld: LaneDetection, existence_threshold: float) -> float | None:
-    """|y_left(0)| + |y_right(0)| when both lines are valid (the lane's width as the detection reads it), else None."""
-    d_left = line_distance(ld.left, ld.left_prob, existence_threshold)
-    d_right = line_distance(ld.right, ld.right_prob, existence_threshold)
-    return d_left + d_right if math.isfinite(d_left) and math.isfinite(d_right) else None
-
-
 class LdDeviation:
     """Alg. 3 with its memory of the last computed D (None until a detection had a valid line)."""
 
