@@ -219,11 +219,16 @@ class TileStreamer:
         self._traffic_shown = _place_bodies(self.client, self._traffic_bodies, poses, z, self._traffic_shown)
 
     def update(self, pose: Pose) -> None:
-        """Load the tiles from `behind` m behind to `ahead` m ahead of the pose, drop the others."""
+        """Load the tiles within half the window (`behind` + `ahead`) along the road of the point that far ahead of
+        the pose along its heading, drop the others. Where the road turns that point is off it and may lie nearest
+        another part of a route that comes back beside itself: it is projected aside (the car's next projection
+        still walks from the car's own) and its station held between the car's and `ahead` − `behind` beyond."""
         half = 0.5 * (self.ahead + self.behind)
         shift = half - self.behind
-        cx, cy = pose.x + shift * math.cos(pose.yaw), pose.y + shift * math.sin(pose.yaw)
-        wanted = set(self.track.tiles_near(cx, cy, half))
+        s, _ = self.track.reference.project(pose.x, pose.y)
+        centre, _ = self.track.reference.project_aside(pose.x + shift * math.cos(pose.yaw),
+                                                       pose.y + shift * math.sin(pose.yaw))
+        wanted = set(self.track.tiles_along(min(max(centre, s), s + shift), half, half))
         missing = wanted - self.loaded.keys()
         if self.canvas is None and self.textures_loaded + len(missing) > self.budget:
             self.resets += 1

@@ -275,6 +275,21 @@ class ReferenceLine:
         found = self._memo.get((x, y, max_offset))
         return found if found is not None else self._memo.keep((x, y, max_offset), self._project(x, y, max_offset))
 
+    def project_aside(self, x: float, y: float, max_offset: float = 20.0) -> tuple[float, float]:
+        """`project` for a point off the road (one ahead of a car in a turn): the next query still walks from the
+        answer before, and this one is not kept. Such a point may lie nearest another part of a route that comes
+        back beside itself; walking the next query of the car from there can settle on that part."""
+        kernel = self._kernel
+        if kernel is not None:
+            hint = kernel.hint
+            found = kernel.project(x, y, max_offset)
+            kernel.hint = hint
+            return found
+        hint = self._hint
+        found = self._project(x, y, max_offset)
+        self._hint = hint
+        return found
+
     def forget(self) -> None:
         """Drop the memo of recent projections (the next one walks from the last answer)."""
         self._memo.clear()

@@ -190,8 +190,12 @@ class Track:
     def tiles_near(self, x: float, y: float, radius: float) -> list[int]:
         """Indices of tiles with any part within about `radius` m (along the road) of (x, y)."""
         s, _ = self.reference.project(x, y)
-        first = max(0, math.floor((s - radius) / self.tile_length))
-        last = min(self.n_tiles - 1, math.ceil((s + radius) / self.tile_length) - 1)
+        return self.tiles_along(s, radius, radius)
+
+    def tiles_along(self, s: float, behind: float, ahead: float) -> list[int]:
+        """Indices of tiles with any part from `behind` m before station s to `ahead` m after it."""
+        first = max(0, math.floor((s - behind) / self.tile_length))
+        last = min(self.n_tiles - 1, math.ceil((s + ahead) / self.tile_length) - 1)
         return list(range(first, last + 1))
 
     def with_painters(self, painters: Sequence[Painter]) -> Track:

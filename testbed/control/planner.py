@@ -23,6 +23,7 @@ from tracks.pose import Pose, wrap_angle
 AR_DECEL = 4.0  # paper §4.3: Apollo's maximum allowed safe deceleration (m/s²)
 PREVIEW_STEP = 5.0  # m per step when walking the centreline to the preview point
 CURVE_DECEL = 2.0  # m/s²: the deceleration the curve limit allows for slowing into a curve ahead
+CRUISE_ACCEL = 1.0  # m/s²: the speed reference's ramp towards the cruise speed (from rest at a run's start)
 CURVE_STEP = 2.0  # m between the curvature samples of the curve limit
 CURVE_PERIOD = 0.25  # s between samplings of the curvature ahead
 _KERNELS = compiled_module("testbed.control.planner_kernels")
@@ -36,7 +37,7 @@ class LanePlanner:
         smap: SemanticMap,
         lane: int,
         cruise_speed: float,
-        max_accel: float = 1.0,
+        max_accel: float = CRUISE_ACCEL,
         preview_time: float = 0.3,
         min_preview: float = 1.0,
         lateral_accel: float = 3.0,

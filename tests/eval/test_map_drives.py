@@ -3,11 +3,13 @@ once attacked; refused files and bad --maps are one line; a table per file."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from testbed.errors import UserError
 from testbed.eval.experiments.campaigns import selected_runs
-from testbed.eval.experiments.map_drives import CRUISE, map_table
+from testbed.eval.experiments.map_drives import CRUISE, _stopped_at, attack_start_s, attacked_route_m, map_table
 from tests.eval.summary_helpers import fake_summary
 from tests.tracks.opendrive.xodr_text import constant, document, geometry, road, section
 
@@ -59,3 +61,27 @@ def test_the_table_has_one_section_per_file_and_judges_each_drive(tmp_path):
     alarmed_early = sums[2].model_copy(update={"detection_time_s": 8.0})  # the attack starts at 10 s
     early = map_table([(runs[2], alarmed_early)], tmp_path)
     assert "8.00 s (before the attack)" in early and early.endswith("| NO |")
+
+
+def test_a_route_too_short_to_detect_and_stop_gets_no_attacked_drive_and_says_what_it_needs(tmp_path):
+    folder = tmp_path / "short"
+    folder.mkdir()
+    lanes = [section(0.0, [constant(3.5)])]
+    (folder / "s.xodr").write_text(document(road("1", 93.0, [geometry(0, 0.0, 0.0, 0.0, 93.0, "<line/>")], lanes)))
+    runs = selected_runs("maps", "neural", maps=[str(folder)])
+    needs = math.ceil(attacked_route_m(runs[0].scenario.start_s))
+    assert [r.run_id for r in runs] == ["s-benign-oracle", "s-benign-neural"] and needs > 93
+    base = fake_summary(max_abs_dev_m=0.1, sim_time_s=16.0, detection_time_s=None, detected=False,
+                        consequence="reach_destination")
+    table = map_table([(run, base) for run in runs], tmp_path)
+    assert table.splitlines()[-1] == (f"| attacked | neural | too short for an attacked drive at {CRUISE:g} m/s: "
+                                      f"needs {needs} m | | | | not judged |")
+    assert table.count("| yes |") == 2 and "| NO |" not in table
+
+
+def test_the_length_an_attacked_drive_needs_holds_the_detection_and_the_stop():
+    needs = attacked_route_m(20.0)
+    assert _stopped_at(attack_start_s(needs), 20.0) <= needs + 0.01
+    assert _stopped_at(attack_start_s(needs - 5.0), 20.0) > needs - 5.0  # 5 m shorter does not hold them
+    long = 300.0  # the attack at ATTACK_AT, alarmed at 16.1 s: 20 + 112.5 + 15·1.1 + 28.1 + 30 m
+    assert _stopped_at(attack_start_s(long), 20.0) == pytest.approx(20 + 112.5 + 16.5 + 225 / 8 + 30)

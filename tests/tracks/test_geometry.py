@@ -47,6 +47,23 @@ def test_projection_does_not_depend_on_the_query_history(circle_line):
     assert repeated == [cold[k % 7] for k in range(40)]
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_point_projected_aside_leaves_the_next_walk_where_it_was(compiled):
+    """A hairpin whose two straights run 12 m apart: a point beyond the second one (22 m from the first), projected
+    aside, does not move the walk, so the next query of a point on the first straight still settles there
+    (projected plainly, the walk from the second straight settles on it, 12 m off)."""
+    hairpin = [Straight(100.0), Arc(6.0, 6.0 * math.pi), Straight(100.0)]
+    line = ReferenceLine(Pose(0.0, 0.0, 0.0), hairpin)
+    if not compiled:
+        line._kernel = None
+    line.project(50.0, 0.0)
+    aside = line.project_aside(60.0, 22.0)
+    assert aside == pytest.approx((100.0 + 6.0 * math.pi + 40.0, -10.0), abs=1e-6)
+    assert line.project(55.0, 0.1) == pytest.approx((55.0, 0.1), abs=1e-6)
+    line.project(60.0, 22.0)
+    assert line.project(55.0, 0.2)[0] > 100.0  # the walk the plain projection left settles on the other straight
+
+
 def test_clothoid_matches_fresnel_integrals():
     length, k1 = 40.0, 1.0 / 50.0
     line = ReferenceLine(Pose(0.0, 0.0, 0.0), [Clothoid(0.0, k1, length)])
