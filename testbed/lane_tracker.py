@@ -7,15 +7,16 @@ GNSS or the MSF), so each line becomes y'(x) = y(x + dx) − dψ·x − dx·dψ/
 lane comes from the tracked heading, not from smoothing toward the past. Process noise: lateral motion the
 odometry misses (slip) moves both offsets together, yaw-rate error and road curvature changes act on the
 shared terms, lane-width changes on each offset alone; so one seen line carries the other.
-A present detected line whose slope at the car is within `max_heading` updates the filter with noise
-`measurement_std` divided by its existence probability, c0's variance (and the others in proportion) replaced by the
-detector's `left_var` / `right_var` when reported, else by the line's running residual variance (floored at
-`min_offset_std`²): a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose
-offset innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
+A present detected line updates the filter with noise `measurement_std` divided by its existence
+probability, c0's variance (and the others in proportion) replaced by the detector's `left_var` /
+`right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
+a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
+innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
 (accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
-while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); any jump only where
-the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to the lane, which the
-gyro carries; a line read off the wrong paint seldom does). A detection left out does not count as seen.
+while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); any jump
+only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
+the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
+not count as seen.
 Lines are re-associated when the car crosses one (left becomes right, and the next line over is predicted
 one lane width further). A line not seen for `max_coast` seconds is no longer output; an output line carries
 its last detected existence probability, and the filter's c0 variance where the detector reports its own.
@@ -67,11 +68,6 @@ class TrackerParams:
     """s a line is output after it was last seen."""
     min_existence: float = 0.05
     """A detected line with a lower existence probability does not update the filter."""
-    max_heading: float = 0.35
-    """A detected line whose slope at the car |c1| exceeds this (about 19°) does not update the filter: a car
-    follows its lane within a few degrees, and a cubic fitted to a line turning on a town corner has a slope of
-    0.5-4.4 there (Town02); kept, it holds the tracked heading there and gates out the true lines after the
-    corner."""
     adapt_rate: float = 0.02
     min_offset_std: float = 0.03
     """m: floor of the adapted c0 noise std."""
@@ -88,7 +84,6 @@ class TrackerParams:
              "confirm_frames and width_confirm_frames must be >= 1"),
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
-            (self.max_heading > 0.0, "max_heading must be > 0"),
             (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
         ]
         for ok, msg in checks:
@@ -185,7 +180,7 @@ class LaneTracker:
         z = np.zeros(N)
         c = np.asarray(coeffs, dtype=float)[:N]
         z[: len(c)] = c
-        if not np.isfinite(z).all() or abs(z[1]) > self.params.max_heading:
+        if not np.isfinite(z).all():
             return None
         r = np.asarray(self.params.measurement_std, dtype=float) ** 2
         adapted = self.lines[side].residual_var
