@@ -1,5 +1,5 @@
 """Command gaps on the wire under CPU load: `ld3 vehicle` on pix-hooke (realtime) against the ECU emulator, over
-the virtual bus (the in-process ECU of `tests.hil.vehicle_truth.TruthBench`, GGA from the plant's true pose) or
+the virtual bus (the in-process ECU of `tests.hil.vehicle.vehicle_truth.TruthBench`, GGA from the plant's true pose) or
 SLCAN on a pty (an ECU process; GGA at the start with σ 5 m, so the slow drive stays inside the MSF's gate),
 with `--hogs` busy Python processes at nice 0. Prints the run's outcome and the p50/p99/largest gap between
 DriveCtrl (0x130) frames the bridge sent, read back from can.asc with python-can's LogReader.
@@ -31,8 +31,8 @@ from hil.vehicle.geodetic import DEFAULT_ORIGIN, LocalTangentPlane
 from hil.vehicle.nmea_out import gga_sentence
 from testbed.cli import main as ld3
 from testbed.localization.sensors import GnssFix
-from tests.hil.test_vehicle import NmeaFeeder
-from tests.hil.vehicle_truth import TruthBench
+from tests.hil.vehicle.test_vehicle import NmeaFeeder
+from tests.hil.vehicle.vehicle_truth import TruthBench
 
 PROFILE = "pix-hooke"
 DRIVE_CTRL = 0x130

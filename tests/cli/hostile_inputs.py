@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tests.cli.case import Case
-from tests.eval.summary_helpers import fake_summary
+from tests.eval.run.summary_helpers import fake_summary
 
 PROFILE = Path(__file__).resolve().parents[2] / "hil" / "link" / "profiles" / "ld3-dev"
 GOOD = 'track = "slr"\nduration = 2.0\n'

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from tests.cli.hostile_inputs import ASC_HEAD, PROFILE, xodr
-from tests.eval.summary_helpers import fake_summary
+from tests.eval.run.summary_helpers import fake_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 TIME_LIMIT_S = 60

@@ -7,7 +7,7 @@ The same arithmetic as the pure-Python path, operation for operation and in the 
 multiply-add contraction; cos, sin and tan are the C library's, which numpy's float64 cos and sin and Python's
 math call on the machines this runs on; `xs ** 3` and the least-squares solve are numpy's own calls, the solve
 through the gufunc `np.linalg.lstsq` calls, without its argument handling), so every answer is the same to the
-bit; `tests/perception/test_label_kernels.py` holds them to it. Python's `min`/`max` keep their first argument
+bit; `tests/perception/detectors/test_label_kernels.py` holds them to it. Python's `min`/`max` keep their first argument
 on a tie, and so do `_min`/`_max` here.
 """
 
