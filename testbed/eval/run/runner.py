@@ -56,6 +56,12 @@ class RunResult:
         self.summary = self.record.as_dict()
 
 
+def _max_abs(values: np.ndarray) -> float | None:
+    """The largest |value| among the finite ones (a car off the map has no deviation), None when there is none."""
+    finite = values[np.isfinite(values)]
+    return float(np.max(np.abs(finite))) if len(finite) else None
+
+
 class SimRun:
     """Steps one simulated run to its end and returns its typed result: `parts` is what `build_run` built from
     the scenario (the loop run, the world, the track, ...); this adds the simulator's hooks (contacts, traffic,
@@ -178,8 +184,11 @@ class SimRun:
 
     def _road_end(self, rec: TickRecord) -> str | None:
         parts = self.parts
-        pose = self.loop.last_state.true_pose
-        return "road_end" if parts.smap.project(pose, parts.lane).s > parts.track.length - END_MARGIN_M else None
+        try:
+            s = parts.smap.project(self.loop.last_state.true_pose, parts.lane).s
+        except OffMapError:  # a car off the map is at no road's end; the consequence monitor judges where it went
+            return None
+        return "road_end" if s > parts.track.length - END_MARGIN_M else None
 
     def _advance_traffic(self, rec: TickRecord, pose: Pose) -> None:
         """Record the traffic cars as they stood during this tick (every `RECORD_HZ`-th; traffic.csv, run.mcap),
@@ -242,14 +251,14 @@ class SimRun:
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.parts.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
-            "max_abs_dev_m": float(np.nanmax(np.abs(phys))) if np.isfinite(phys).any() else None,
+            "max_abs_dev_m": _max_abs(phys),
             "final_dev_m": final_dev, "consequence": consequence, "ended_by": self.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
             + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
                 "count": f.count} for f in self.parts.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
-            "detection_dev_m": float(np.nanmax(np.abs(before))) if det_t is not None and len(before) else None,
-            "ar_max_dev_m": float(np.nanmax(np.abs(during))) if len(during) else None,
+            "detection_dev_m": _max_abs(before) if det_t is not None else None,
+            "ar_max_dev_m": _max_abs(during),
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
             "attack_state": self.parts.attack.state() if self.parts.attack is not None else None,

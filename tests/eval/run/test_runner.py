@@ -41,6 +41,16 @@ def test_a_run_that_reaches_the_end_of_the_road_says_so_before_its_duration(tmp_
     assert summary["sim_time_s"] < 60.0
 
 
+def test_a_car_steered_off_the_map_ends_in_a_departure_not_an_internal_error(tmp_path):
+    # SAVIOR steers on the MSF, which the attack moves 9 m aside: the car leaves the parking lot's map, where the
+    # road-end check could not place it and the run stopped with an OffMapError
+    sc = load_scenario("parking-lot").with_overrides(
+        duration=20.0, defense="savior", detector="oracle", localization="msf",
+        attack={"kind": "offmap", "start": 5.0378, "distance": 9.3547, "ramp": 2.1766})
+    summary = run_scenario(sc, tmp_path).summary
+    assert summary["consequence"] == "out_of_lane" and summary["max_abs_dev_m"] > 3.0
+
+
 def test_same_seed_gives_identical_trajectory_in_two_processes(tmp_path):
     outs = []
     for k in range(2):
