@@ -36,7 +36,7 @@ from hil.link.interruption import interruptible
 from hil.link.mcap_can import CanToRecording
 from hil.link.odometry import KinematicOdometry, OdometryGeometry
 from hil.link.profile import DEFAULT_PROFILE, ChassisProfile, load_profile
-from hil.link.recorder import LOG_SUFFIXES, FrameRecorder
+from hil.link.recorder import LOG_SUFFIXES, RUN_LOG, FrameRecorder
 from hil.link.secoc_key import link_key
 from hil.link.timing import ClockMode
 from hil.link.wheels import WheelGeometry
@@ -198,7 +198,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
     if out_dir is not None:
-        log_path = log_path or out_dir / "can.asc"
+        log_path = log_path or out_dir / RUN_LOG
     with contextlib.ExitStack() as claim:
         recorder: FrameRecorder | None = None
         sim: SimRun | None = None

@@ -11,6 +11,8 @@ import can
 from testbed.errors import UserError
 
 LOG_SUFFIXES = (".asc", ".blf")
+RUN_LOG = "can.asc"
+"""The CAN log's name in a run folder, as a run writes it and its summary names it."""
 
 
 class FrameRecorder(can.Listener):

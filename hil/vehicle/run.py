@@ -32,7 +32,7 @@ from hil.link.errors import LINK_ERRORS
 from hil.link.interruption import interruptible
 from hil.link.odometry import KinematicOdometry, OdometryGeometry
 from hil.link.profile import load_profile
-from hil.link.recorder import FrameRecorder
+from hil.link.recorder import RUN_LOG, FrameRecorder
 from hil.link.scheduling import MAX_PRIORITY, RT_PRIORITY, normal_scheduling, realtime_scheduling
 from hil.link.secoc_key import link_key
 from hil.link.timing import ClockMode
@@ -197,7 +197,7 @@ class VehicleRun:
         self.readers: list[Any] = []
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
-            self.recorder = FrameRecorder(out_dir / "can.asc")
+            self.recorder = FrameRecorder(out_dir / RUN_LOG)
             geometry = OdometryGeometry(wheelbase=self.params.wheelbase, ref_ahead=-self.params.rear_axle_x)
             self.bridge = CanChassisBridge(self.bus, clock=ClockMode.REALTIME, reply_timeout=5.0,
                                            profile=self.profile, odometry=KinematicOdometry(geometry=geometry), key=key,
@@ -307,7 +307,7 @@ class VehicleRun:
             "rates": self.settings.rates.model_dump(), "yaw_rate_source": yaw_source,
             "interface": self.interface, "loop_scheduling": self.scheduling,
             "command_pacer": self.bridge.pacer_scheduling, "profile": self.profile.name,
-            "can_log": "can.asc",  # in the run folder, named relative to it as a HIL run names its log
+            "can_log": RUN_LOG,  # in the run folder, named relative to it
             "can_frames_tx": self.bridge.frames_tx, "can_frames_rx": self.bridge.frames_rx,
             "nmea_fixes": self.gnss.counts.fixes, "nmea_bad": self.gnss.counts.bad,
             "nmea_no_fix": self.gnss.counts.no_fix,
