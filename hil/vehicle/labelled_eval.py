@@ -261,7 +261,18 @@ def load_inputs(config: LabelledEvalConfig) -> tuple[list[LabelledFrame], Camera
     """The labelled frames (at most `limit`) and the calibration; one-line UserErrors for what cannot be read."""
     _, path = parse_labels(config.labels)
     frames = read_tusimple(path)[: config.limit]
-    return frames, CameraCalibration.load(config.calibration)
+    calibration = CameraCalibration.load(config.calibration)
+    fitted_calibration(calibration, *_size(frames[0].image))  # refused before anything is written
+    return frames, calibration
+
+
+def _size(image: Path) -> tuple[int, int]:
+    import cv2
+
+    picture = cv2.imread(str(image), cv2.IMREAD_UNCHANGED)
+    if picture is None:
+        raise UserError(f"cannot read the labelled frame {image}")
+    return picture.shape[1], picture.shape[0]
 
 
 def run_labelled_eval(config: LabelledEvalConfig, frames: list[LabelledFrame], calibration: CameraCalibration,
