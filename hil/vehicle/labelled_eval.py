@@ -28,6 +28,7 @@ FORMATS = ("tusimple",)
 NEAR_M, FAR_M = 0.5, 200.0
 """Ground (m ahead of the reference point) over which a detected line is drawn into the frame."""
 ASPECT_TOLERANCE = 0.005
+MAX_PIXEL = 1e5
 WORST_PICTURES = 2
 COLUMNS = ("detector", "raw_file", "left_found", "right_found", "left_labelled", "right_labelled", "accuracy", "fp",
            "fn", "left_accuracy", "right_accuracy", "accuracy_5_30", "fp_5_30", "fn_5_30")
@@ -81,8 +82,10 @@ def _tusimple_frame(file: Path, n: int, line: str) -> LabelledFrame:
         lanes = tuple(np.array(lane, dtype=float) for lane in entry["lanes"])
     except (ValueError, KeyError, TypeError, RecursionError) as exc:
         raise UserError(f"{where}: not a TuSimple label ({type(exc).__name__}: {exc})") from None
-    if rows.ndim != 1 or any(lane.shape != rows.shape for lane in lanes) or not np.isfinite(rows).all():
+    if rows.ndim != 1 or any(lane.shape != rows.shape for lane in lanes):
         raise UserError(f"{where}: every lane needs one x per h_samples row")
+    if any(not (np.isfinite(a).all() and (np.abs(a) < MAX_PIXEL).all()) for a in (rows, *lanes)):
+        raise UserError(f"{where}: h_samples and lanes must be pixel coordinates (finite, under {MAX_PIXEL:g})")
     image = file.parent / raw_file
     if not image.is_file():
         raise UserError(f"{where}: the frame {image} does not exist")
