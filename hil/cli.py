@@ -26,7 +26,7 @@ from pathlib import Path
 
 import can
 
-from hil.detect_cli import add_detect_parser
+from hil.detect_cli import add_detect_parser, add_labels_arguments
 from hil.emulator.ecu import EcuEmulator, EcuLimits
 from hil.emulator.kinematic_plant import KinematicBicyclePlant
 from hil.emulator.log_replay import replay_log
@@ -264,8 +264,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add `ld3 hil`, `ld3 ecu`, `ld3 vehicle`, `ld3 replay` and `ld3 ld detect` to the ld3 command (entry points
-    "ld3.commands")."""
+    """Add `ld3 hil`, `ld3 ecu`, `ld3 vehicle`, `ld3 replay`, `ld3 ld detect` and `ld3 ld eval --labels` to the ld3
+    command (entry points "ld3.commands")."""
     from testbed.cli import _add_run_overrides
 
     p = sub.add_parser("hil", help="run a scenario over CAN (or `ld3 hil replay LOG`: play a CAN log onto a bus)",
@@ -304,6 +304,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_vehicle_parser(sub, add_bus_arguments, bus_from_args)
     add_replay_parser(sub)
     add_detect_parser(sub.choices["ld"])
+    add_labels_arguments(sub.choices["ld"])
 
 
 def main(argv: Sequence[str] | None = None) -> int:

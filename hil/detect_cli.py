@@ -1,4 +1,5 @@
-"""`ld3 ld detect`: the lane detector on a camera alone (hil.vehicle.camera_detect), added to the `ld` command group."""
+"""`ld3 ld detect` (the lane detector on a camera alone, hil.vehicle.camera_detect) and `ld3 ld eval --labels` (on
+labelled real frames, hil.vehicle.labelled_eval), added to the `ld` command group."""
 
 from __future__ import annotations
 
@@ -66,4 +67,68 @@ def _detect(args: argparse.Namespace) -> int:
           f"change of dev_m {'-' if step is None else f'{step:.3f} m'}; wrote {args.out}/detections.csv, report.md")
     if s["view_warning"]:
         print(f"warning: {s['view_warning']}")
+    return 0
+
+
+def add_labels_arguments(ld: argparse.ArgumentParser) -> None:
+    """Give the `ld` group's `eval` the labelled real frames: `--labels FORMAT:PATH` and `--calibration`."""
+    sub = next(a for a in ld._actions if isinstance(a, argparse._SubParsersAction))
+    p = sub.choices["eval"]
+    p.add_argument("--labels", metavar="tusimple:PATH",
+                   help="score on labelled real frames instead of --data: a TuSimple label file (JSON lines, raw_file "
+                        "relative to it) or a folder of them; the benchmark's metric on the ego lanes "
+                        "(docs/camera.md)")
+    p.add_argument("--calibration", type=Path, help="with --labels: the camera's calibration TOML (docs/camera.md); "
+                                                     "a resized copy of its frames reads it scaled")
+    p.set_defaults(func=_eval_dispatch(p.get_default("func")))
+
+
+def _eval_dispatch(simulated):
+    """`ld eval`: the labelled real frames with --labels, else the simulated held-out dataset (`simulated`)."""
+
+    def run(args: argparse.Namespace) -> int:
+        from testbed.errors import UserError
+
+        if args.labels is None:
+            if args.calibration is not None:
+                raise UserError("--calibration goes with --labels")
+            return simulated(args)
+        if args.data is not None:
+            raise UserError("give --data (simulated frames) or --labels (labelled real frames), not both")
+        return _labelled_eval(args)
+
+    return run
+
+
+def _labelled_eval(args: argparse.Namespace) -> int:
+    from hil.vehicle.labelled_eval import LabelledEvalConfig, load_inputs, run_labelled_eval
+    from testbed.errors import UserError
+    from testbed.eval.run.folder import check_out_dir, output_folder
+    from testbed.perception.detectors.registry import make_detector
+    from vehicles.camera_rig import CameraRig
+    from vehicles.params import get_vehicle
+
+    if args.calibration is None:
+        raise UserError("--labels needs --calibration CAL.toml (docs/camera.md; docs/cameras/tusimple.toml for "
+                        "TuSimple frames)")
+    if args.limit is not None and args.limit < 1:
+        raise UserError(f"--limit must be at least 1, got {args.limit}")
+    config = LabelledEvalConfig(labels=args.labels, calibration=args.calibration, detectors=tuple(args.detector),
+                                weights=str(args.weights) if args.weights else None, limit=args.limit)
+    frames, calibration = load_inputs(config)
+    rig = CameraRig(get_vehicle("sedan").camera)
+    params = {"weights": config.weights} if config.weights else {}
+
+    def detector(name: str):
+        return make_detector(name, track=None, rig=rig, params=params if name == "neural" else {})
+
+    check_out_dir(args.out, True, "eval.csv", "a labelled evaluation")
+    with output_folder(args.out, True, "eval.csv", "a labelled evaluation") as tmp:
+        summary = run_labelled_eval(config, frames, calibration, detector, rig, tmp, progress=True)
+    for name, s in summary.items():
+        print(f"{name}: {s['frames']} frames, both lines on {s['both_found']}; ego lanes: accuracy "
+              f"{s['accuracy']:.3f}, "
+              f"FP {s['fp']:.3f}, FN {s['fn']:.3f} (5-30 m: {s['accuracy_5_30']:.3f}, {s['fp_5_30']:.3f}, "
+              f"{s['fn_5_30']:.3f})")
+    print(f"wrote {args.out}/eval.csv, report.md")
     return 0

@@ -159,7 +159,7 @@ def source_pixels(calibration: CameraCalibration, rig: CameraRig, uv: np.ndarray
     ahead = points[:, 2] > 1e-9
     normal = np.full((len(uv), 2), np.inf)
     normal[ahead] = points[ahead, :2] / points[ahead, 2:]
-    lo, hi = _normal_bounds(calibration)
+    lo, hi = normal_bounds(calibration)
     seen = ahead & (normal >= lo).all(axis=1) & (normal <= hi).all(axis=1)
     out = np.full((len(uv), 2), -1.0)
     if seen.any():
@@ -170,7 +170,7 @@ def source_pixels(calibration: CameraCalibration, rig: CameraRig, uv: np.ndarray
     return out
 
 
-def _normal_bounds(calibration: CameraCalibration) -> tuple[np.ndarray, np.ndarray]:
+def normal_bounds(calibration: CameraCalibration) -> tuple[np.ndarray, np.ndarray]:
     """Bounding box of the camera's image in undistorted normalised coordinates (where distortion is one-to-one)."""
     import cv2
 

@@ -64,8 +64,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="checkpoint to write")
     p.set_defaults(func=_existence_refit)
 
-    p = sub.add_parser("eval", help="score detectors on held-out frames per condition")
-    p.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
+    p = sub.add_parser("eval", help="score detectors on held-out frames per condition (or, with the hil package, "
+                                    "on labelled real frames: --labels)")
+    p.add_argument("--data", type=Path, help="held-out dataset directory (required without --labels)")
     p.add_argument("--detector", nargs="+", choices=("neural", "classical"), default=["neural", "classical"])
     p.add_argument("--weights", type=Path, help="neural checkpoint (default: the shipped weights)")
     p.add_argument("--out", type=Path, default=Path("out/ld_eval"))
@@ -196,6 +197,10 @@ def _eval(args: argparse.Namespace) -> int:
     from vehicles.params import get_vehicle
 
     _at_least(args.limit, 1, "--limit")
+    if args.data is None:
+        from testbed.errors import UserError
+
+        raise UserError("ld eval needs --data DIR (a held-out dataset) or --labels FORMAT:PATH")
     check_out_dir(args.out, True, "ld_eval.json", "a lane-detector evaluation")
     rig = CameraRig(get_vehicle("sedan").camera)
     frames = load_frames(args.data, args.limit)

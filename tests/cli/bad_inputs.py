@@ -7,6 +7,8 @@ from tests.cli.case import Case
 from tests.cli.hostile_inputs import HOSTILE
 
 GOOD = 'track = "slr"\nduration = 2.0\n'
+LABEL_CALIBRATION = ("[intrinsics]\nwidth = 640\nheight = 360\nfx = 500\nfy = 500\ncx = 320\ncy = 180\n"
+                     "[extrinsics]\nmount_x = 0\nmount_height = 1.2\npitch_deg = 0\n")
 
 
 def _png(width: int, height: int) -> bytes:
@@ -255,6 +257,35 @@ OTHER_COMMANDS = [
          "--frames", {"f.png": _png(64, 32)}),
     Case("ld-detect-oracle", ("ld", "detect", "--camera", "usb:0", "--detector", "oracle", "--out", "{ws}/d"),
          "does not read a camera"),
+    *(Case(f"ld-eval-labels-{id}", ("ld", "eval", "--labels", labels, "--calibration", "{ws}/c.toml", "--detector",
+                                      "classical", *extra, "--out", "{ws}/e"), says,
+           {"c.toml": LABEL_CALIBRATION, "f.png": _png(64, 36), "g.png": _png(64, 48), **files})
+      for id, labels, extra, says, files in (
+          ("spec", "{ws}/l.json", (), "FORMAT:PATH", {}),
+          ("format", "culane:{ws}/l.json", (), "unknown label format 'culane'", {}),
+          ("missing", "tusimple:{ws}/none.json", (), "none.json", {}),
+          ("empty-folder", "tusimple:{ws}/foreign", (), "no *.json label file", {}),
+          ("empty", "tusimple:{ws}/l.json", (), "no labelled frame", {"l.json": "\n"}),
+          ("malformed", "tusimple:{ws}/l.json", (), "line 1: not a TuSimple label", {"l.json": "{"}),
+          ("no-lanes", "tusimple:{ws}/l.json", (), "not a TuSimple label",
+           {"l.json": '{"raw_file": "f.png", "h_samples": [20, 30]}'}),
+          ("rows", "tusimple:{ws}/l.json", (), "one x per h_samples row",
+           {"l.json": '{"raw_file": "f.png", "h_samples": [20, 30], "lanes": [[1, 2, 3]]}'}),
+          ("no-frame", "tusimple:{ws}/l.json", (), "does not exist",
+           {"l.json": '{"raw_file": "none.png", "h_samples": [20], "lanes": [[1]]}'}),
+          ("not-a-picture", "tusimple:{ws}/l.json", (), "cannot read the labelled frame",
+           {"l.json": '{"raw_file": "c.toml", "h_samples": [20], "lanes": [[1]]}'}),
+          ("shape", "tusimple:{ws}/l.json", (), "not a resized copy",
+           {"l.json": '{"raw_file": "g.png", "h_samples": [20], "lanes": [[1]]}'}),
+          ("limit", "tusimple:{ws}/l.json", ("--limit", "0"), "--limit",
+           {"l.json": '{"raw_file": "f.png", "h_samples": [20], "lanes": [[1]]}'}),
+          ("and-data", "tusimple:{ws}/l.json", ("--data", "{ws}/prev"), "not both", {}),
+      )),
+    Case("ld-eval-labels-no-calibration", ("ld", "eval", "--labels", "tusimple:{ws}/l.json", "--out", "{ws}/e"),
+         "--labels needs --calibration"),
+    Case("ld-eval-calibration-alone", ("ld", "eval", "--data", "{ws}/prev", "--calibration", "{ws}/c.toml",
+                                       "--out", "{ws}/e"), "--calibration goes with --labels"),
+    Case("ld-eval-nothing", ("ld", "eval", "--out", "{ws}/e"), "needs --data DIR"),
     Case("ld-existence-refit-data", ("ld", "existence-refit", "--data", "{ws}/nodata", "--out", "{ws}/w.pt"),
          "nodata"),
     Case("ld-existence-refit-negatives", ("ld", "existence-refit", "--data", "{ws}/nodata", "--negatives", "0",

@@ -77,6 +77,16 @@ def _can_log() -> bytes:
     return (ASC_HEAD + "\n".join(lines) + "\nEnd TriggerBlock\n").encode()
 
 
+def _grey_png() -> bytes:
+    import cv2
+
+    return cv2.imencode(".png", np.full((36, 64, 3), 90, np.uint8))[1].tobytes()
+
+
+TUSIMPLE_LABEL = (b'{"raw_file": "f.png", "h_samples": [20, 25, 30, 35], "lanes": [[30, 26, 22, 18], [-2, 36, 40, 44]]}'
+                  b'\n')
+CALIBRATION = (b"[intrinsics]\nwidth = 640\nheight = 360\nfx = 500\nfy = 500\ncx = 320\ncy = 180\n[extrinsics]\n"
+               b"mount_x = 0\nmount_height = 1.2\npitch_deg = 0\n")
 SUMMARY = json.dumps(fake_summary(scenario="x", defense="none", max_abs_dev_m=0.1).model_dump(mode="json"),
                      indent=2).encode()
 TRAJECTORY = b"t,phys_dev\n" + b"".join(f"{0.025 * i:.3f},{0.01 * i:.4f}\n".encode() for i in range(40))
@@ -106,6 +116,9 @@ FORMATS = [
     Format("can-log", _can_log, "c.asc", ("hil", "replay", "{ws}/c.asc")),
     Format("dataset", _shard, "d/shard_00000.npz", ("ld", "eval", "--data", "{ws}/d", "--detector", "classical",
                                                     "--out", "{ws}/out")),
+    Format("tusimple-labels", lambda: TUSIMPLE_LABEL, "l.json",
+           ("ld", "eval", "--labels", "tusimple:{ws}/l.json", "--calibration", "{ws}/c.toml", "--detector",
+            "classical", "--out", "{ws}/out"), (("f.png", _grey_png()), ("c.toml", CALIBRATION))),
     Format("trajectory-csv", lambda: TRAJECTORY, "run/trajectory.csv", ("compare", "{ws}/run", "--out", "{ws}/out"),
            (("run/summary.json", SUMMARY),)),
     Format("summary-json", lambda: SUMMARY, "run/summary.json", ("compare", "{ws}/run", "--out", "{ws}/out"),
