@@ -13,7 +13,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     ld = subparsers.add_parser("ld", help="lane detector: render datasets, train, evaluate")
     sub = ld.add_subparsers(dest="ld_command", required=True)
 
-    p = sub.add_parser("dataset", help="render labelled camera frames from the presets")
+    p = sub.add_parser("dataset", help="render labelled camera frames from the presets or from map routes")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--frames", type=int, required=True)
     p.add_argument("--split", choices=("train", "heldout"), default="train")
@@ -22,8 +22,12 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--conditions", nargs="+", metavar="CONDITION",
                    help="render episodes in these camera conditions only (default: all, cycled evenly)")
-    p.add_argument("--presets", nargs="+", metavar="PRESET",
-                   help="render episodes of these track presets only (default: all, cycled evenly)")
+    tracks = p.add_mutually_exclusive_group()
+    tracks.add_argument("--presets", nargs="+", metavar="PRESET",
+                        help="render episodes of these track presets only (default: all, cycled evenly)")
+    tracks.add_argument("--tracks", nargs="+", metavar="xodr:FILE[#ROUTE]",
+                        help="render episodes on these OpenDRIVE routes instead of the presets (cycled evenly; "
+                             "the seed draws the frames' places along each route)")
     p.add_argument("--label-draws", type=int, default=0, metavar="K",
                    help="also label each frame under K other draws of the sensor's exposure, blur and noise; "
                         "`ld3 ld eval` then reports how repeatable the existence labels are")
@@ -140,7 +144,7 @@ def _dataset(args: argparse.Namespace) -> int:
     with output_folder(args.out, marker="dataset.json", what="a dataset", can_force=False) as tmp:
         n = build_dataset(tmp, args.frames, args.split, args.seed, args.frames_per_episode,
                       workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws,
-                      traffic=args.traffic, presets=args.presets)
+                      traffic=args.traffic, presets=args.presets, tracks=args.tracks)
     print(f"wrote {n} {args.split} frames to {args.out}")
     return 0
 

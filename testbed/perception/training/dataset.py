@@ -1,21 +1,21 @@
 """Labelled camera frames rendered from the testbed's own camera, for training and evaluating lane detectors.
 
-An episode is one preset track at one seed under one condition: the camera is placed at a run of poses
-along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera pitch and height jitter),
-the frame rendered and labelled from the map and from that frame itself (`labels.ego_lines` with
-`labels.FrameVisibility`: a line whose paint the frame does not show standing out from both sides of it is a
-missing line). On top of the preset's own look the episode randomises asphalt tone, marking brightness,
-exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges, gaps, and the
-one-sided lines of lane splits and merges) so missing lines are common; the run of poses starts anywhere
+An episode is one preset track at one seed (or one map's route, `xodr:FILE[#ROUTE]`) under one condition: the
+camera is placed at a run of poses along a random lane (lateral offset up to ±1.5 m, yaw offset up to ±5°, camera
+pitch and height jitter), the frame rendered and labelled from the map and from that frame itself
+(`labels.ego_lines` with `labels.FrameVisibility`: a line whose paint the frame does not show standing out from
+both sides of it is a missing line). On top of the preset's own look the episode randomises asphalt tone, marking
+brightness, exposure, blur and noise, and erases the paint of random lane-line stretches (unmarked edges, gaps,
+and the one-sided lines of lane splits and merges) so missing lines are common; the run of poses starts anywhere
 along the track (bends, intersections). Each frame's meta keeps its lines' visible fractions and, on request,
 their existence labels under other draws of the sensor randomisation of the same render (`label_draws`: how
-repeatable a label is). With `traffic` > 0 each frame also shows up to that many traffic cars, drawn from a
-stream of their own (so the frames without traffic stay the same): with probability `LEAD_PROBABILITY` a lead
-car in the camera's lane `LEAD_GAP_RANGE_M` ahead of the car's front, the others in random lanes 5–60 m ahead;
-the labels then come from the frame with the cars in it, and the meta keeps the share of the ego lines the cars
-hide (`occluded`, `testbed.perception.training.occlusion`). Track seeds for training come from `TRAIN_SEEDS`;
-`HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files:
-images (N, 160, 320, 3) uint8 plus label arrays; `meta` holds one JSON per frame.
+repeatable a label is). With `traffic` > 0 each frame also shows up to that many traffic cars, drawn from a stream
+of their own (so the frames without traffic stay the same): with probability `LEAD_PROBABILITY` a lead car in the
+camera's lane `LEAD_GAP_RANGE_M` ahead of the car's front, the others in random lanes 5–60 m ahead; the labels
+then come from the frame with the cars in it, and the meta keeps the share of the ego lines the cars hide
+(`occluded`, `testbed.perception.training.occlusion`). Track seeds for training come from `TRAIN_SEEDS`;
+`HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files: images (N, 160, 320, 3)
+uint8 plus label arrays; `meta` holds one JSON per frame.
 """
 
 from __future__ import annotations
@@ -38,6 +38,8 @@ from testbed.perception.training.occlusion import occluded_fraction
 from testbed.perception.training.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from testbed.world import TileStreamer
 from tracks.layout import Boundary, MarkingRun
+from tracks.opendrive.load import PREFIX as XODR_PREFIX
+from tracks.opendrive.model import OpenDriveError
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
@@ -111,29 +113,63 @@ def sensor_randomise(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Episode:
-    """One track, seed and condition; frames are drawn from `seed` too."""
+    """One track, seed and condition; frames are drawn from `seed` too. `track`, when given, is a map's track
+    spec (`xodr:FILE[#ROUTE]`) rendered instead of the preset `preset` at `seed`, which then only names it."""
 
     preset: str
     seed: int
     condition: str
+    track: str | None = None
+
+    @property
+    def track_spec(self) -> str:
+        return self.track if self.track is not None else f"{self.preset}@{self.seed}"
 
 
 def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None,
-             presets: Sequence[str] | None = None) -> list[Episode]:
-    """`count` episodes cycling over `presets` and over `conditions` (default: all of each), each preset ×
-    condition pair once in every presets × conditions episodes; track seeds drawn from the split."""
+             presets: Sequence[str] | None = None, tracks: Sequence[str] | None = None) -> list[Episode]:
+    """`count` episodes cycling over `presets` (or over the map `tracks`, `xodr:FILE[#ROUTE]`, instead) and over
+    `conditions` (default: all of each), each track × condition pair once in every tracks × conditions
+    episodes; track seeds drawn from the split (a map's seed only seeds its frames' draws)."""
     seeds = TRAIN_SEEDS if split == "train" else HELD_OUT_SEEDS
     if split not in ("train", "heldout"):
         raise ValueError(f"split must be 'train' or 'heldout', got {split!r}")
     conditions = _distinct("conditions", conditions, CONDITIONS)
-    presets = _distinct("presets", presets, PRESETS)
+    if tracks is not None and presets is not None:
+        raise UserError("give either presets or map tracks, not both")
+    if tracks is not None:
+        specs: list[str | None] = list(_map_tracks(tracks))
+        names = [map_track_name(t) for t in tracks]
+    else:
+        names = _distinct("presets", presets, PRESETS)
+        specs = [None] * len(names)
     rng = np.random.default_rng([seed, 0 if split == "train" else 1])
     out = []
     for i in range(count):
-        preset = presets[i % len(presets)]
-        condition = conditions[(i // len(presets) + i % len(presets)) % len(conditions)]  # every pair per round
-        out.append(Episode(preset, int(rng.choice(seeds)), condition))
+        k = i % len(names)
+        condition = conditions[(i // len(names) + k) % len(conditions)]  # every pair per round
+        out.append(Episode(names[k], int(rng.choice(seeds)), condition, specs[k]))
     return out
+
+
+def map_track_name(spec: str) -> str:
+    """The name a map's track spec goes by in a dataset's meta: the file's stem, with its route if given."""
+    path, _, route = spec.removeprefix(XODR_PREFIX).partition("#")
+    return Path(path).stem + (f"#{route}" if route else "")
+
+
+def _map_tracks(tracks: Sequence[str]) -> list[str]:
+    """`tracks` as a list, refused unless they are distinct `xodr:` specs of maps that load."""
+    chosen = list(tracks)
+    if not chosen or len(set(chosen)) != len(chosen) or any(not t.startswith(XODR_PREFIX) for t in chosen):
+        raise UserError(f"tracks must be distinct map routes xodr:FILE[#ROUTE] (presets go to --presets); "
+                        f"got {chosen}")
+    for t in chosen:
+        try:
+            load_track(t)  # a map that does not load is refused here, in one line, not in a worker
+        except OpenDriveError as exc:
+            raise UserError(str(exc)) from None
+    return chosen
 
 
 def _distinct(what: str, chosen: Sequence[str] | None, names) -> list[str]:
@@ -177,7 +213,7 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
     key = [ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))]
     rng = np.random.default_rng(key)
     traffic_rng = np.random.default_rng([*key, traffic, TRAFFIC_STREAM])
-    track = load_track(f"{ep.preset}@{ep.seed}")
+    track = load_track(ep.track_spec)
     condition = get_condition(ep.condition)
     erase_stretches(track, rng)
     track.painters = [
@@ -238,6 +274,7 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLay
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,
         "lane_width": truth.width, "deviation": truth.deviation,
         "meta": {"preset": ep.preset, "seed": ep.seed, "condition": ep.condition, "s": round(s, 2),
+                 **({"track": ep.track} if ep.track is not None else {}),
                  "lane": truth.lane, "pose": [round(v, 4) for v in pose],
                  "left_kind": truth.left.kind, "right_kind": truth.right.kind,
                  "pitch_jitter_deg": round(math.degrees(pitch), 4), "height_jitter_m": round(height, 4),
@@ -337,10 +374,11 @@ def _render_to_shard(job: tuple[Episode, int, Path, int, int]) -> int:
 
 def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, frames_per_episode: int = 30,
                   workers: int = 1, progress: bool = False, conditions: Sequence[str] | None = None,
-                  label_draws: int = 0, traffic: int = 0, presets: Sequence[str] | None = None) -> int:
-    """Render about `frames` labelled frames into `out` (one shard per episode; episodes of `presets` in
-    `conditions`, default all of each; each label also under `label_draws` other sensor draws, each frame with up
-    to `traffic` cars, see `render_episode`); returns the frame count."""
+                  label_draws: int = 0, traffic: int = 0, presets: Sequence[str] | None = None,
+                  tracks: Sequence[str] | None = None) -> int:
+    """Render about `frames` labelled frames into `out` (one shard per episode; episodes of `presets`, or of the
+    map routes `tracks`, in `conditions`, default all of each; each label also under `label_draws` other sensor
+    draws, each frame with up to `traffic` cars, see `render_episode`); returns the frame count."""
     if label_draws < 0:
         raise ValueError(f"label_draws must be >= 0, got {label_draws}")
     if traffic < 0:
@@ -353,7 +391,7 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     n_eps = max(1, math.ceil(frames / frames_per_episode))
     jobs = [(ep, min(frames_per_episode, frames - i * frames_per_episode), out / f"shard_{i:05d}.npz", label_draws,
              traffic)
-            for i, ep in enumerate(episodes(split, n_eps, seed, conditions, presets))]
+            for i, ep in enumerate(episodes(split, n_eps, seed, conditions, presets, tracks))]
     out.mkdir(parents=True, exist_ok=True)
     bar = tqdm(total=frames, desc=f"rendering {split}", unit="frame", disable=not progress)
     done = 0
@@ -370,7 +408,8 @@ def build_dataset(out: Path, frames: int, split: str = "train", seed: int = 0, f
     bar.close()
     (out / "dataset.json").write_text(json.dumps({"split": split, "seed": seed, "frames": done,
                                                   "episodes": n_eps, "conditions": conditions or list(CONDITIONS),
-                                                  "presets": presets or list(PRESETS),
+                                                  "presets": [] if tracks else presets or list(PRESETS),
+                                                  "tracks": list(tracks or []),
                                                   "held_out_seeds": [HELD_OUT_SEEDS.start, HELD_OUT_SEEDS.stop],
                                                   "label_draws": label_draws, "traffic": traffic}))
     return done

@@ -120,3 +120,31 @@ def test_traffic_on_a_road_too_short_for_every_car_places_what_fits():
     assert 1 <= len(poses) <= fits
     gaps = np.diff(sorted(track.lanes[0].reference.project(p.x, p.y)[0] for p in poses))
     assert (gaps > car.length).all()
+
+
+def test_episodes_can_be_drawn_on_map_routes_and_label_the_maps_lanes(tmp_path):
+    from testbed.errors import UserError
+    from testbed.perception.training.dataset import Episode, render_episode
+    from tracks.opendrive.write import write_xodr
+    from tracks.presets import load_track
+
+    preset = load_track(f"urban-straight@{TRAIN_SEEDS[3]}")
+    path = tmp_path / "exported.xodr"
+    write_xodr(preset, path)
+    spec = f"xodr:{path}"
+    chosen = episodes("train", 4, 5, ["day", "rain"], tracks=[spec])
+    assert [(ep.preset, ep.track, ep.condition) for ep in chosen] == [
+        ("exported", spec, "day"), ("exported", spec, "rain")] * 2
+    assert [ep.seed for ep in chosen] == [ep.seed for ep in episodes("train", 4, 5)]  # the frames' draws
+    frames = list(render_episode(Episode("exported", TRAIN_SEEDS[3], "day", spec), 4))
+    assert len(frames) == 4
+    for _, label in frames:
+        assert label["meta"]["track"] == spec and label["meta"]["preset"] == "exported"
+        if label["left_exists"] and label["right_exists"]:  # the map's own lane, read from the exported file
+            assert label["left"][0] - label["right"][0] == pytest.approx(label["lane_width"], abs=0.2)
+            assert label["lane_width"] == pytest.approx(preset.lanes[0].width, abs=0.05)
+    for bad in ([f"urban-straight@{TRAIN_SEEDS[3]}"], [], [spec, spec]):
+        with pytest.raises(UserError, match="tracks must be distinct map routes"):
+            episodes("train", 3, 0, tracks=bad)
+    with pytest.raises(UserError, match="either presets or map tracks"):
+        episodes("train", 3, 0, presets=["slr"], tracks=[spec])
