@@ -118,13 +118,14 @@ def score_frame(frame: LabelledFrame, ld: LaneDetection, calibration: CameraCali
                        (left, right), width)
 
 
-def evaluate(frames: list[LabelledFrame], detector, calibration: CameraCalibration, rig: CameraRig,
-             progress: bool = False) -> list[FrameResult]:
-    """Fit each frame to the rig through its calibration (scaled to the frame's size), detect and score it."""
+def evaluate(frames: list[LabelledFrame], detectors: dict, calibration: CameraCalibration, rig: CameraRig,
+             progress: bool = False) -> dict[str, list[FrameResult]]:
+    """Fit each frame to the rig through its calibration (scaled to the frame's size) once, then detect and score
+    it with every detector of `detectors` (name -> detector)."""
     import cv2
 
     fitters: dict[tuple[int, int], tuple[CameraCalibration, Rectifier]] = {}
-    results = []
+    results: dict[str, list[FrameResult]] = {name: [] for name in detectors}
     for k, frame in enumerate(frames):
         bgr = cv2.imread(str(frame.image), cv2.IMREAD_COLOR)
         if bgr is None:
@@ -134,8 +135,9 @@ def evaluate(frames: list[LabelledFrame], detector, calibration: CameraCalibrati
             cal = fitted_calibration(calibration, *size)
             fitters[size] = (cal, Rectifier(cal, rig))
         cal, rectify = fitters[size]
-        ld = detector.detect(CameraFrame(float(k), rectify(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))))
-        results.append(score_frame(frame, ld, cal))
+        view = rectify(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        for name, detector in detectors.items():
+            results[name].append(score_frame(frame, detector.detect(CameraFrame(float(k), view)), cal))
         if progress:
             print(f"\r{k + 1}/{len(frames)} frames", end="", flush=True)
     if progress:
@@ -225,8 +227,8 @@ def run_labelled_eval(config: LabelledEvalConfig, frames: list[LabelledFrame], c
     warning = view_check(calibration, rig)
     rows, summary, pictures = [], {}, {}
     widths: set[int] = set()
-    for name in config.detectors:
-        results = evaluate(frames, make_detector(name), calibration, rig, progress)
+    scored = evaluate(frames, {name: make_detector(name) for name in config.detectors}, calibration, rig, progress)
+    for name, results in scored.items():
         widths |= {r.width for r in results}
         rows += csv_rows(name, results)
         summary[name] = totals(results)
