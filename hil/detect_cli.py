@@ -104,6 +104,7 @@ def _labelled_eval(args: argparse.Namespace) -> int:
     from hil.vehicle.labelled_eval import LabelledEvalConfig, load_inputs, run_labelled_eval
     from testbed.errors import UserError
     from testbed.eval.run.folder import check_out_dir, output_folder
+    from testbed.perception.commands import at_least
     from testbed.perception.detectors.registry import make_detector
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
@@ -111,8 +112,7 @@ def _labelled_eval(args: argparse.Namespace) -> int:
     if args.calibration is None:
         raise UserError("--labels needs --calibration CAL.toml (docs/camera.md; docs/cameras/tusimple.toml for "
                         "TuSimple frames)")
-    if args.limit is not None and args.limit < 1:
-        raise UserError(f"--limit must be at least 1, got {args.limit}")
+    at_least(args.limit, 1, "--limit")
     config = LabelledEvalConfig(labels=args.labels, calibration=args.calibration, detectors=tuple(args.detector),
                                 weights=str(args.weights) if args.weights else None, limit=args.limit)
     frames, calibration = load_inputs(config)

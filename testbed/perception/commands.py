@@ -123,7 +123,7 @@ def _cars(text: str) -> int:
     return n
 
 
-def _at_least(value: float | None, low: float, flag: str) -> None:
+def at_least(value: float | None, low: float, flag: str) -> None:
     """A UserError naming `flag` unless `value` (when given) is a finite number >= `low`."""
     import math
 
@@ -140,7 +140,7 @@ def _dataset(args: argparse.Namespace) -> int:
     for flag, value, low in (("--frames", args.frames, 1), ("--seed", args.seed, 0),
                              ("--frames-per-episode", args.frames_per_episode, 1), ("--workers", args.workers, 1),
                              ("--label-draws", args.label_draws, 0)):
-        _at_least(value, low, flag)
+        at_least(value, low, flag)
     with output_folder(args.out, marker="dataset.json", what="a dataset", can_force=False) as tmp:
         n = build_dataset(tmp, args.frames, args.split, args.seed, args.frames_per_episode,
                       workers=args.workers, progress=True, conditions=args.conditions, label_draws=args.label_draws,
@@ -155,9 +155,9 @@ def _train(args: argparse.Namespace) -> int:
 
     for flag, value, low in (("--epochs", args.epochs, 1), ("--threads", args.threads, 1), ("--limit", args.limit, 1),
                              ("--negatives", args.negatives, 0)):
-        _at_least(value, low, flag)
+        at_least(value, low, flag)
     for flag, value in (("--lr", args.lr), ("--minutes", args.minutes)):
-        _at_least(value, 1e-12, flag)
+        at_least(value, 1e-12, flag)
     cfg = TrainConfig(epochs=args.epochs, threads=args.threads, max_minutes=args.minutes, lr=args.lr,
                       input_rows=args.input_rows, negatives=args.negatives, freeze_bn=args.freeze_bn)
     with output_folder(args.out, True, "lanenet.pt", "a training run") as tmp:
@@ -200,7 +200,7 @@ def _eval(args: argparse.Namespace) -> int:
     from vehicles.camera_rig import CameraRig
     from vehicles.params import get_vehicle
 
-    _at_least(args.limit, 1, "--limit")
+    at_least(args.limit, 1, "--limit")
     if args.data is None:
         from testbed.errors import UserError
 
