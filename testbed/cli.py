@@ -319,20 +319,29 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 
 def cmd_search(args: argparse.Namespace) -> int:
-    from testbed.attacks.threat import parse_threat
-    from testbed.eval.search.attack_search import AttackSearch, SearchSpec
-    from testbed.eval.search.report import write_search_report
+    from concurrent.futures import ThreadPoolExecutor
 
-    victim = search_victim(args)
-    spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
-                      objective=args.objective)
-    search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
-                          timeout=args.timeout, progress=sys.stderr.isatty())
-    print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
-          f"localization {victim.localization}; threat {args.threat}; families "
-          f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
-    search.run()
-    report = write_search_report(search)
+    from testbed.attacks.threat import parse_threat
+    from testbed.eval.campaign.driver import campaign_backend
+
+    # the workers start (and load the simulation) while this process prepares the search; the report's bound is
+    # solved in a thread while the trials run
+    with campaign_backend(args.backend, args.address).kept_warm(args.workers, start=True):
+        from testbed.eval.search.attack_search import AttackSearch, SearchSpec
+        from testbed.eval.search.report import search_bound, write_search_report
+
+        victim = search_victim(args)
+        spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
+                          objective=args.objective)
+        search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
+                              timeout=args.timeout, progress=sys.stderr.isatty())
+        print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
+              f"localization {victim.localization}; threat {args.threat}; families "
+              f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            bound = pool.submit(search_bound, victim)
+            search.run()
+    report = write_search_report(search, bound.result())
     best = search.best()
     if best is not None:
         print(f"worst attack: {best.attack['kind']} (trial {best.number}): detected {best.detected}, |D| before "

@@ -51,9 +51,11 @@ class CampaignBackend(ABC):
         return None
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """Within it, what the backend starts for one batch (worker processes, a cluster connection) may serve
-        the next batches too (a search asks for its trials in batches); the base class keeps nothing."""
+        the next batches too (a search asks for its trials in batches); with `start`, a backend may start it at
+        once for `workers` in flight (None: its default), so that its start overlaps the caller's own set-up
+        before the first batch. The base class keeps and starts nothing."""
         yield
 
     @abstractmethod

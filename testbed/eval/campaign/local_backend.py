@@ -11,6 +11,7 @@ debugger or a notebook work as they are).
 from __future__ import annotations
 
 import ctypes
+import importlib
 import multiprocessing as mp
 import os
 import signal
@@ -40,6 +41,8 @@ from testbed.eval.campaign.run import (
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.2
 WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+WARM_UP_MODULE = "testbed.eval.run.runner"
+"""What a worker imports as it starts (the simulated run: world, loop, attacks, defenses, outputs)."""
 STARTED = "started"
 """What a worker answers first on receiving a run (its imports done): the run's time limit counts from here."""
 
@@ -61,14 +64,20 @@ class LocalBackend(CampaignBackend):
         return _run_in_workers(batch, out, execute, timeout, n_workers, self._warm)
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """Workers started for one batch stay for the next (their imports and what they keep, such as the
-        controller's gain schedules, paid once), until the outermost `kept_warm` ends."""
+        controller's gain schedules, paid once), until the outermost `kept_warm` ends. With `start` (and more
+        than one worker), the workers are spawned at once and load the simulation's modules while the caller
+        prepares its first batch."""
         if self._warm is not None:
             yield
             return
         self._warm = []
         try:
+            n_workers = DEFAULT_WORKERS if workers is None else workers
+            if start and n_workers > 1:
+                ctx = mp.get_context("spawn")
+                self._warm.extend(_Worker.start(ctx) for _ in range(n_workers))
             yield
         finally:
             warm, self._warm = self._warm, None
@@ -110,10 +119,19 @@ def _one_thread() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
+def _load_simulation() -> None:
+    """Import the modules every simulated run needs (`WARM_UP_MODULE`) before the first run arrives: a worker
+    started ahead of its batch loads them while the campaign process is still busy. A module that fails to
+    import is left for the first run to report."""
+    with suppress(Exception):
+        importlib.import_module(WARM_UP_MODULE)
+
+
 def _worker_main(conn: Connection, parent_pid: int) -> None:
     """A worker: run each (run, temporary folder, executor) received and answer its failure record or None."""
     _die_with_parent(parent_pid)
     _one_thread()
+    _load_simulation()
     while True:
         try:
             job = conn.recv()
@@ -227,7 +245,7 @@ def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecuto
             while len(pool) < min(n_workers, len(pending) + sum(w.job is not None for w in pool)):
                 pool.append(_Worker.start(ctx))
             for worker in pool:
-                if pending and worker.job is None:
+                if pending and worker.job is None and sum(w.job is not None for w in pool) < n_workers:
                     run = pending.pop()
                     worker.give(run, out, execute, run_limit(run, timeout))
             busy = [(w, w.job) for w in pool if w.job is not None]

@@ -79,9 +79,10 @@ class RayBackend(CampaignBackend):
         return self._connection[2]
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """The Ray connection made for one batch serves the next ones, until the outermost `kept_warm` ends (a
-        local instance started for it is shut down then)."""
+        local instance started for it is shut down then). `start` is not used: the first batch connects (its
+        address comes with the batch)."""
         if self._warm is not None:
             yield
             return

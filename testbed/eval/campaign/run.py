@@ -15,10 +15,11 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from testbed.eval.run.scenario import Scenario
-from testbed.eval.run.summary import RunSummary
+if TYPE_CHECKING:  # only named here: a campaign's backends start workers before the simulation's modules load
+    from testbed.eval.run.scenario import Scenario
+    from testbed.eval.run.summary import RunSummary
 
 TMP_MARK = ".tmp-"
 RUN_LOG = "run.log"
@@ -38,7 +39,7 @@ class CampaignRun:
     tags: dict[str, Any]
 
 
-RunExecutor = Callable[[CampaignRun, Path], RunSummary]
+RunExecutor = Callable[[CampaignRun, Path], "RunSummary"]
 """Runs one campaign run into the folder it is given (a temporary folder, already created) and returns its
 summary; it must write summary.json there (the campaign reads that file back, not what is returned). A
 module-level function, so that worker processes can import it."""
