@@ -79,9 +79,15 @@ class LocalBackend(CampaignBackend):
                 ctx = mp.get_context("spawn")
                 self._warm.extend(_Worker.start(ctx) for _ in range(n_workers))
             yield
-        finally:
+        except BaseException:  # the caller failed (bad input, an interrupt): no need to wait for a warm-up
             warm, self._warm = self._warm, None
-            _stop_all(warm)
+            for worker in warm:
+                worker.kill()
+            raise
+        finally:
+            if self._warm is not None:
+                warm, self._warm = self._warm, None
+                _stop_all(warm)
 
 
 def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
