@@ -324,11 +324,12 @@ def cmd_search(args: argparse.Namespace) -> int:
     from concurrent.futures import ThreadPoolExecutor
 
     from testbed.attacks.threat import parse_threat
-    from testbed.eval.campaign.driver import campaign_backend
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS
 
     # the workers start (and load the simulation) while this process prepares the search (bad input ends them at
-    # once); the report's bound is solved in a thread while the trials run
-    with campaign_backend(args.backend, args.address).kept_warm(args.workers, start=True):
+    # once; the search checks the backend and the address); the report's bound is solved in a thread while the
+    # trials run
+    with CAMPAIGN_BACKENDS.get(args.backend).kept_warm(args.workers, start=True):
         from testbed.eval.search.attack_search import AttackSearch, SearchSpec
         from testbed.eval.search.report import search_bound, write_search_report
 

@@ -17,9 +17,9 @@ from matplotlib.figure import Figure
 
 from testbed.errors import UserError
 from testbed.eval.campaign.driver import (
+    CAMPAIGN_BACKENDS,
     CampaignRun,
     RunExecutor,
-    campaign_backend,
     run_and_write,
     run_and_write_data,
     run_campaign,
@@ -559,8 +559,9 @@ def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | 
     spec = CAMPAIGNS.get(name)
     figures = figures_choice(spec, figures)
     execute = spec.execute if figures else run_and_write_data
-    # the workers start (and load the simulation) while this process builds the runs
-    with campaign_backend(backend, address).kept_warm(workers, start=True):
+    # the workers start (and load the simulation) while this process builds the runs (`run_campaign` checks the
+    # backend and the address)
+    with CAMPAIGN_BACKENDS.get(backend).kept_warm(workers, start=True):
         runs = selected_runs(name, detector, select, settings, attacks, budget, maps)
         if spec.searches is not None:
             done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
