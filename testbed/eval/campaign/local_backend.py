@@ -18,7 +18,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
@@ -52,11 +52,12 @@ class LocalBackend(CampaignBackend):
 
     name = "local"
     help = "worker processes on this machine (default 2; 1: every run in this process)"
+    draws = True
 
     def __init__(self) -> None:
         self._warm: list[_Worker] | None = None
 
-    def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+    def run(self, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
         n_workers = DEFAULT_WORKERS if workers is None else workers
         if n_workers == 1:
@@ -90,7 +91,7 @@ class LocalBackend(CampaignBackend):
                 _stop_all(warm)
 
 
-def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+def _run_in_process(batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     ) -> Iterator[RunOutcome]:
     """Each run in this process, one after the other, within its limit."""
     for run in batch:
@@ -237,23 +238,28 @@ def _stop_all(workers: Sequence[_Worker]) -> None:
         worker.wait_stopped()
 
 
-def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+def _run_in_workers(batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     n_workers: int, warm: list[_Worker] | None = None) -> Iterator[RunOutcome]:
-    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced. With `warm`
-    (the workers kept between batches) idle workers are taken from it and left in it at the end; without,
-    every worker is stopped at the end."""
+    """The runs on up to `n_workers` spawned workers, each run drawn from `batch` when a worker is free for it; a
+    worker that dies or times out is replaced. With `warm` (the workers kept between batches) idle workers are
+    taken from it and left in it at the end; without, every worker is stopped at the end."""
     ctx = mp.get_context("spawn")
-    pending = list(reversed(batch))
+    pending = iter(batch)
+    drawn_all = False
     pool: list[_Worker] = [] if warm is None else warm
     try:
         while True:
             pool = [w for w in pool if w.job is not None or w.process.is_alive()]
-            while len(pool) < min(n_workers, len(pending) + sum(w.job is not None for w in pool)):
-                pool.append(_Worker.start(ctx))
-            for worker in pool:
-                if pending and worker.job is None and sum(w.job is not None for w in pool) < n_workers:
-                    run = pending.pop()
-                    worker.give(run, out, execute, run_limit(run, timeout))
+            while not drawn_all and sum(w.job is not None for w in pool) < n_workers:
+                run = next(pending, None)
+                if run is None:
+                    drawn_all = True
+                    break
+                worker = next((w for w in pool if w.job is None), None)
+                if worker is None:
+                    worker = _Worker.start(ctx)
+                    pool.append(worker)
+                worker.give(run, out, execute, run_limit(run, timeout))
             busy = [(w, w.job) for w in pool if w.job is not None]
             if not busy:
                 return

@@ -1,4 +1,5 @@
-"""One campaign run and how any backend attempts it: the run's spec, its time limit, the temporary folder it is
+"""One campaign run (or a queue of runs made as they can start) and how any backend attempts it: the run's spec,
+its time limit, the temporary folder it is
 written into beside its final folder, and a guarded attempt of its executor that returns a failure record
 (`run_id: ErrorType: message`, the traceback tail indented below) instead of raising."""
 
@@ -11,7 +12,7 @@ import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,17 @@ class CampaignRun:
     run_id: str
     scenario: Scenario
     tags: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class RunQueue:
+    """Runs known by their ids before their scenarios: `make(run_id)` gives each run, called once per id in the
+    order of `run_ids` as late as the backend allows (a backend that `draws` calls it when a worker is free for
+    the run), so that a search asks its sampler for a trial when the trial can start, not for a whole batch
+    first."""
+
+    run_ids: Sequence[str]
+    make: Callable[[str], CampaignRun]
 
 
 RunExecutor = Callable[[CampaignRun, Path], "RunSummary"]
