@@ -261,20 +261,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from testbed.eval.campaign.driver import CampaignBusyError
-    from testbed.eval.experiments.campaigns import run_named
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS, CampaignBusyError
 
     if args.name == "list":
         return _campaign_list(args)
     out = args.out or Path("runs") / f"campaign-{args.name}"
-    try:
-        report = run_named(args.name, out, detector=args.detector, workers=args.workers,
-                           progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
-                           backend=args.backend or "local", address=args.address, attacks=args.attack,
-                           budget=args.budget, maps=args.maps,
-                           figures=True if args.figures_now else False if args.figures_later else None)
-    except CampaignBusyError as exc:
-        raise UserError(str(exc)) from None
+    # the workers start (and load the simulation) while this process loads the campaigns and builds the runs
+    with CAMPAIGN_BACKENDS.get(args.backend or "local").kept_warm(args.workers, start=True):
+        from testbed.eval.experiments.campaigns import run_named
+
+        try:
+            report = run_named(args.name, out, detector=args.detector, workers=args.workers,
+                               progress=sys.stderr.isatty(), select=args.runs, settings=args.set,
+                               timeout=args.timeout, backend=args.backend or "local", address=args.address,
+                               attacks=args.attack, budget=args.budget, maps=args.maps,
+                               figures=True if args.figures_now else False if args.figures_later else None)
+        except CampaignBusyError as exc:
+            raise UserError(str(exc)) from None
     print(report.read_text())
     print(f"report: {report}")
     return 0
