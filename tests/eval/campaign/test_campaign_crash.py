@@ -250,3 +250,16 @@ def test_workers_started_ahead_are_not_more_in_flight_than_a_batch_asks(tmp_path
         done = run_campaign([CampaignRun(f"r{i}", sc, {}) for i in range(6)], tmp_path, workers=2,
                             progress=False, execute=process_probe)
     assert len(done) == 6 and len({s.attack_state["pid"] for _, s in done}) == 2
+
+
+def test_workers_started_ahead_end_at_once_when_the_caller_fails():
+    from testbed.errors import UserError
+    from testbed.eval.campaign.driver import campaign_backend
+
+    before = {p.pid for p in mp.active_children()}
+    with pytest.raises(UserError, match="bad input"), campaign_backend("local", None).kept_warm(2, start=True):
+        ahead = {p.pid for p in mp.active_children()} - before
+        t0 = time.monotonic()
+        raise UserError("bad input")
+    assert time.monotonic() - t0 < 1.0  # killed, not waited for while they still load the simulation
+    assert len(ahead) == 2 and not ahead & {p.pid for p in mp.active_children()}
