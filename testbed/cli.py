@@ -261,19 +261,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from testbed.eval.campaign.driver import CampaignBusyError
-    from testbed.eval.experiments.campaigns import run_named
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS, CampaignBusyError
 
     if args.name == "list":
         return _campaign_list(args)
     out = args.out or Path("runs") / f"campaign-{args.name}"
-    try:
-        report = run_named(args.name, out, detector=args.detector, workers=args.workers,
-                           progress=sys.stderr.isatty(), select=args.runs, settings=args.set, timeout=args.timeout,
-                           backend=args.backend or "local", address=args.address, attacks=args.attack,
-                           budget=args.budget, maps=args.maps, figures=not args.figures_later)
-    except CampaignBusyError as exc:
-        raise UserError(str(exc)) from None
+    # the workers start (and load the simulation) while this process loads the campaigns and builds the runs
+    with CAMPAIGN_BACKENDS.get(args.backend or "local").kept_warm(args.workers, start=True):
+        from testbed.eval.experiments.campaigns import run_named
+
+        try:
+            report = run_named(args.name, out, detector=args.detector, workers=args.workers,
+                               progress=sys.stderr.isatty(), select=args.runs, settings=args.set,
+                               timeout=args.timeout, backend=args.backend or "local", address=args.address,
+                               attacks=args.attack, budget=args.budget, maps=args.maps,
+                               figures=True if args.figures_now else False if args.figures_later else None)
+        except CampaignBusyError as exc:
+            raise UserError(str(exc)) from None
     print(report.read_text())
     print(f"report: {report}")
     return 0
@@ -288,7 +292,8 @@ def _campaign_list(args: argparse.Namespace) -> int:
     unused = [flag for flag, value in (("--out", args.out), ("--timeout", args.timeout), ("--runs", args.runs),
                                        ("--set", args.set), ("--attack", args.attack), ("--backend", args.backend),
                                        ("--address", args.address), ("--budget", args.budget),
-                                       ("--maps", args.maps), ("--figures-later", args.figures_later))
+                                       ("--maps", args.maps), ("--figures-later", args.figures_later),
+                                       ("--figures-now", args.figures_now))
               if value]
     if unused:
         raise UserError(f"`ld3 campaign list` takes only --detector and --workers; drop {', '.join(unused)}")
@@ -319,20 +324,30 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 
 def cmd_search(args: argparse.Namespace) -> int:
-    from testbed.attacks.threat import parse_threat
-    from testbed.eval.search.attack_search import AttackSearch, SearchSpec
-    from testbed.eval.search.report import write_search_report
+    from concurrent.futures import ThreadPoolExecutor
 
-    victim = search_victim(args)
-    spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
-                      objective=args.objective)
-    search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
-                          timeout=args.timeout, progress=sys.stderr.isatty())
-    print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
-          f"localization {victim.localization}; threat {args.threat}; families "
-          f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
-    search.run()
-    report = write_search_report(search)
+    from testbed.attacks.threat import parse_threat
+    from testbed.eval.campaign.driver import CAMPAIGN_BACKENDS
+
+    # the workers start (and load the simulation) while this process prepares the search (bad input ends them at
+    # once; the search checks the backend and the address); the report's bound is solved in a thread while the
+    # trials run
+    with CAMPAIGN_BACKENDS.get(args.backend).kept_warm(args.workers, start=True):
+        from testbed.eval.search.attack_search import AttackSearch, SearchSpec
+        from testbed.eval.search.report import search_bound, write_search_report
+
+        victim = search_victim(args)
+        spec = SearchSpec(victim, parse_threat(args.threat), args.budget, seed=args.search_seed, batch=args.batch,
+                          objective=args.objective)
+        search = AttackSearch(spec, args.out, workers=args.workers, backend=args.backend, address=args.address,
+                              timeout=args.timeout, progress=sys.stderr.isatty())
+        print(f"search on {victim.name} ({victim.track}): defense {victim.defense}, detector {victim.detector}, "
+              f"localization {victim.localization}; threat {args.threat}; families "
+              f"{', '.join(c.name for c in search.families)}; budget {args.budget}")
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            bound = pool.submit(search_bound, victim)
+            search.run()
+    report = write_search_report(search, bound.result())
     best = search.best()
     if best is not None:
         print(f"worst attack: {best.attack['kind']} (trial {best.number}): detected {best.detected}, |D| before "
@@ -569,9 +584,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--budget", type=int, help="search campaigns (adaptive): trials of each search (default 24)")
     p.add_argument("--maps", nargs="+", default=[], metavar="DIR|FILE",
                    help="campaign maps: the OpenDRIVE files, or folders of them, whose default routes it drives")
-    p.add_argument("--figures-later", action="store_true",
-                   help="runs write believed.csv in place of birdseye.png and ar_fusion.png, which `ld3 figures "
-                        "OUT` draws later (campaigns whose runs write the standard outputs)")
+    figures = p.add_mutually_exclusive_group()
+    figures.add_argument("--figures-later", action="store_true",
+                         help="runs write believed.csv in place of birdseye.png and ar_fusion.png, which `ld3 "
+                              "figures OUT` draws later (campaigns whose runs write the standard outputs; the "
+                              "default of those whose help says so)")
+    figures.add_argument("--figures-now", action="store_true",
+                         help="runs draw birdseye.png and ar_fusion.png at their end, also in a campaign that "
+                              "leaves them for later by default (fusionripper-grid, ablation)")
     p.set_defaults(func=cmd_campaign)
 
     p = sub.add_parser("paper", help="every experiment of the paper (resumable) and one report with the paper's "

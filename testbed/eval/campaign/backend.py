@@ -9,7 +9,7 @@ place or removes it) exactly as for every other backend, so a backend never writ
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import ClassVar, NamedTuple
@@ -43,6 +43,9 @@ class CampaignBackend(ABC):
     needs: ClassVar[frozenset[Capability]] = frozenset()
     connects: ClassVar[bool] = False
     """Whether the backend takes a cluster address (`--address`)."""
+    draws: ClassVar[bool] = False
+    """Whether `run` takes its batch as any iterable and draws each run from it only when the run can start (a
+    `RunQueue` makes its runs then); a backend that does not is given a list, every run made first."""
 
     def check(self, address: str | None) -> None:
         """Raise BackendUnavailable (one line naming the fix) when the backend cannot run here; called before
@@ -51,14 +54,17 @@ class CampaignBackend(ABC):
         return None
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """Within it, what the backend starts for one batch (worker processes, a cluster connection) may serve
-        the next batches too (a search asks for its trials in batches); the base class keeps nothing."""
+        the next batches too (a search asks for its trials in batches); with `start`, a backend may start it at
+        once for `workers` in flight (None: its default), so that its start overlaps the caller's own set-up
+        before the first batch. The base class keeps and starts nothing."""
         yield
 
     @abstractmethod
-    def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+    def run(self, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
-        """Execute each run of `batch` with `execute` into `temp_dir(out, run.run_id)` within its `run_limit`,
-        yielding its outcome as it finishes (a run that fails, times out or loses its worker is an outcome with
-        its failure record, never an exception). Closing the iterator stops the runs still in flight."""
+        """Execute each run of `batch` (a list unless the backend `draws`) with `execute` into
+        `temp_dir(out, run.run_id)` within its `run_limit`, yielding its outcome as it finishes (a run that fails,
+        times out or loses its worker is an outcome with its failure record, never an exception). Closing the
+        iterator stops the runs still in flight."""

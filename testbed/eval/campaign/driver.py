@@ -34,7 +34,15 @@ from testbed.errors import UserError
 from testbed.eval.campaign.backend import CampaignBackend
 from testbed.eval.campaign.local_backend import LocalBackend
 from testbed.eval.campaign.ray_backend import RayBackend
-from testbed.eval.campaign.run import TMP_MARK, CampaignRun, RunExecutor, failure_record, remove_path, temp_dir
+from testbed.eval.campaign.run import (
+    TMP_MARK,
+    CampaignRun,
+    RunExecutor,
+    RunQueue,
+    failure_record,
+    remove_path,
+    temp_dir,
+)
 from testbed.eval.run.summary import RunSummary, read_summary
 from testbed.registry import Registry
 
@@ -131,22 +139,22 @@ def check_campaign_dir(out: Path) -> None:
         raise UserError(f"--out {out} holds files that are not a campaign's; choose a new or empty folder")
 
 
-def _sweep(runs: Sequence[CampaignRun], out: Path) -> list[str]:
+def _sweep(run_ids: Sequence[str], out: Path) -> list[str]:
     """Remove the runs' leftover temporary folders and incomplete run folders; `run_id: what` for each."""
     leftovers: dict[Path, list[Path]] = {}
-    for parent in {(out / r.run_id).parent for r in runs}:
+    for parent in {(out / i).parent for i in run_ids}:
         for entry in parent.iterdir() if parent.is_dir() else ():
             if entry.name.startswith(".") and TMP_MARK in entry.name:
                 leftovers.setdefault(parent / entry.name[1:entry.name.rindex(TMP_MARK)], []).append(entry)
     redone = []
-    for run in runs:
-        final = out / run.run_id
+    for run_id in run_ids:
+        final = out / run_id
         for tmp in sorted(leftovers.get(final, [])):
             remove_path(tmp)
-            redone.append(f"{run.run_id}: removed the unfinished temporary folder {tmp.name}")
+            redone.append(f"{run_id}: removed the unfinished temporary folder {tmp.name}")
         if final.exists() and isinstance(problem := load_summary(final), str):
             remove_path(final)
-            redone.append(f"{run.run_id}: removed the incomplete run folder ({problem}); redoing it")
+            redone.append(f"{run_id}: removed the incomplete run folder ({problem}); redoing it")
     return redone
 
 
@@ -171,12 +179,13 @@ def campaign_backend(name: str, address: str | None) -> CampaignBackend:
     return backend
 
 
-def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = None, progress: bool = True,
-                 execute: RunExecutor = run_and_write, timeout: float | None = None, backend: str = "local",
-                 address: str | None = None) -> list[tuple[CampaignRun, RunSummary]]:
+def run_campaign(runs: Sequence[CampaignRun] | RunQueue, out: Path, workers: int | None = None,
+                 progress: bool = True, execute: RunExecutor = run_and_write, timeout: float | None = None,
+                 backend: str = "local", address: str | None = None) -> list[tuple[CampaignRun, RunSummary]]:
     """Run every campaign run not yet done with `execute`, each within `timeout` seconds (default
     `run_timeout` per run), on the registered `backend` with at most `workers` in flight (its default when
-    None) and the cluster `address` where it takes one; returns (run, summary) for all runs that are done."""
+    None) and the cluster `address` where it takes one; returns (run, summary) for all runs that are done. A
+    `RunQueue`'s runs are made as the backend draws them (all of them, in order, done or not)."""
     if timeout is not None and not timeout > 0:
         raise UserError(f"timeout must be > 0 s, got {timeout}")
     if workers is not None and workers < 1:
@@ -184,18 +193,34 @@ def run_campaign(runs: Sequence[CampaignRun], out: Path, workers: int | None = N
     chosen = campaign_backend(backend, address)
     check_campaign_dir(out)
     out.mkdir(parents=True, exist_ok=True)
+    queue = runs if isinstance(runs, RunQueue) else RunQueue([r.run_id for r in runs], {r.run_id: r for r in runs}.get)
     with _folder_lock(out):
-        redone = _sweep(runs, out)
+        redone = _sweep(queue.run_ids, out)
         for line in redone:
             print(f"{out.name}: {line}", file=sys.stderr)
         _write_record(out / "redone.txt", redone)
-        todo = [r for r in runs if not (out / r.run_id).exists()]
+        todo = [i for i in queue.run_ids if not (out / i).exists()]
+        made: list[CampaignRun] = []
         with tqdm(total=len(todo), desc=out.name, disable=not progress or not todo) as bar:
-            failures = _execute(chosen, todo, out, execute, timeout, workers, address, bar) if todo else []
+            drawn = _draw(queue, set(todo), made)
+            if todo and not chosen.draws:
+                drawn = list(drawn)
+            failures = _execute(chosen, drawn, out, execute, timeout, workers, address, bar) if todo else []
+        made += [queue.make(i) for i in queue.run_ids[len(made):]]  # nothing to run: made all the same, in order
         _write_record(out / "failures.txt", failures)
-        done = done_runs(runs, out)
+        done = done_runs(made, out)
         _write_runs_csv(out / "runs.csv", done)
     return done
+
+
+def _draw(queue: RunQueue, todo: set[str], made: list[CampaignRun]) -> Iterator[CampaignRun]:
+    """The queue's runs to do, each made when drawn; every run made on the way (done ones too, in the queue's
+    order) is added to `made`."""
+    for run_id in queue.run_ids:
+        run = queue.make(run_id)
+        made.append(run)
+        if run_id in todo:
+            yield run
 
 
 def done_runs(runs: Iterable[CampaignRun], out: Path) -> list[tuple[CampaignRun, RunSummary]]:
@@ -205,7 +230,7 @@ def done_runs(runs: Iterable[CampaignRun], out: Path) -> list[tuple[CampaignRun,
             if isinstance(load_summary(out / run.run_id), dict)]
 
 
-def _execute(backend: CampaignBackend, todo: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+def _execute(backend: CampaignBackend, todo: Iterable[CampaignRun], out: Path, execute: RunExecutor,
              timeout: float | None, workers: int | None, address: str | None, bar: tqdm) -> list[str]:
     """The runs on `backend`, each settled as it finishes; returns the failure records."""
     failures: list[str] = []

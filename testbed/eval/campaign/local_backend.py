@@ -11,13 +11,14 @@ debugger or a notebook work as they are).
 from __future__ import annotations
 
 import ctypes
+import importlib
 import multiprocessing as mp
 import os
 import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
@@ -40,6 +41,8 @@ from testbed.eval.campaign.run import (
 PR_SET_PDEATHSIG = 1
 WATCHDOG_PERIOD_S = 0.2
 WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+WARM_UP_MODULE = "testbed.eval.run.runner"
+"""What a worker imports as it starts (the simulated run: world, loop, attacks, defenses, outputs)."""
 STARTED = "started"
 """What a worker answers first on receiving a run (its imports done): the run's time limit counts from here."""
 
@@ -49,11 +52,12 @@ class LocalBackend(CampaignBackend):
 
     name = "local"
     help = "worker processes on this machine (default 2; 1: every run in this process)"
+    draws = True
 
     def __init__(self) -> None:
         self._warm: list[_Worker] | None = None
 
-    def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+    def run(self, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
         n_workers = DEFAULT_WORKERS if workers is None else workers
         if n_workers == 1:
@@ -61,21 +65,33 @@ class LocalBackend(CampaignBackend):
         return _run_in_workers(batch, out, execute, timeout, n_workers, self._warm)
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """Workers started for one batch stay for the next (their imports and what they keep, such as the
-        controller's gain schedules, paid once), until the outermost `kept_warm` ends."""
+        controller's gain schedules, paid once), until the outermost `kept_warm` ends. With `start` (and more
+        than one worker), the workers are spawned at once and load the simulation's modules while the caller
+        prepares its first batch."""
         if self._warm is not None:
             yield
             return
         self._warm = []
         try:
+            n_workers = DEFAULT_WORKERS if workers is None else workers
+            if start and n_workers > 1:
+                ctx = mp.get_context("spawn")
+                self._warm.extend(_Worker.start(ctx) for _ in range(n_workers))
             yield
-        finally:
+        except BaseException:  # the caller failed (bad input, an interrupt): no need to wait for a warm-up
             warm, self._warm = self._warm, None
-            _stop_all(warm)
+            for worker in warm:
+                worker.kill()
+            raise
+        finally:
+            if self._warm is not None:
+                warm, self._warm = self._warm, None
+                _stop_all(warm)
 
 
-def _run_in_process(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+def _run_in_process(batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     ) -> Iterator[RunOutcome]:
     """Each run in this process, one after the other, within its limit."""
     for run in batch:
@@ -110,10 +126,19 @@ def _one_thread() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
+def _load_simulation() -> None:
+    """Import the modules every simulated run needs (`WARM_UP_MODULE`) before the first run arrives: a worker
+    started ahead of its batch loads them while the campaign process is still busy. A module that fails to
+    import is left for the first run to report."""
+    with suppress(Exception):
+        importlib.import_module(WARM_UP_MODULE)
+
+
 def _worker_main(conn: Connection, parent_pid: int) -> None:
     """A worker: run each (run, temporary folder, executor) received and answer its failure record or None."""
     _die_with_parent(parent_pid)
     _one_thread()
+    _load_simulation()
     while True:
         try:
             job = conn.recv()
@@ -213,23 +238,28 @@ def _stop_all(workers: Sequence[_Worker]) -> None:
         worker.wait_stopped()
 
 
-def _run_in_workers(batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+def _run_in_workers(batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
                     n_workers: int, warm: list[_Worker] | None = None) -> Iterator[RunOutcome]:
-    """The runs on up to `n_workers` spawned workers; a worker that dies or times out is replaced. With `warm`
-    (the workers kept between batches) idle workers are taken from it and left in it at the end; without,
-    every worker is stopped at the end."""
+    """The runs on up to `n_workers` spawned workers, each run drawn from `batch` when a worker is free for it; a
+    worker that dies or times out is replaced. With `warm` (the workers kept between batches) idle workers are
+    taken from it and left in it at the end; without, every worker is stopped at the end."""
     ctx = mp.get_context("spawn")
-    pending = list(reversed(batch))
+    pending = iter(batch)
+    drawn_all = False
     pool: list[_Worker] = [] if warm is None else warm
     try:
         while True:
             pool = [w for w in pool if w.job is not None or w.process.is_alive()]
-            while len(pool) < min(n_workers, len(pending) + sum(w.job is not None for w in pool)):
-                pool.append(_Worker.start(ctx))
-            for worker in pool:
-                if pending and worker.job is None:
-                    run = pending.pop()
-                    worker.give(run, out, execute, run_limit(run, timeout))
+            while not drawn_all and sum(w.job is not None for w in pool) < n_workers:
+                run = next(pending, None)
+                if run is None:
+                    drawn_all = True
+                    break
+                worker = next((w for w in pool if w.job is None), None)
+                if worker is None:
+                    worker = _Worker.start(ctx)
+                    pool.append(worker)
+                worker.give(run, out, execute, run_limit(run, timeout))
             busy = [(w, w.job) for w in pool if w.job is not None]
             if not busy:
                 return

@@ -18,7 +18,7 @@ import logging
 import socket
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +50,7 @@ class RayBackend(CampaignBackend):
     name = "ray"
     help = f"Ray tasks on a local Ray instance or the cluster at --address (needs {INSTALL_HINT})"
     connects = True
+    draws = True
 
     def __init__(self) -> None:
         self._warm: ExitStack | None = None
@@ -61,7 +62,7 @@ class RayBackend(CampaignBackend):
         if address is not None:
             probe(address)
 
-    def run(self, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
+    def run(self, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor, timeout: float | None,
             workers: int | None, address: str | None) -> Iterator[RunOutcome]:
         ray = require_ray()
         if self._warm is None:
@@ -79,9 +80,10 @@ class RayBackend(CampaignBackend):
         return self._connection[2]
 
     @contextmanager
-    def kept_warm(self) -> Iterator[None]:
+    def kept_warm(self, workers: int | None = None, *, start: bool = False) -> Iterator[None]:
         """The Ray connection made for one batch serves the next ones, until the outermost `kept_warm` ends (a
-        local instance started for it is shut down then)."""
+        local instance started for it is shut down then). `start` is not used: the first batch connects (its
+        address comes with the batch)."""
         if self._warm is not None:
             yield
             return
@@ -203,26 +205,33 @@ def _place(run: CampaignRun, out: Path, error: str | None, files: dict[str, byte
     return RunOutcome(run, error)
 
 
-def _run_connected(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+def _run_connected(ray: ModuleType, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor,
                    timeout: float | None, workers: int | None, address: str | None) -> Iterator[RunOutcome]:
     """The runs as Ray tasks on a connection of their own (see the module docstring)."""
     with connected(ray, address, workers) as slots:
         yield from _run_tasks(ray, batch, out, execute, timeout, slots)
 
 
-def _run_tasks(ray: ModuleType, batch: Sequence[CampaignRun], out: Path, execute: RunExecutor,
+def _run_tasks(ray: ModuleType, batch: Iterable[CampaignRun], out: Path, execute: RunExecutor,
                timeout: float | None, slots: int) -> Iterator[RunOutcome]:
-    """The runs as Ray tasks on the open connection, at most `slots` in flight (see the module docstring)."""
+    """The runs as Ray tasks on the open connection, at most `slots` in flight, each drawn from `batch` when a
+    slot is free for it (see the module docstring)."""
     task = ray.remote(num_cpus=1, max_retries=0)(execute_in_scratch)
-    pending = list(reversed(batch))
+    pending = iter(batch)
+    drawn_all = False
     in_flight: dict[Any, _Task] = {}
     try:
-        while pending or in_flight:
-            while pending and len(in_flight) < slots:
-                run = pending.pop()
+        while True:
+            while not drawn_all and len(in_flight) < slots:
+                run = next(pending, None)
+                if run is None:
+                    drawn_all = True
+                    break
                 limit = run_limit(run, timeout)
                 in_flight[task.remote(execute, run, limit)] = _Task(run, limit, time.monotonic() + limit
                                                                     + START_ALLOWANCE_S)
+            if not in_flight:
+                return
             wait_s = max(0.0, min(t.deadline for t in in_flight.values()) - time.monotonic())
             ready, _ = ray.wait(list(in_flight), num_returns=1, timeout=wait_s)
             for ref in ready:

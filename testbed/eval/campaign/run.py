@@ -1,4 +1,5 @@
-"""One campaign run and how any backend attempts it: the run's spec, its time limit, the temporary folder it is
+"""One campaign run (or a queue of runs made as they can start) and how any backend attempts it: the run's spec,
+its time limit, the temporary folder it is
 written into beside its final folder, and a guarded attempt of its executor that returns a failure record
 (`run_id: ErrorType: message`, the traceback tail indented below) instead of raising."""
 
@@ -11,14 +12,15 @@ import signal
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from testbed.eval.run.scenario import Scenario
-from testbed.eval.run.summary import RunSummary
+if TYPE_CHECKING:  # only named here: a campaign's backends start workers before the simulation's modules load
+    from testbed.eval.run.scenario import Scenario
+    from testbed.eval.run.summary import RunSummary
 
 TMP_MARK = ".tmp-"
 RUN_LOG = "run.log"
@@ -38,7 +40,18 @@ class CampaignRun:
     tags: dict[str, Any]
 
 
-RunExecutor = Callable[[CampaignRun, Path], RunSummary]
+@dataclass(frozen=True)
+class RunQueue:
+    """Runs known by their ids before their scenarios: `make(run_id)` gives each run, called once per id in the
+    order of `run_ids` as late as the backend allows (a backend that `draws` calls it when a worker is free for
+    the run), so that a search asks its sampler for a trial when the trial can start, not for a whole batch
+    first."""
+
+    run_ids: Sequence[str]
+    make: Callable[[str], CampaignRun]
+
+
+RunExecutor = Callable[[CampaignRun, Path], "RunSummary"]
 """Runs one campaign run into the folder it is given (a temporary folder, already created) and returns its
 summary; it must write summary.json there (the campaign reads that file back, not what is returned). A
 module-level function, so that worker processes can import it."""

@@ -16,7 +16,14 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from testbed.errors import UserError
-from testbed.eval.campaign.driver import CampaignRun, RunExecutor, run_and_write, run_and_write_data, run_campaign
+from testbed.eval.campaign.driver import (
+    CAMPAIGN_BACKENDS,
+    CampaignRun,
+    RunExecutor,
+    run_and_write,
+    run_and_write_data,
+    run_campaign,
+)
 from testbed.eval.experiments.ablation import ablation_runs, ablation_table
 from testbed.eval.experiments.adaptive import adaptive_runs, adaptive_table, run_cells, with_budget
 from testbed.eval.experiments.cusum_fit import cusum_check_runs, cusum_fit_runs, cusum_fit_table
@@ -52,6 +59,14 @@ class CampaignSpec:
     on_maps: Callable[[str, Sequence[str]], list[CampaignRun]] | None = None
     """For a campaign over OpenDRIVE files: its runs for a lane detector and the `--maps` given (which it needs;
     `build` then gives none)."""
+    figures_later: bool = False
+    """Whether its runs leave their figures (birdseye.png, ar_fusion.png) to `ld3 figures` unless `--figures-now`
+    is given: a campaign of many runs whose report reads only their summaries. Its help says so (LATER_NOTE);
+    only for runs that write the standard outputs."""
+
+
+LATER_NOTE = "; per-run figures left to `ld3 figures`"
+"""Ends the help of a campaign whose runs leave their figures for later by default (`CampaignSpec.figures_later`)."""
 
 
 def _fmt(v: Any) -> str:
@@ -449,10 +464,11 @@ for _spec in (
                  "15 s, the neural detector with lanenet-traffic.pt: false alarms and the tracked D_LD error",
                  benign_traffic_runs, benign_traffic_table),
     CampaignSpec("fusionripper-grid", "FusionRipper d×f grid without defense, 20 drives per cell (start time, "
-                 "noise seed and road layout vary; paper Table 2)", fr_grid_runs, fr_grid_table),
+                 "noise seed and road layout vary; paper Table 2)" + LATER_NOTE, fr_grid_runs, fr_grid_table,
+                 figures_later=True),
     CampaignSpec("ablation", "LD3 response variants (paper mode first) × FusionRipper, trace, drp-trace, "
-                 "drp-bend, stealthy × held-out local, highway, urban-straight; oracle detector",
-                 ablation_runs, ablation_table),
+                 "drp-bend, stealthy × held-out local, highway, urban-straight; oracle detector" + LATER_NOTE,
+                 ablation_runs, ablation_table, figures_later=True),
     CampaignSpec("roc", "LD3 vs SAVIOR detection ROC over (b, τ): benign and FusionRipper drives on local and "
                  "highway, residuals recorded once, swept offline", roc_runs, roc_table, record_detection_run),
     CampaignSpec("cusum-fit", "LD3's CUSUM (b, τ) refit for the lane detector: benign drives of every preset × "
@@ -508,39 +524,55 @@ def selected_runs(name: str, detector: str = "neural", select: str | None = None
     return runs
 
 
-def _where(spec: CampaignSpec) -> str:
+def _where(spec: CampaignSpec, out: Path, figures: bool) -> str:
     if spec.searches is not None:
         return "Each cell's search (trials.csv, report.md, best.toml) in its sub-folder."
-    return "Per-run outputs in the sub-folders; all summaries in runs.csv."
+    where = "Per-run outputs in the sub-folders; all summaries in runs.csv."
+    if not figures:
+        where += (f" The runs left their figures (birdseye.png, ar_fusion.png) for later: `ld3 figures {out}` draws "
+                  f"them from believed.csv and the other outputs.")
+    return where
+
+
+def figures_choice(spec: CampaignSpec, figures: bool | None) -> bool:
+    """Whether the runs of `spec` draw their figures at their end: `figures` when given (`--figures-now`,
+    `--figures-later`, refused in one line for runs that do not write the standard outputs), else the
+    campaign's own choice (`CampaignSpec.figures_later`)."""
+    if figures is None:
+        return not spec.figures_later
+    if spec.execute is not run_and_write or spec.searches is not None:
+        flag = "--figures-now" if figures else "--figures-later"
+        raise UserError(f"{flag}: campaign {spec.name}'s runs do not write the standard run outputs (a search's "
+                        f"trials leave their figures for later anyway); drop it")
+    return figures
 
 
 def run_named(name: str, out: Path, *, detector: str = "neural", workers: int | None = None, progress: bool = True,
               select: str | None = None, settings: Sequence[str] = (), timeout: float | None = None,
               backend: str = "local", address: str | None = None, attacks: Sequence[str] = (),
-              budget: int | None = None, maps: Sequence[str] = (), figures: bool = True) -> Path:
+              budget: int | None = None, maps: Sequence[str] = (), figures: bool | None = None) -> Path:
     """Run campaign `name` into `out` and write its report; `select` is a comma-separated list of globs over
     run ids (all when None), `settings` are `--set KEY=VALUE` overrides applied to every run's scenario,
     `timeout` the time limit of each run in seconds (default `run_timeout`); `workers`, `backend` and
-    `address` as `run_campaign`'s. Without `figures` the runs leave their figures to `ld3 figures`
-    (`run_and_write_data`; only for a campaign whose runs write the standard outputs)."""
+    `address` as `run_campaign`'s. `figures` chooses whether the runs draw their figures at their end or leave
+    them to `ld3 figures` (`run_and_write_data`); None: the campaign's choice (`figures_choice`)."""
     spec = CAMPAIGNS.get(name)
-    execute = spec.execute
-    if not figures:
-        if spec.execute is not run_and_write or spec.searches is not None:
-            raise UserError(f"--figures-later: campaign {name}'s runs do not write the standard run outputs "
-                            f"(a search's trials leave their figures for later anyway); drop it")
-        execute = run_and_write_data
-    runs = selected_runs(name, detector, select, settings, attacks, budget, maps)
-    if spec.searches is not None:
-        done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
-                             progress=progress)
-    else:
-        done = run_campaign(runs, out, workers=workers, progress=progress, execute=execute, timeout=timeout,
-                            backend=backend, address=address)
+    figures = figures_choice(spec, figures)
+    execute = spec.execute if figures else run_and_write_data
+    # the workers start (and load the simulation) while this process builds the runs (`run_campaign` checks the
+    # backend and the address)
+    with CAMPAIGN_BACKENDS.get(backend).kept_warm(workers, start=True):
+        runs = selected_runs(name, detector, select, settings, attacks, budget, maps)
+        if spec.searches is not None:
+            done = spec.searches(runs, out, workers=workers, backend=backend, address=address, timeout=timeout,
+                                 progress=progress)
+        else:
+            done = run_campaign(runs, out, workers=workers, progress=progress, execute=execute, timeout=timeout,
+                                backend=backend, address=address)
     used = ", ".join(f"`{d}`" for d in sorted({run.scenario.detector for run in runs}))
     report = out / "report.md"
     overrides = "".join(f" Every run with {flag} `{' '.join(values)}`." for flag, values
                         in (("--attack", attacks), ("--set", settings)) if values)
     report.write_text(f"# Campaign {name}\n\n{spec.help}; lane detector {used}.{overrides}\n\n"
-                      f"{spec.table(done, out)}\n\n{_where(spec)}\n")
+                      f"{spec.table(done, out)}\n\n{_where(spec, out, figures)}\n")
     return report

@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from testbed.errors import UserError
+from testbed.eval.report.figures_later import draw_later
 from testbed.eval.run.outputs import read_trajectory
 from testbed.eval.run.summary import RunSummary, read_summary
 
@@ -91,7 +92,8 @@ def write_report(out_dir: Path, title: str, rows: Sequence[ReportRow], notes: st
 
 def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
     """report.md and deviations.png comparing any finished runs (folders with summary.json and trajectory.csv);
-    each run is labelled by its folder. ValueError names a folder that is not a finished run."""
+    each run is labelled by its folder and links its birdseye.png (drawn first where the run left it for later).
+    A one-line UserError names a folder that is not a finished run."""
     rows = []
     for run_dir in run_dirs:
         summary_path = run_dir / "summary.json"
@@ -104,6 +106,8 @@ def compare_runs(run_dirs: Sequence[Path], out_dir: Path) -> Path:
         read_trajectory(run_dir, ("t", "phys_dev"))  # a trajectory the plot cannot read is refused before writing
     if not rows:
         raise UserError("name at least one run folder to compare")
+    for row in rows:  # the report links each run's birdseye.png: a run that left it for later has it drawn now
+        draw_later(row.run_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return write_report(out_dir, f"{len(rows)} runs compared", rows, _differing_defense_params(rows))
 

@@ -13,8 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from testbed.eval.run.birdseye import save_birdseye
-from testbed.eval.run.fusion_plot import has_fusion, save_fusion_plot
 from testbed.eval.run.outputs import TRAJECTORY_COLUMNS
 from testbed.loop import TickRecord
 from testbed.traffic.record import TrafficLog
@@ -45,7 +43,11 @@ class FigureInputs:
 
 
 def save_run_figures(out_dir: Path, rows: Sequence[TickRecord], inputs: FigureInputs) -> None:
-    """birdseye.png, and ar_fusion.png for an attacked run whose rows carry the response's fusion."""
+    """birdseye.png, and ar_fusion.png for an attacked run whose rows carry the response's fusion. The drawing
+    modules (matplotlib) are imported here: a worker whose runs defer their figures never loads them."""
+    from testbed.eval.run.birdseye import save_birdseye
+    from testbed.eval.run.fusion_plot import has_fusion, save_fusion_plot
+
     save_birdseye(out_dir / BIRDSEYE, inputs.track, rows, lane_width=inputs.lane_width,
                   straddle_dev=inputs.straddle_dev, believed_xy=inputs.believed_xy, detection_t=inputs.detection_t,
                   stop_t=inputs.stop_t, title=inputs.title, attack_t=inputs.attack_t, threshold=inputs.threshold,

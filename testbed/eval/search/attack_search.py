@@ -5,7 +5,9 @@ threat model and whose needs the victim provides) and its parameters with Optuna
 victim scenario with that attack through the campaign machinery (`run_campaign`: local workers or Ray), and
 scores it by what the attacker wants (`score`). Trials are asked in fixed batches whose sampler is seeded by
 (seed, batch index), so the same seed gives the same trials whatever the number of workers, and a killed
-search resumes from its journal (`study.log`): trials asked but not told are run (or read back) and told.
+search resumes from its journal (`study.log`): trials asked but not told are run (or read back) and told. A
+batch's trials are asked in a thread (`BatchAsker`) while its first ones already run; none is told before the
+batch ends.
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ import csv
 import functools
 import json
 import math
+import queue
 import sys
+import threading
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,6 +36,7 @@ from testbed.errors import UserError
 from testbed.eval.campaign.driver import (
     CampaignRun,
     RunExecutor,
+    RunQueue,
     campaign_backend,
     run_and_write_data,
     run_campaign,
@@ -293,19 +298,20 @@ class AttackSearch:
                 if pending:
                     asked = [(t.number, t.user_attrs["attack"]) for t in pending]
                     pending = []
+                    finished = self._run_batch(study, [self._run(n, attack) for n, attack in asked], asked)
                 else:
                     n = len(study.get_trials(deepcopy=False))
                     size = min(self.spec.batch, self.spec.budget - n)
                     if size <= 0:
                         break
                     study = self._study(n // self.spec.batch)
-                    asked = []
-                    for _ in range(size):
-                        trial = study.ask()
-                        attack = sample_attack(trial, self.families, latest_start)
-                        trial.set_user_attr("attack", attack)
-                        asked.append((trial.number, attack))
-                finished = self._run_batch(study, asked)
+                    asker = BatchAsker(study, self.families, latest_start, size)
+                    try:
+                        runs = RunQueue([trial_id(k) for k in range(n, n + size)],
+                                        lambda run_id, asker=asker: self._run(*asker.take(run_id)))
+                        finished = self._run_batch(study, runs, asker.asked)
+                    finally:
+                        asker.join()
                 bar.update(len(finished))
                 best = max((o.score for o in self.outcomes.values() if o.score is not None), default=None)
                 if best is not None:
@@ -329,9 +335,15 @@ class AttackSearch:
                                                      summary if isinstance(summary, RunSummary) else None,
                                                      self.spec.objective, failure)
 
-    def _run_batch(self, study: optuna.Study, asked: list[tuple[int, dict[str, Any]]]) -> list[TrialOutcome]:
-        runs = [CampaignRun(trial_id(n), self._scenario(n, attack), {"trial": n, "family": attack["kind"]})
-                for n, attack in asked]
+    def _run(self, number: int, attack: dict[str, Any]) -> CampaignRun:
+        """Trial `number`'s campaign run."""
+        return CampaignRun(trial_id(number), self._scenario(number, attack),
+                           {"trial": number, "family": attack["kind"]})
+
+    def _run_batch(self, study: optuna.Study, runs: list[CampaignRun] | RunQueue,
+                   asked: list[tuple[int, dict[str, Any]]]) -> list[TrialOutcome]:
+        """Run the batch's trials and tell the sampler each one's score; `asked` holds (number, attack) of every
+        trial once `runs` has run (a `RunQueue` fills it as its runs are made)."""
         done = {run.run_id: summary for run, summary in
                 run_campaign(runs, self.out / TRIALS_DIR, workers=self.workers, progress=False, execute=self.execute,
                              timeout=self.timeout, backend=self.backend, address=self.address)}
@@ -379,6 +391,45 @@ class AttackSearch:
         write_scenario(path, sc, f"Worst attack found by ld3 search (trial {best.number}): "
                                  f"{attack_spec(best.attack)}\nReplay: ld3 run {path}")
         return path
+
+
+class BatchAsker:
+    """A batch's trials asked of the sampler in a thread, in order and as fast as it answers, while the first
+    ones already run: `take` hands each to the campaign when a worker is free for it. The asks are the same, in
+    the same order, as when the whole batch is asked first (the sampler sees no result of the batch before its
+    end either way), so the trials are the same."""
+
+    def __init__(self, study: optuna.Study, families: Sequence[Component], latest_start: float, size: int) -> None:
+        self.asked: list[tuple[int, dict[str, Any]]] = []
+        self._ready: queue.SimpleQueue[tuple[int, dict[str, Any]] | BaseException] = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._ask, args=(study, families, latest_start, size),
+                                        name="search-ask")
+        self._thread.start()
+
+    def _ask(self, study: optuna.Study, families: Sequence[Component], latest_start: float, size: int) -> None:
+        try:
+            for _ in range(size):
+                trial = study.ask()
+                attack = sample_attack(trial, families, latest_start)
+                trial.set_user_attr("attack", attack)
+                self._ready.put((trial.number, attack))
+        except BaseException as exc:  # handed to the campaign process's thread by `take`
+            self._ready.put(exc)
+
+    def take(self, run_id: str) -> tuple[int, dict[str, Any]]:
+        """The next trial asked, (number, attack), waiting for it if need be; its id must be `run_id`."""
+        item = self._ready.get()
+        if isinstance(item, BaseException):
+            raise item
+        if trial_id(item[0]) != run_id:
+            raise RuntimeError(f"the sampler numbered a trial {trial_id(item[0])}, expected {run_id}: another "
+                               f"process writes the same study.log")
+        self.asked.append(item)
+        return item
+
+    def join(self) -> None:
+        """Wait for the asks to end (they never wait on the campaign)."""
+        self._thread.join()
 
 
 def failure_headers(path: Path) -> dict[str, str]:

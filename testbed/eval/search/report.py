@@ -12,8 +12,9 @@ from matplotlib.figure import Figure
 
 from testbed.attacks.threat import threat_label, within_ld3_threat_model
 from testbed.errors import UserError
+from testbed.eval.run.scenario import Scenario
 from testbed.eval.search.attack_search import AttackSearch, TrialOutcome, attack_spec, in_threat_model_note
-from testbed.eval.search.bound_table import bound_rows, bound_setting
+from testbed.eval.search.bound_table import BoundRow, bound_rows, bound_setting
 
 
 def _f(v: float | None) -> str:
@@ -43,15 +44,25 @@ def plot_convergence(path: Path, outcomes: Sequence[TrialOutcome], straddle: flo
     fig.savefig(path, dpi=110)
 
 
-def bound_section(search: AttackSearch, outcomes: Sequence[TrialOutcome]) -> list[str]:
-    """"Bound at the same settings": LD3's deviation bound at the victim's speed beside the search's worst |D|
-    before detection (testbed.eval.search.bound_table)."""
+def search_bound(victim: Scenario) -> BoundRow | str:
+    """LD3's deviation bound at the victim's speed (testbed.eval.search.bound_table), or why there is none: what
+    the report's bound section shows, solved apart from it (`ld3 search` solves it while the trials run)."""
+    try:
+        return bound_rows(bound_setting(victim), [victim.speed])[0]
+    except UserError as exc:
+        return str(exc)
+
+
+def bound_section(search: AttackSearch, outcomes: Sequence[TrialOutcome], row: BoundRow | str | None = None,
+                  ) -> list[str]:
+    """"Bound at the same settings": LD3's deviation bound at the victim's speed (`row`, solved here when None)
+    beside the search's worst |D| before detection."""
     victim = search.spec.victim
     lines = ["## Bound at the same settings", ""]
-    try:
-        row = bound_rows(bound_setting(victim), [victim.speed])[0]
-    except UserError as exc:
-        return [*lines, f"No bound: {exc}.", ""]
+    if row is None:
+        row = search_bound(victim)
+    if isinstance(row, str):
+        return [*lines, f"No bound: {row}.", ""]
     worst = max((o.dev_before_m for o in outcomes if o.dev_before_m is not None), default=None)
     bound = "unbounded (paper mode)" if math.isinf(row.bound_m) else f"{row.bound_m:.3f} m"
     lines.append(f"Largest |D| before the alarm at {victim.speed:g} m/s (`ld3 bound`): {bound}; one-signed attacks "
@@ -62,8 +73,9 @@ def bound_section(search: AttackSearch, outcomes: Sequence[TrialOutcome]) -> lis
     return [*lines, ""]
 
 
-def write_search_report(search: AttackSearch) -> Path:
-    """report.md and convergence.png in the search folder; best.toml beside them."""
+def write_search_report(search: AttackSearch, bound: BoundRow | str | None = None) -> Path:
+    """report.md and convergence.png in the search folder; best.toml beside them. `bound` is `search_bound`'s
+    answer when already solved."""
     spec, out = search.spec, search.out
     outcomes = search.sorted_outcomes()
     best = search.best()
@@ -100,7 +112,7 @@ def write_search_report(search: AttackSearch) -> Path:
             f"deviation): {len(undetected)}.",
             "",
         ]
-    lines += bound_section(search, outcomes)
+    lines += bound_section(search, outcomes, bound)
     lines += ["## Best per family", "", "| family | trials | losses | attack | detected | "
               "\\|D\\| before detection (m) | max \\|D\\| (m) | consequence |", "|---|---|---|---|---|---|---|---|"]
     for family in sorted({o.family for o in outcomes}):

@@ -64,6 +64,14 @@ def process_probe(run: CampaignRun, run_dir: Path) -> RunSummary:
     return write_fake_summary(run_dir, attack_state={"pid": os.getpid(), "children": len(mp.active_children())})
 
 
+def warm_up_probe(run: CampaignRun, run_dir: Path) -> RunSummary:
+    """Records the process it runs in and whether it had loaded the simulated run's modules (the local backend's
+    warm-up) before this run (as the summary's attack_state)."""
+    from testbed.eval.campaign.local_backend import WARM_UP_MODULE
+
+    return write_fake_summary(run_dir, attack_state={"pid": os.getpid(), "loaded": WARM_UP_MODULE in sys.modules})
+
+
 def thread_probe(run: CampaignRun, run_dir: Path) -> RunSummary:
     """Records how many threads torch computes on in the process it runs in (as the summary's attack_state)."""
     import torch

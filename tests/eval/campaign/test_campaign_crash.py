@@ -2,6 +2,7 @@
 redone and reported by name, per-run time limits, workers=1 in-process."""
 
 import json
+import multiprocessing as mp
 import os
 import signal
 import subprocess
@@ -13,7 +14,14 @@ import pytest
 
 from testbed.eval.campaign.driver import CampaignBusyError, CampaignRun, _folder_lock, run_campaign
 from testbed.eval.run.scenario import load_scenario
-from tests.eval.campaign.campaign_helpers import PARTS, crash_runs, process_probe, slow_writer, warning_writer
+from tests.eval.campaign.campaign_helpers import (
+    PARTS,
+    crash_runs,
+    process_probe,
+    slow_writer,
+    warm_up_probe,
+    warning_writer,
+)
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -217,3 +225,41 @@ def test_workers_kept_warm_serve_every_batch_and_a_dead_one_is_replaced(tmp_path
             for _ in range(50):  # stopped when the outermost kept_warm ends
                 os.kill(pid, 0)
                 time.sleep(0.1)
+
+
+def test_workers_started_ahead_load_the_simulation_and_serve_the_first_batch(tmp_path):
+    from testbed.eval.campaign.driver import campaign_backend
+
+    sc = load_scenario("slr")
+    runs = [CampaignRun(f"r{i}", sc, {}) for i in range(4)]
+    before = {p.pid for p in mp.active_children()}
+    with campaign_backend("local", None).kept_warm(2, start=True):
+        ahead = {p.pid for p in mp.active_children()} - before
+        assert len(ahead) == 2  # started on entering, before any batch
+        done = run_campaign(runs, tmp_path / "warm", workers=2, progress=False, execute=warm_up_probe)
+        assert {s.attack_state["pid"] for _, s in done} == ahead
+        assert all(s.attack_state["loaded"] for _, s in done)  # loaded before its first run arrived
+    assert not ahead & {p.pid for p in mp.active_children()}
+
+
+def test_workers_started_ahead_are_not_more_in_flight_than_a_batch_asks(tmp_path):
+    from testbed.eval.campaign.driver import campaign_backend
+
+    sc = load_scenario("slr")
+    with campaign_backend("local", None).kept_warm(3, start=True):
+        done = run_campaign([CampaignRun(f"r{i}", sc, {}) for i in range(6)], tmp_path, workers=2,
+                            progress=False, execute=process_probe)
+    assert len(done) == 6 and len({s.attack_state["pid"] for _, s in done}) == 2
+
+
+def test_workers_started_ahead_end_at_once_when_the_caller_fails():
+    from testbed.errors import UserError
+    from testbed.eval.campaign.driver import campaign_backend
+
+    before = {p.pid for p in mp.active_children()}
+    with pytest.raises(UserError, match="bad input"), campaign_backend("local", None).kept_warm(2, start=True):
+        ahead = {p.pid for p in mp.active_children()} - before
+        t0 = time.monotonic()
+        raise UserError("bad input")
+    assert time.monotonic() - t0 < 1.0  # killed, not waited for while they still load the simulation
+    assert len(ahead) == 2 and not ahead & {p.pid for p in mp.active_children()}

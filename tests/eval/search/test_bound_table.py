@@ -12,7 +12,7 @@ from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
 from testbed.eval.run.scenario import load_scenario
 from testbed.eval.search.bound_table import RESIDUAL_STD, bound_rows, bound_setting, write_bound
-from testbed.eval.search.report import write_search_report
+from testbed.eval.search.report import search_bound, write_search_report
 from tests.eval.search.search_helpers import toy_search
 
 
@@ -72,3 +72,7 @@ def test_the_search_report_puts_the_bound_beside_the_search(tmp_path) -> None:
     text = write_search_report(search).read_text()
     (row,) = bound_rows(bound_setting(search.spec.victim), [search.spec.victim.speed])
     assert "## Bound at the same settings" in text and f"{row.bound_m:.3f} m" in text
+    solved_apart = search_bound(search.spec.victim)  # as `ld3 search` solves it while the trials run
+    assert solved_apart == row and write_search_report(search, solved_apart).read_text() == text
+    no_bound = search_bound(search.spec.victim.replace(defense="none"))
+    assert isinstance(no_bound, str) and f"No bound: {no_bound}." in write_search_report(search, no_bound).read_text()

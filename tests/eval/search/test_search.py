@@ -15,6 +15,7 @@ from testbed.attacks.spec import attack_spec_to_dict
 from testbed.attacks.threat import parse_threat
 from testbed.errors import UserError
 from testbed.eval.run.scenario import load_scenario
+from testbed.eval.search import attack_search
 from testbed.eval.search.attack_search import (
     CRASH_BONUS_M,
     AttackSearch,
@@ -55,6 +56,45 @@ def test_the_same_seed_gives_the_same_trials_and_another_seed_others(tmp_path):
         s.run()
     attacks = [[r["attack"] for r in _rows(tmp_path / n)] for n in "abc"]
     assert attacks[0] == attacks[1] and attacks[0] != attacks[2]
+
+
+class _AskedFirst(attack_search.BatchAsker):
+    """The whole batch asked before its first trial runs (the search's order before the asks overlapped runs)."""
+
+    def __init__(self, *args) -> None:
+        super().__init__(*args)
+        self.join()
+
+
+def test_a_batch_asked_while_its_trials_run_gives_the_trials_of_one_asked_first(tmp_path, monkeypatch):
+    toy_search(tmp_path / "overlapped", budget=28, batch=8).run()
+    monkeypatch.setattr(attack_search, "BatchAsker", _AskedFirst)
+    toy_search(tmp_path / "first", budget=28, batch=8).run()
+    assert (tmp_path / "overlapped" / "trials.csv").read_bytes() == (tmp_path / "first" / "trials.csv").read_bytes()
+    assert len(_rows(tmp_path / "first")) == 28
+
+
+def test_a_batchs_first_trial_runs_before_its_last_is_asked(tmp_path, monkeypatch):
+    asked_at, started_at = [], []
+    sample = attack_search.sample_attack
+
+    def slow_sample(*args):
+        time.sleep(0.05)
+        attack = sample(*args)
+        asked_at.append(time.monotonic())
+        return attack
+
+    def timed_executor(run, run_dir):
+        started_at.append(time.monotonic())
+        return toy_executor(run, run_dir)
+
+    monkeypatch.setattr(attack_search, "sample_attack", slow_sample)
+    search = toy_search(tmp_path / "s", budget=8, batch=8)
+    search.execute = timed_executor
+    search.run()
+    assert len(asked_at) == len(started_at) == 8
+    assert started_at[0] < asked_at[-1]  # the first trial did not wait for the whole batch's asks
+    assert all(start > asked for start, asked in zip(started_at, asked_at, strict=True))
 
 
 def test_attack_starts_follow_the_drive_when_the_road_ends_before_the_duration(tmp_path):
