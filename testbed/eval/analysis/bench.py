@@ -264,9 +264,9 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
 
 
 def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dict[str, Any]:
-    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one thread (torch, and
-    onnxruntime where installed), over frames freshly rendered from held-out seeds in every condition, each
-    detected `repeats` times."""
+    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one thread (torch as
+    `neural`, and onnxruntime, the `neural` detector's default runtime, as `neural-onnx` where installed), over
+    frames freshly rendered from held-out seeds in every condition, each detected `repeats` times."""
     import numpy as np
 
     from testbed.conditions import CONDITIONS
