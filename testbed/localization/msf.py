@@ -62,7 +62,7 @@ class PrefixUpdate:
     allocated once: the operations of `observed_prefix_update` and of the gate's `z @ solve(S, z)` in the same
     order, with numpy's own gufuncs for `solve` and `inv` (called as `np.linalg` calls them for float64, without
     its argument handling) and each product numpy's matmul into its array, so every result is the same to the
-    bit (tests/localization/test_msf.py holds it to the reference)."""
+    bit (tests/localization/test_msf_equations.py holds it to the reference)."""
 
     def __init__(self, n: int, size: int = _N) -> None:
         self.n = n

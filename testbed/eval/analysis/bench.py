@@ -13,6 +13,8 @@ from typing import Any
 import cv2
 import torch
 
+from testbed.errors import UserError
+
 
 class SectionTimer:
     """Accumulates wall time per named section by wrapping bound methods of live objects. A wrapped call made
@@ -289,7 +291,7 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
         from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
 
         detectors["neural-onnx"] = OnnxLaneDetector(threads=1)
-    except RuntimeError as exc:  # onnxruntime not installed
+    except UserError as exc:  # onnxruntime not installed
         out["neural-onnx"] = str(exc)
     detectors["classical"] = ClassicalLaneDetector(CameraRig(get_vehicle("sedan").camera))
     for name, det in detectors.items():

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.detectors.neural import (
     INPUT_WIDTH,
@@ -51,7 +52,7 @@ class OnnxLaneNet:
         try:
             import onnxruntime as ort
         except ImportError:
-            raise RuntimeError(INSTALL_HINT) from None
+            raise UserError(INSTALL_HINT) from None
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1

@@ -53,8 +53,8 @@ class NeuralRuntimeParams(NeuralParams):
 
     runtime: Literal["onnxruntime", "torch"] = Field(
         "onnxruntime", description="where LaneNet runs: onnxruntime (the network exported from the checkpoint; half "
-                                   "torch's time a frame) or torch (its cubics differ from onnxruntime's in the "
-                                   "fifth decimal)")
+                                   "torch's time a frame) or torch (its cubics and probabilities differ from "
+                                   "onnxruntime's by up to about 2e-5)")
 
 
 class OracleParams(Params):

@@ -81,3 +81,15 @@ def test_one_session_per_network_in_a_process(model):
     other = LaneNet().eval()
     assert model_digest(other) != model_digest(model) and session_for(other) is not session_for(model)
     assert session_for(model, threads=2) is not session_for(model)
+
+
+def test_without_onnxruntime_the_neural_detector_names_the_extra_and_the_torch_runtime(model, monkeypatch):
+    import sys
+
+    from testbed.errors import UserError
+    from testbed.perception.detectors import onnx_runtime
+
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)
+    monkeypatch.setattr(onnx_runtime, "_SESSIONS", {})
+    with pytest.raises(UserError, match=r"ld3-testbed\[nn\].*detector\.runtime"):
+        OnnxLaneDetector(model)
