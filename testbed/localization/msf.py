@@ -32,6 +32,11 @@ _N = 7
 _IDENTITY = {n: np.eye(n) for n in range(1, _N + 1)}
 """Identity matrices to copy (`np.eye` builds one in Python)."""
 _KERNELS = compiled_module("testbed.localization.msf_kernels")
+try:  # the gufuncs `np.linalg.solve` (b a vector) and `np.linalg.inv` call for float64
+    from numpy.linalg._umath_linalg import inv as _inv
+    from numpy.linalg._umath_linalg import solve1 as _solve1
+except ImportError:  # a numpy without the module: the public functions (`observed_prefix_update`)
+    _inv = _solve1 = None
 
 
 def propagate_covariance(p: np.ndarray, f: np.ndarray, q_diag: np.ndarray, scratch: np.ndarray) -> None:
@@ -50,6 +55,50 @@ def observed_prefix_update(p: np.ndarray, z: np.ndarray, r: np.ndarray, s: np.nd
     i_kh = _IDENTITY[len(p)].copy() if len(p) in _IDENTITY else np.eye(len(p))
     i_kh[:, :n] -= k
     return k @ z, i_kh @ p @ i_kh.T + k @ r @ k.T
+
+
+class PrefixUpdate:
+    """The gated Kalman update of a zero state whose first `n` components are measured (H = [I 0]) on arrays
+    allocated once: the operations of `observed_prefix_update` and of the gate's `z @ solve(S, z)` in the same
+    order, with numpy's own gufuncs for `solve` and `inv` (called as `np.linalg` calls them for float64, without
+    its argument handling) and each product numpy's matmul into its array, so every result is the same to the
+    bit (tests/localization/test_msf_equations.py holds it to the reference)."""
+
+    def __init__(self, n: int, size: int = _N) -> None:
+        self.n = n
+        self.s = np.empty((n, n))
+        self.k = np.empty((size, n))
+        self.kr = np.empty((size, n))
+        self.dx = np.empty(size)
+        self.i_kh = np.empty((size, size))
+        self.left = np.empty((size, size))
+        self.joseph = np.empty((size, size))
+        self.noise = np.empty((size, size))
+        self._identity = np.eye(size)
+        self._i_kh_t, self._k_t = self.i_kh.T, self.k.T
+
+    def distance(self, p: np.ndarray, z: np.ndarray, r: np.ndarray) -> float:
+        """The innovation z's squared Mahalanobis distance against S = P[:n, :n] + R (S kept for `apply`)."""
+        n = self.n
+        np.add(p[:n, :n], r, out=self.s)
+        d2 = float(np.matmul(z, _solve1(self.s, z, signature="dd->d")))
+        if not math.isfinite(d2):  # a singular S: np.linalg.solve raises its LinAlgError as before
+            d2 = float(z @ np.linalg.solve(self.s, z))
+        return d2
+
+    def apply(self, p: np.ndarray, z: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """P updated in place (Joseph form) after `distance`; returns the correction K z (an array it reuses)."""
+        n, k = self.n, self.k
+        np.matmul(p[:, :n], _inv(self.s, signature="d->d"), out=k)
+        np.copyto(self.i_kh, self._identity)
+        self.i_kh[:, :n] -= k
+        np.matmul(k, z, out=self.dx)
+        np.matmul(self.i_kh, p, out=self.left)
+        np.matmul(self.left, self._i_kh_t, out=self.joseph)
+        np.matmul(k, r, out=self.kr)
+        np.matmul(self.kr, self._k_t, out=self.noise)
+        np.add(self.joseph, self.noise, out=p)
+        return self.dx
 
 
 @dataclass(frozen=True)
@@ -97,6 +146,8 @@ class MultiSensorFusion:
                                                                           self._fp, p.lever)
         """`predict`'s propagation compiled (testbed/localization/msf_kernels.pyx), where built; it works on
         `nominal`, F and P in place, so P is only ever updated in place."""
+        self._updates = None if _solve1 is None else {n: PrefixUpdate(n) for n in (2, 3)}
+        """The GNSS (2) and LiDAR (3) updates on preallocated arrays; None: `observed_prefix_update`."""
         self.t: float | None = None
         self._gate = {2: float(chi2.ppf(p.gate_prob, 2)), 3: float(chi2.ppf(p.gate_prob, 3))}
         self._last_accepted = {"gnss": -math.inf, "lidar": -math.inf}
@@ -137,14 +188,21 @@ class MultiSensorFusion:
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
         n = len(z)
-        s = self.P[:n, :n] + r
-        d2 = float(z @ np.linalg.solve(s, z))
+        update = None if self._updates is None else self._updates[n]
+        if update is not None:
+            d2 = update.distance(self.P, z, r)
+        else:
+            s = self.P[:n, :n] + r
+            d2 = float(z @ np.linalg.solve(s, z))
         if d2 > self._gate[n]:
             self.rejected[source] += 1
             if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
                 self._readmit(source, t, z)
             return False
-        dx, self.P[...] = observed_prefix_update(self.P, z, r, s)
+        if update is not None:
+            dx = update.apply(self.P, z, r)
+        else:
+            dx, self.P[...] = observed_prefix_update(self.P, z, r, s)
         self.nominal += dx
         self.nominal[2] = wrap_angle(self.nominal[2])
         self._last_accepted[source] = t

@@ -13,6 +13,8 @@ from typing import Any
 import cv2
 import torch
 
+from testbed.errors import UserError
+
 
 class SectionTimer:
     """Accumulates wall time per named section by wrapping bound methods of live objects. A wrapped call made
@@ -264,9 +266,9 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
 
 
 def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dict[str, Any]:
-    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one thread (torch, and
-    onnxruntime where installed), over frames freshly rendered from held-out seeds in every condition, each
-    detected `repeats` times."""
+    """Per-frame `detect` latency (ms, median and p99, wall and thread CPU time) on one thread (torch as
+    `neural`, and onnxruntime, the `neural` detector's default runtime, as `neural-onnx` where installed), over
+    frames freshly rendered from held-out seeds in every condition, each detected `repeats` times."""
     import numpy as np
 
     from testbed.conditions import CONDITIONS
@@ -289,7 +291,7 @@ def bench_lane_detectors(repeats: int = 10, frames_per_episode: int = 20) -> dic
         from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
 
         detectors["neural-onnx"] = OnnxLaneDetector(threads=1)
-    except RuntimeError as exc:  # onnxruntime not installed
+    except UserError as exc:  # onnxruntime not installed
         out["neural-onnx"] = str(exc)
     detectors["classical"] = ClassicalLaneDetector(CameraRig(get_vehicle("sedan").camera))
     for name, det in detectors.items():

@@ -1,8 +1,10 @@
-"""LaneNet exported to ONNX and run with onnxruntime (the `onnx` extra): same preprocessing, decoding and
-`LaneDetection` as `NeuralLaneDetector`, only the network runs in an onnxruntime session."""
+"""LaneNet exported to ONNX and run with onnxruntime (the `nn` extra): same preprocessing, decoding and
+`LaneDetection` as `NeuralLaneDetector`, only the network runs in an onnxruntime session. The runtime of the
+`neural` detector (half torch's time a frame, measured); a process exports and loads each network once."""
 
 from __future__ import annotations
 
+import hashlib
 import io
 import warnings
 from pathlib import Path
@@ -10,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.detectors.neural import (
     INPUT_WIDTH,
@@ -21,7 +24,8 @@ from testbed.perception.detectors.neural import (
 )
 
 OPSET = 17
-INSTALL_HINT = "onnxruntime is not installed: pip install 'ld3-testbed[onnx]' (or use detector neural)"
+INSTALL_HINT = ("onnxruntime is not installed: pip install 'ld3-testbed[nn]' (or set detector.runtime = \"torch\" "
+                "for the neural detector)")
 
 
 def export_onnx(model: LaneNet, path: str | Path | None = None) -> bytes:
@@ -48,7 +52,7 @@ class OnnxLaneNet:
         try:
             import onnxruntime as ort
         except ImportError:
-            raise RuntimeError(INSTALL_HINT) from None
+            raise UserError(INSTALL_HINT) from None
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
@@ -60,13 +64,38 @@ class OnnxLaneNet:
         return cols, exist
 
 
+def model_digest(model: LaneNet) -> str:
+    """A digest of the network a LaneNet is: its width, input rows and every tensor of its state."""
+    h = hashlib.sha256(f"{model.width} {model.input_rows}".encode())
+    for name, tensor in model.state_dict().items():
+        h.update(name.encode())
+        h.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+_SESSIONS: dict[tuple[str, int], OnnxLaneNet] = {}
+KEPT_SESSIONS = 4
+
+
+def session_for(model: LaneNet, threads: int = 1) -> OnnxLaneNet:
+    """The onnxruntime session of `model`, exported and loaded once per network and thread count in a process (a
+    campaign worker's runs share it; the export is the same bytes every time); the oldest of `KEPT_SESSIONS`
+    goes first."""
+    key = (model_digest(model), threads)
+    if key not in _SESSIONS:
+        if len(_SESSIONS) >= KEPT_SESSIONS:
+            del _SESSIONS[next(iter(_SESSIONS))]
+        _SESSIONS[key] = OnnxLaneNet(export_onnx(model), threads)
+    return _SESSIONS[key]
+
+
 class OnnxLaneDetector(LaneDetector):
     """`NeuralLaneDetector` with the network in onnxruntime (one intra-op thread unless told otherwise)."""
 
     def __init__(self, model: LaneNet | None = None, threads: int = 1) -> None:
         model = model if model is not None else load_model()
         self.input_rows = model.input_rows
-        self.model = OnnxLaneNet(export_onnx(model), threads)
+        self.model = session_for(model, threads)
 
     def infer(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""

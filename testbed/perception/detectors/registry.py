@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -48,6 +48,15 @@ class NeuralParams(CameraDetectorParams):
         return value
 
 
+class NeuralRuntimeParams(NeuralParams):
+    """Parameters of the neural detector: its weights and the runtime its network runs in."""
+
+    runtime: Literal["onnxruntime", "torch"] = Field(
+        "onnxruntime", description="where LaneNet runs: onnxruntime (the network exported from the checkpoint; half "
+                                   "torch's time a frame) or torch (its cubics and probabilities differ from "
+                                   "onnxruntime's by up to about 2e-5)")
+
+
 class OracleParams(Params):
     """Parameters of the oracle detector."""
 
@@ -55,10 +64,16 @@ class OracleParams(Params):
     dropout: float = Field(0.0, ge=0.0, le=1.0, description="probability that a present line is dropped")
 
 
-def _neural(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+def _neural(track, rig, rng: np.random.Generator, weights: str | None = None,
+            runtime: str = "onnxruntime") -> LaneDetector:
     from testbed.perception.detectors.neural import NeuralLaneDetector, load_model
 
-    return NeuralLaneDetector(load_model(resolve(weights) if weights is not None else None))
+    model = load_model(resolve(weights) if weights is not None else None)
+    if runtime == "torch":
+        return NeuralLaneDetector(model)
+    from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
+
+    return OnnxLaneDetector(model)
 
 
 def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
@@ -85,8 +100,8 @@ def _oracle(track, rig, rng: np.random.Generator, noise_std: float = 0.0, dropou
 
 
 DETECTORS: Registry[Component] = Registry("lane detector", Component, "ld3.detectors")
-DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights", provides=_CAMERA,
-                        params=NeuralParams))
+DETECTORS.add(Component("neural", _neural, "LaneNet CNN on the rendered camera, shipped weights (onnxruntime)",
+                        provides=_CAMERA, params=NeuralRuntimeParams))
 DETECTORS.add(Component("neural-onnx", _neural_onnx, "LaneNet exported to ONNX, run with onnxruntime (the onnx extra)",
                         provides=_CAMERA, params=NeuralParams))
 DETECTORS.add(Component("classical", _classical, "inverse perspective mapping and a sliding-window fit on the camera",

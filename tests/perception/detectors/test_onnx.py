@@ -56,3 +56,40 @@ def test_a_112_row_network_exports_and_detects_as_in_torch():
         CameraFrame(0.0, image))
     assert ours.left_prob == pytest.approx(torch_ld.left_prob, abs=1e-4)
     assert ours.right_prob == pytest.approx(torch_ld.right_prob, abs=1e-4)
+
+
+def test_the_neural_detector_runs_onnxruntime_unless_told_torch(model):
+    from testbed.perception.detectors.registry import make_detector
+
+    image = np.random.default_rng(5).integers(0, 255, (*FRAME_SHAPE, 3), dtype=np.uint8)
+    frame = CameraFrame(0.25, image)
+    default = make_detector("neural", track=None, rig=None)
+    assert isinstance(default, OnnxLaneDetector)
+    torch_ld = make_detector("neural", track=None, rig=None, params={"runtime": "torch"})
+    assert isinstance(torch_ld, NeuralLaneDetector)
+    ours, reference = default.detect(frame), OnnxLaneDetector(model).detect(frame)
+    assert np.array_equal(ours.left, reference.left) and ours.left_prob == reference.left_prob
+    assert np.array_equal(ours.right, reference.right) and ours.right_prob == reference.right_prob
+
+
+def test_one_session_per_network_in_a_process(model):
+    from testbed.perception.detectors.onnx_runtime import model_digest, session_for
+
+    again = load_model()
+    assert model_digest(again) == model_digest(model) and session_for(again) is session_for(model)
+    torch.manual_seed(6)
+    other = LaneNet().eval()
+    assert model_digest(other) != model_digest(model) and session_for(other) is not session_for(model)
+    assert session_for(model, threads=2) is not session_for(model)
+
+
+def test_without_onnxruntime_the_neural_detector_names_the_extra_and_the_torch_runtime(model, monkeypatch):
+    import sys
+
+    from testbed.errors import UserError
+    from testbed.perception.detectors import onnx_runtime
+
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)
+    monkeypatch.setattr(onnx_runtime, "_SESSIONS", {})
+    with pytest.raises(UserError, match=r"ld3-testbed\[nn\].*detector\.runtime"):
+        OnnxLaneDetector(model)
