@@ -81,10 +81,7 @@ def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = Non
         from testbed.perception.detectors.onnx_file import OnnxFileLaneDetector
 
         return OnnxFileLaneDetector(Path(weights).expanduser())
-    from testbed.perception.detectors.neural import load_model
-    from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
-
-    return OnnxLaneDetector(load_model(resolve(weights) if weights is not None else None))
+    return _neural(track, rig, rng, weights, runtime="onnxruntime")
 
 
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:
