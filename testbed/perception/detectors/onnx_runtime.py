@@ -1,6 +1,6 @@
 """LaneNet exported to ONNX and run with onnxruntime (the `nn` extra): same preprocessing, decoding and
 `LaneDetection` as `NeuralLaneDetector`, only the network runs in an onnxruntime session. The runtime of the
-`neural` detector (half torch's time a frame, measured); a process exports and loads each network once."""
+`neural` detector by default; a process exports and loads each network once."""
 
 from __future__ import annotations
 
