@@ -38,8 +38,9 @@ def warning_writer(run: CampaignRun, run_dir: Path) -> RunSummary:
 
 def slow_writer(run: CampaignRun, run_dir: Path) -> RunSummary:
     """Writes `part-0` … `part-19` 0.05 s apart, then summary.json (its scenario: the run id), then logs the run id in
-    `completed.log` beside the run folders. Tags: `fail` raises, `die` ends the process, `hang` sleeps
-    (after logging its pid in `pids.log`), `deaf` sleeps with SIGALRM blocked (no in-process alarm ends it)."""
+    `completed.log` beside the run folders. Tags: `fail` raises, `die` ends the process, `hang` sleeps (after
+    logging its pid and its start on the system's monotonic clock in `pids.log`), `deaf` sleeps with SIGALRM
+    blocked (no in-process alarm ends it)."""
     if run.tags.get("fail"):
         raise RuntimeError("boom\nsecond line")
     if run.tags.get("die"):
@@ -48,7 +49,7 @@ def slow_writer(run: CampaignRun, run_dir: Path) -> RunSummary:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
         time.sleep(120.0)
     if run.tags.get("hang"):
-        _log(run_dir.parent / "pids.log", str(os.getpid()))
+        _log(run_dir.parent / "pids.log", f"{os.getpid()} {time.monotonic()!r}")
         time.sleep(120.0)
     for i in range(run.tags.get("parts", PARTS)):
         (run_dir / f"part-{i}").write_text(f"{run.run_id} {i}\n")
