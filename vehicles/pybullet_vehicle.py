@@ -89,7 +89,7 @@ class PyBulletVehicle:
         self.sensed: tuple[Pose, float, float, float] | None = None
         """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
         self._motion = None if _KERNELS is None else _KERNELS.VehicleMotion(
-            self, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
+            self, p, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
             _STEER_VELOCITY_GAIN, Pose)
         """`actuate` and `sense` compiled (vehicles/vehicle_kernels.pyx), where built; None: the methods below,
         the reference it is tested equal to."""

@@ -13,8 +13,6 @@ acceleration, road load, sent steer, the actuator's angle and rate) is read and 
 
 from libc.math cimport atan, atan2, cos, fabs, sin, tan
 
-import pybullet as p
-
 from vehicles import road_load
 
 cdef double GRAVITY = road_load.GRAVITY, AIR_DENSITY = road_load.AIR_DENSITY, SOFT_SPEED = road_load._SOFT_SPEED
@@ -31,18 +29,20 @@ cdef inline double _py_min(double a, double b) noexcept:
 
 
 cdef class VehicleMotion:
-    """Actuation and sensing of one `PyBulletVehicle` (its body, joints and parameters as built), with the
-    module's constants handed in: the governor's gain, the traction slip, the acceleration filter's time constant,
+    """Actuation and sensing of one `PyBulletVehicle` (its body, joints and parameters as built) through the
+    `pybullet` module `pb` it was built with (so this module imports no simulator), with the vehicle module's
+    constants handed in: the governor's gain, the traction slip, the acceleration filter's time constant,
     the steering motors' torque and gains, and the `Pose` type the pose is reported in."""
 
-    cdef object vehicle, steering, pose_type, steer_ids, wheel_ids
+    cdef object vehicle, steering, pose_type, steer_ids, wheel_ids, pb
     cdef int body, cid
     cdef double max_decel, max_accel, max_speed, wheel_radius, front_share, m_eff, crr_mg, drag, wheelbase, half_track
     cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz
 
-    def __init__(self, vehicle, double governor, double slip, double filter_tau, double steer_torque,
+    def __init__(self, vehicle, pb, double governor, double slip, double filter_tau, double steer_torque,
                  double steer_kp, double steer_kv, pose_type):
         prm = vehicle.params
+        self.pb = pb
         self.vehicle, self.steering, self.pose_type = vehicle, vehicle._steering, pose_type
         self.body, self.cid = vehicle.body_id, vehicle._cid
         self.steer_ids, self.wheel_ids = vehicle.steer_joint_ids, vehicle.wheel_link_ids
@@ -57,7 +57,7 @@ cdef class VehicleMotion:
 
     def actuate(self, double dt):
         """`PyBulletVehicle.actuate`."""
-        vehicle, steering = self.vehicle, self.steering
+        vehicle, steering, p = self.vehicle, self.steering, self.pb
         cdef double v = vehicle._speed, max_angle = steering.max_angle, angle = steering.angle, target, max_step
         cdef double delta, accel, load, force, r = self.wheel_radius, drive, spin, front, rear
         target = _py_max(-max_angle, _py_min(max_angle, vehicle._cmd_steer))
@@ -88,6 +88,7 @@ cdef class VehicleMotion:
     cdef _send_steer(self, double delta):
         """`PyBulletVehicle._send_steer`: the front wheels to their Ackermann angles."""
         cdef double t = tan(delta), left, right, wb = self.wheelbase
+        p = self.pb
         left = atan2(wb * t, wb - self.half_track * t)
         right = atan2(wb * t, wb + self.half_track * t)
         p.setJointMotorControlArray(self.body, self.steer_ids, p.POSITION_CONTROL, targetPositions=(left, right),
@@ -98,7 +99,7 @@ cdef class VehicleMotion:
 
     def sense(self, double dt):
         """`PyBulletVehicle.sense`."""
-        vehicle = self.vehicle
+        vehicle, p = self.vehicle, self.pb
         cdef double px, py, x, y, z, w, yaw, ref_x, ref_y, lx, ly, yaw_rate, v, tl, tr, steer, alpha, speed, acc
         pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
         lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
