@@ -58,7 +58,6 @@ class PhysicsWorld:
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
                  obstacle_window_m: float = 60.0) -> None:
         self.client = pb.connect(pb.DIRECT)
-        _without_renderer(self.client)
         self.track = track
         self.dt = 1.0 / physics_hz
         self.t = 0.0
@@ -143,15 +142,6 @@ class PhysicsWorld:
     def close(self) -> None:
         if pb.isConnected(self.client):
             pb.disconnect(self.client)
-
-
-def _without_renderer(client: int) -> None:
-    """Unload the TinyRenderer plugin a DIRECT client starts with (`loadPlugin` answers the loaded plugin's id): the
-    physics client is never drawn (the camera draws the render client), and with a renderer every body created
-    also gets visual shapes made from its collision shapes, which doubled the cost of streaming a tile's bodies."""
-    renderer = pb.loadPlugin("tinyRendererPlugin", physicsClientId=client)
-    if renderer >= 0:
-        pb.unloadPlugin(renderer, physicsClientId=client)
 
 
 def _place_bodies(client: int, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
