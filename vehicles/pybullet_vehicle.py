@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pybullet as p
 
+from tracks.compiled import compiled_module
 from tracks.pose import Pose
 from vehicles.params import VehicleParams
 from vehicles.road_load import road_load
@@ -35,6 +36,7 @@ _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
 _ORIGIN = (0.0, 0.0, 0.0)
+_KERNELS = compiled_module("vehicles.vehicle_kernels")
 
 
 def _yaw_of(q: tuple[float, float, float, float]) -> float:
@@ -86,6 +88,11 @@ class PyBulletVehicle:
         self._accel = 0.0
         self.sensed: tuple[Pose, float, float, float] | None = None
         """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
+        self._motion = None if _KERNELS is None else _KERNELS.VehicleMotion(
+            self, p, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
+            _STEER_VELOCITY_GAIN, Pose)
+        """`actuate` and `sense` compiled (vehicles/vehicle_kernels.pyx), where built; None: the methods below,
+        the reference it is tested equal to."""
         self.reset_pose(pose)
 
     # -- commands and actuation -----------------------------------------------------------------------
@@ -98,6 +105,9 @@ class PyBulletVehicle:
     def actuate(self, dt: float) -> None:
         """Hand the stored command to PyBullet's motors for the next `dt` s of physics (once per command
         interval; the motors keep their targets across the physics steps in it)."""
+        if self._motion is not None:
+            self._motion.actuate(dt)
+            return
         prm, v = self.params, self._speed
         delta = self._steering.step(self._cmd_steer, dt)
         if delta != self._sent_steer:  # motors keep their targets: resend on change
@@ -135,6 +145,9 @@ class PyBulletVehicle:
     def sense(self, dt: float) -> None:
         """Measure the state after `dt` s of physics since the last `sense` (kept in `sensed` until the next
         physics step) and update the filtered accel from its speed."""
+        if self._motion is not None:
+            self._motion.sense(dt)
+            return
         pose, v, yaw_rate = self.kinematics()
         self.sensed = (pose, v, yaw_rate, self.steer_angle())
         alpha = dt / (_ACCEL_FILTER_TAU + dt)

@@ -25,10 +25,12 @@ import numpy as np
 
 from testbed.control.lateral_model import LateralModel
 from testbed.control.plan import Plan
+from tracks.compiled import compiled_module
 
 SCHEDULE_MIN_SPEED = 1.0
 SCHEDULE_MAX_SPEED = 40.0
 SCHEDULE_STEP = 1.0
+_KERNELS = compiled_module("testbed.control.lateral_kernels")
 GAIN_SCHEDULES_KEPT = 16
 """Gain schedules `gain_schedule` keeps (one per vehicle, control rate and tuning met in a process)."""
 
@@ -112,6 +114,11 @@ class LqrLateralController:
         self._gain_rows = [tuple(float(g) for g in row) for row in self.gains]
         self._kv = model.understeer_gradient
         self._last = 0.0
+        self._law = None if _KERNELS is None else _KERNELS.LateralLaw(
+            model, self.gains, max_steer, hold_speed, steer_rate_weight > 0.0, max_lat_accel, SCHEDULE_MIN_SPEED,
+            SCHEDULE_MAX_SPEED, SCHEDULE_STEP)
+        """`update` compiled (testbed/control/lateral_kernels.pyx), where built; None: the methods below, the
+        reference it is tested equal to."""
 
     @classmethod
     def from_vehicle(cls, vehicle: Any, dt: float, **tuning: Any) -> LqrLateralController:
@@ -142,6 +149,9 @@ class LqrLateralController:
         """Steer angle for this tick. `yaw_rate` (rad/s, gyro) is optional: without it the yaw rate is
         estimated from the last command through the steady-state yaw-rate gain. Holds the last command
         below `hold_speed` (no steering at standstill)."""
+        if self._law is not None:
+            self._last = self._law.update(plan, speed, yaw_rate, self._last)
+            return self._last
         if speed < self.hold_speed:
             return self._last
         v = speed

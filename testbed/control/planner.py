@@ -63,6 +63,9 @@ class LanePlanner:
         """The path terms and the curves ahead compiled over the map's compiled queries
         (testbed/control/planner_kernels.pyx), where both are built; None: the pure-Python `_path_terms` and
         `_curves_ahead` answer, the references the kernel is tested equal to."""
+        self._limit = None if self._kernel is None else _KERNELS.CurveLimit(self._kernel, CURVE_STEP, lateral_accel,
+                                                                             CURVE_DECEL, CURVE_PERIOD)
+        """`_curve_limit` compiled with its samples of the curves ahead, where the kernel is built."""
 
     @property
     def stopping(self) -> bool:
@@ -126,6 +129,8 @@ class LanePlanner:
         """The highest speed from which every curve ahead can be reached at `lateral_accel` by braking at
         CURVE_DECEL (inf where none binds). The curvature ahead is sampled every CURVE_PERIOD; in between the
         distance travelled since (at the measured speed) brings each sampled curve nearer."""
+        if self._limit is not None:
+            return self._limit.limit(pose, speed, t, self._t_last, self.cruise_speed)
         if self._ahead is None or t - self._ahead[0] >= CURVE_PERIOD - 1e-9:
             self._ahead = (t, *self._curves_ahead(pose))
             self._travel = 0.0
@@ -139,7 +144,7 @@ class LanePlanner:
     def _curves_ahead(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """(distance ahead along the centreline, a_lat/|κ| there) every CURVE_STEP up to the distance needed to
         slow from the cruise speed (or to where the lane ends), where the lane curves."""
-        horizon = self.cruise_speed**2 / (2.0 * CURVE_DECEL) + CURVE_STEP
+        horizon = self._horizon()
         if self._kernel is not None:
             ds, v2 = self._kernel.curves_ahead(pose, horizon, CURVE_STEP, self.lateral_accel)
             return np.array(ds), np.array(v2)
@@ -160,6 +165,10 @@ class LanePlanner:
         except OffMapError:
             pass  # the lane ends (or the pose is off it) within the horizon: the curves up to there
         return np.array(ds), np.array(v2)
+
+    def _horizon(self) -> float:
+        """How far ahead the curve limit looks: the distance to slow from the cruise speed, and a sample step."""
+        return self.cruise_speed**2 / (2.0 * CURVE_DECEL) + CURVE_STEP
 
     def _speed_profile(self, speed: float, t: float, limit: float) -> tuple[float, float]:
         dt = 0.0 if self._t_last is None else max(t - self._t_last, 0.0)

@@ -9,7 +9,9 @@ operation (the build turns off multiply-add contraction; the heading error is wr
 does), so the plans are the same to the bit; `tests/control/test_planner_kernels.py` holds them to it.
 """
 
-from libc.math cimport cos, fabs, sin
+from libc.math cimport INFINITY, cos, fabs, pow, sin, sqrt
+
+import numpy as np
 
 from tracks.angles cimport wrap_angle
 from tracks.map_kernels cimport NO_LANE, PLACED, MapKernel
@@ -88,3 +90,55 @@ cdef class PathKernel:
         if placed == NO_LANE:
             raise smap._error(placed, pose, self.lane, x, y, s, t)
         return ds, v2
+
+
+cdef inline double _py_max(double a, double b) noexcept:
+    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
+    return b if b > a else a
+
+
+cdef class CurveLimit:
+    """`LanePlanner._curve_limit` compiled: the curves ahead (`PathKernel.curves_ahead`, up to `horizon` every
+    `step` m at `lateral_accel`, `horizon` the distance to slow from the cruise speed at `decel` and a step) sampled
+    every `period` s, brought nearer in between by the distance driven at the
+    measured speed, and the highest speed from which each is reached braking at `decel`: the same operations as
+    the method's numpy expression, element for element, and the same minimum."""
+
+    cdef PathKernel path
+    cdef double step, lateral_accel, decel, period
+    cdef double sampled_t, travel
+    cdef bint sampled
+    cdef double[::1] d, v2
+
+    def __init__(self, PathKernel path, double step, double lateral_accel, double decel, double period):
+        self.path, self.step, self.lateral_accel = path, step, lateral_accel
+        self.decel, self.period, self.sampled, self.travel = decel, period, False, 0.0
+
+    def limit(self, pose, double speed, double t, t_last, double cruise_speed):
+        """The curve speed limit at `t` for a car at `pose` moving at `speed`, `t_last` the planner's last plan
+        time (None before its first), at the planner's cruise speed (`LanePlanner._horizon`'s arithmetic, its
+        `**` libm's `pow` as Python's is)."""
+        cdef Py_ssize_t i, n
+        cdef double m, value, near, scale, horizon
+        if not self.sampled or t - self.sampled_t >= self.period - 1e-9:
+            horizon = pow(cruise_speed, 2.0) / (2.0 * self.decel) + self.step
+            ds, v2 = self.path.curves_ahead(pose, horizon, self.step, self.lateral_accel)
+            self.d, self.v2 = np.array(ds, dtype=float), np.array(v2, dtype=float)
+            self.sampled, self.sampled_t, self.travel = True, t, 0.0
+        elif t_last is not None:
+            self.travel += _py_max(speed, 0.0) * _py_max(t - <double>t_last, 0.0)
+        n = self.d.shape[0]
+        if n == 0:
+            return INFINITY
+        scale = 2.0 * self.decel
+        m = INFINITY
+        for i in range(n):
+            near = self.d[i] - self.travel - self.step
+            if not (near >= 0.0 or near != near):  # np.maximum(near, 0.0)
+                near = 0.0
+            value = self.v2[i] + scale * near
+            if value != value:  # np.min propagates a NaN
+                return value
+            if value < m:
+                m = value
+        return sqrt(m)

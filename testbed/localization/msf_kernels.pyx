@@ -7,7 +7,7 @@ matrix products through numpy's own `dot`, so the state and covariance are the s
 `tests/localization/test_msf_kernels.py` holds them to it.
 """
 
-from libc.math cimport cos, sin
+from libc.math cimport cos, sin, sqrt
 
 import numpy as np
 
@@ -30,7 +30,7 @@ cdef class Predictor:
         self.nominal, self.f, self.p, self.q, self.lever = nominal, f, p, q, lever
         self._dot, self._f, self._ft, self._p, self._scratch = np.dot, f.base, f.base.T, p.base, scratch
 
-    def predict(self, double yaw_rate, double accel_long, double dt):
+    cpdef predict(self, double yaw_rate, double accel_long, double dt):
         """One IMU sample of `dt` s (> 0): yaw rate and longitudinal specific force as measured."""
         cdef double[::1] n = self.nominal
         cdef double[:, ::1] f = self.f
@@ -52,3 +52,71 @@ cdef class Predictor:
         cdef Py_ssize_t i
         for i in range(self.p.shape[0]):
             self.p[i, i] = self.p[i, i] + self.q[i] * dt
+
+
+cdef inline double _py_max(double a, double b) noexcept:
+    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
+    return b if b > a else a
+
+
+cdef class ImuPropagation:
+    """`LocalizationStack.step`'s IMU part compiled: the samples `imu.samples` takes up to a tick (its schedule,
+    its one call for the tick's draws, the bias random walks and the measured force and yaw rate, each sample's
+    arithmetic as `Imu._sample`'s), each handed to `msf.predict` (its first through the Python method, the rest
+    to the filter's `Predictor` as `predict` hands them; all to the method where the filter's `predict` was
+    replaced on the instance, as instrumentation does). The `Imu`'s and the filter's Python state (biases, last
+    sample, schedule, filter time) is read and written back every tick, so either path may take the next one."""
+
+    cdef object imu, schedule, msf, sample
+    cdef Predictor predictor
+    cdef double accel_bias_walk, gyro_bias_walk, accel_std, gyro_std
+
+    def __init__(self, imu, msf, sample):
+        """`sample` builds an `ImuSample` (the filter's first sample goes through its Python `predict`)."""
+        m = imu.model
+        self.imu, self.schedule, self.msf, self.predictor, self.sample = imu, imu._schedule, msf, msf._predictor, sample
+        self.accel_bias_walk, self.gyro_bias_walk = m.accel_bias_walk, m.gyro_bias_walk
+        self.accel_std, self.gyro_std = m.accel_std, m.gyro_std
+
+    def step(self, double t, double accel, double yaw_rate):
+        """Every IMU sample due up to `t` with the tick's motion (`accel`, `yaw_rate`), propagated."""
+        cdef object imu = self.imu, msf = self.msf, schedule = self.schedule, nxt_obj = schedule._next
+        cdef double period = schedule.period, nxt = t if nxt_obj is None else <double>nxt_obj
+        cdef double ab, gb, ts, dt, sq, a, w, last_t = 0.0, msf_t
+        cdef bint has_last, own = "predict" not in msf.__dict__
+        cdef Py_ssize_t k, n
+        cdef double[::1] draws
+        times = []
+        while nxt <= t + 1e-9:
+            times.append(nxt)
+            nxt += period
+        schedule._next = nxt
+        n = len(times)
+        if n:
+            times[n - 1] = t
+        draws = imu.rng.normal(size=4 * n)
+        last_obj = imu._last_t
+        has_last = last_obj is not None
+        if has_last:
+            last_t = last_obj
+        ab, gb = imu.accel_bias, imu.gyro_bias
+        for k in range(n):
+            ts = times[k]
+            dt = _py_max(0.0, ts - last_t) if has_last else 0.0
+            last_t, has_last = ts, True
+            sq = sqrt(dt)
+            ab += self.accel_bias_walk * sq * draws[4 * k]
+            gb += self.gyro_bias_walk * sq * draws[4 * k + 1]
+            a = accel + ab + self.accel_std * draws[4 * k + 2]
+            w = yaw_rate + gb + self.gyro_std * draws[4 * k + 3]
+            msf_t_obj = msf.t
+            if msf_t_obj is None or not own:
+                msf.predict(self.sample(ts, a, w))
+                continue
+            msf_t = msf_t_obj
+            msf.t = ts
+            if not ts - msf_t <= 0.0:
+                self.predictor.predict(w, a, ts - msf_t)
+        imu.accel_bias, imu.gyro_bias = ab, gb
+        if has_last:
+            imu._last_t = last_t

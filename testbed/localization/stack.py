@@ -24,11 +24,15 @@ from testbed.localization.sensors import (
     GnssSensor,
     Imu,
     ImuModel,
+    ImuSample,
     LidarLocator,
     LidarModel,
 )
 from testbed.params import ParamsError
+from tracks.compiled import compiled_module
 from tracks.pose import Pose
+
+_KERNELS = compiled_module("testbed.localization.msf_kernels")
 
 GnssSpoofer = Callable[[GnssFix], GnssFix]
 GnssPort = Callable[[GnssFix], GnssFix | None]
@@ -135,6 +139,10 @@ class LocalizationStack:
         self.last_gnss: GnssFix | None = None
         self.gnss_port: GnssPort | None = None
         """Where a fix goes between the receiver (and attacker) and the MSF; None: straight in."""
+        self._imu_step = (None if _KERNELS is None or self.msf._predictor is None
+                          else _KERNELS.ImuPropagation(self.imu, self.msf, ImuSample))
+        """The IMU's samples and the MSF's propagation with them compiled (testbed/localization/msf_kernels.pyx),
+        where built; None: `Imu.samples` and `MultiSensorFusion.predict`, the reference it is tested equal to."""
 
     def step(
         self, t: float, truth: ChassisState, spoof_gnss: GnssSpoofer | None = None
@@ -144,8 +152,11 @@ class LocalizationStack:
                 "LocalizationStack simulates its sensors from the true pose; ChassisState has none"
             )
         pose = truth.true_pose
-        for sample in self.imu.samples(t, truth.accel, truth.yaw_rate):  # the tick's motion held since the last
-            self.msf.predict(sample)
+        if self._imu_step is not None:
+            self._imu_step.step(t, truth.accel, truth.yaw_rate)
+        else:
+            for sample in self.imu.samples(t, truth.accel, truth.yaw_rate):  # the tick's motion held since the last
+                self.msf.predict(sample)
         self.last_gnss = None
         if self.gnss.due(t):
             fix = self.gnss.measure(t, pose)

@@ -79,3 +79,25 @@ def test_the_compiled_curves_ahead_are_the_python_ones(spec):
         for pose, _, _ in drive(spec, lane, seed=3)[::20]:
             (d_fast, v_fast), (d_slow, v_slow) = fast._curves_ahead(pose), slow._curves_ahead(pose)
             assert (d_fast.tobytes(), v_fast.tobytes()) == (d_slow.tobytes(), v_slow.tobytes()), pose
+
+
+@compiled
+@pytest.mark.parametrize("spec", ["urban-curvy@101", "urban-curvy@3", "highway@7"])
+def test_the_compiled_curve_limit_is_the_python_one(spec):
+    """The curve limit alone (both planners on the compiled map): random speeds (standing, reversing), times that
+    step back now and then, a cruise speed changed mid-drive, samples every CURVE_PERIOD and the travel between."""
+    smap, rng = TrackMap(load_track(spec)), np.random.default_rng(11)
+    fast, slow = LanePlanner(smap, 0, 20.0), LanePlanner(smap, 0, 20.0)
+    slow._limit = None
+    assert fast._limit is not None
+    t, limits = 0.0, 0
+    for k, (pose, _, speed) in enumerate(drive(spec, 0, seed=5)):
+        t += float(rng.choice([0.025, 0.01, -0.02, 0.1]))
+        speed = float(rng.choice([speed, -1.0, 0.0]))
+        if k == 150:
+            fast.cruise_speed = slow.cruise_speed = 8.0
+        a, b = fast._curve_limit(pose, speed, t), slow._curve_limit(pose, speed, t)
+        fast._t_last = slow._t_last = t
+        assert bits((a,)) == bits((b,)), (k, a, b)
+        limits += np.isfinite(a)
+    assert limits > 20  # curves bound the speed on these roads
