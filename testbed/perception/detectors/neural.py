@@ -9,9 +9,9 @@ at that anchor's distance. A weighted least-squares polynomial through the prese
 cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1), with a
 zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 = 0, stay unbiased) that keeps
 a few bad anchors from bending the line; c0 is its extrapolation to the reference point. The fit is one of
-`FITS`: `cubic` weighs the anchors by `ANCHOR_WEIGHTS`; `near` by the inverse square of each anchor's measured
-error (`ANCHOR_ERROR_M`, a fall from near to far about four times steeper), so that misread far anchors move c0
-and c1 less; both return arcs exactly. A pooled branch
+`FITS`: `cubic` weighs the anchors by `ANCHOR_WEIGHTS` (10:1 from the nearest to the farthest); `near` by the
+inverse square of each anchor's measured error (`ANCHOR_ERROR_M`, 40:1), so that misread far anchors move c0 and
+c1 less; both return arcs exactly. A pooled branch
 gives the existence logit of each line. Inference runs `FrozenLaneNet`: BatchNorm folded into the
 convolutions, the forward pass as plain functional calls.
 """
@@ -167,8 +167,8 @@ def check_fit(fit: str) -> str:
 
 def fit_cubics(y: torch.Tensor, present: torch.Tensor, fit: str = DEFAULT_FIT) -> torch.Tensor:
     """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K), with the
-    anchor weights of `fit`, c3 drawn toward 0 by the road-geometry prior;
-    with fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
+    anchor weights of `fit`, c3 drawn toward 0 by the road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS`
+    (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
     dt = y.dtype
     w = _FIT_W[check_fit(fit)].to(dt) * present
     n = present.sum(-1, keepdim=True)
