@@ -84,6 +84,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("lanenet.onnx"))
     p.add_argument("--network-only", action="store_true",
                    help="export only the network (preprocessed input in, column and existence logits out)")
+    p.add_argument("--fit", choices=("cubic", "near"), default="cubic",
+                   help="the anchor fit inside the detector graph (detector.fit; default cubic)")
     p.set_defaults(func=_export_onnx)
 
     from testbed.perception.detectors.registry import DETECTORS
@@ -107,6 +109,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--weights", metavar="CHECKPOINT",
                    help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
                         "default: the shipped lanenet.pt, or lanenet-traffic.pt with --traffic)")
+    p.add_argument("--fit", choices=("cubic", "near"),
+                   help="the neural detector's anchor fit (detector.fit; default: the detector's own)")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
@@ -223,14 +227,17 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def _export_onnx(args: argparse.Namespace) -> int:
+    from testbed.errors import UserError
     from testbed.eval.run.folder import output_file
     from testbed.perception.detectors.neural import load_model
     from testbed.perception.detectors.onnx_runtime import export_onnx
     from testbed.perception.training.onnx_detector_graph import export_detector_onnx
 
-    export = export_onnx if args.network_only else export_detector_onnx
+    if args.network_only and args.fit != "cubic":
+        raise UserError("--network-only exports no anchor fit: drop --fit")
     with output_file(args.out, ".onnx") as tmp:
-        data = export(load_model(args.weights), tmp)
+        model = load_model(args.weights)
+        data = export_onnx(model, tmp) if args.network_only else export_detector_onnx(model, tmp, args.fit)
     print(f"wrote {args.out} ({len(data) / 1024:.0f} KiB)")
     return 0
 
@@ -247,7 +254,8 @@ def _closed_loop(args: argparse.Namespace) -> int:
     check_out_dir(args.out, True, "closed_loop.csv", "a closed-loop report")
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
-                              lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check")
+                              lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check",
+                              fit=args.fit)
     with output_folder(args.out, True, "closed_loop.csv", "a closed-loop report") as tmp:
         paths = {k: args.out / p.name for k, p in write_report(results, tmp).items()}
     print(markdown_table(results))

@@ -8,7 +8,10 @@ expectation over the columns gives a sub-cell column u, which the nominal flat-g
 at that anchor's distance. A weighted least-squares polynomial through the present anchors is the `LaneDetection`
 cubic (degree 3 from `CUBIC_MIN_ANCHORS` present anchors, 2 from `QUADRATIC_MIN_ANCHORS`, else 1), with a
 zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 = 0, stay unbiased) that keeps
-a few bad anchors from bending the line; c0 is its extrapolation to the reference point. A pooled branch
+a few bad anchors from bending the line; c0 is its extrapolation to the reference point. The fit is one of
+`FITS`: `cubic` weighs the anchors by `ANCHOR_WEIGHTS` (10:1 from the nearest to the farthest); `near` by the
+inverse square of each anchor's measured error (`ANCHOR_ERROR_M`, 40:1), so that misread far anchors move c0 and
+c1 less; both return arcs exactly. A pooled branch
 gives the existence logit of each line. Inference runs `FrozenLaneNet`: BatchNorm folded into the
 convolutions, the forward pass as plain functional calls.
 """
@@ -43,6 +46,11 @@ PINNED = 1e3  # t-basis ridge that holds a coefficient at 0 when too few anchors
 ANCHOR_NOISE_M = 0.05  # anchor offset noise (m) at unit anchor weight: scales the prior against the data
 CUBIC_PRIOR_STD = 1e-4  # prior std of c3 (1/m²): c3 = κ'/6, clothoid transitions reach κ' ≈ 6e-4 1/m²
 CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
+# mean |decoded - label| offset (m) per anchor, both shipped checkpoints on 1800 training frames (presets, with and
+# without traffic): the `near` fit's anchor noise
+ANCHOR_ERROR_M = (0.042, 0.048, 0.055, 0.061, 0.071, 0.086, 0.102, 0.124, 0.145, 0.206, 0.266)
+FITS = ("cubic", "near")
+DEFAULT_FIT = "cubic"
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
 INPUT_WIDTH = 160  # network input columns: the frame's halved
@@ -134,7 +142,8 @@ _T = torch.tensor(X_ANCHORS, dtype=torch.float64) / FIT_SCALE
 _VANDER = torch.stack([_T**p for p in range(4)], dim=-1)  # (K, 4)
 _OUTER = _VANDER[:, :, None] * _VANDER[:, None, :]  # (K, 4, 4)
 _UNSCALE = torch.tensor([FIT_SCALE**p for p in range(4)], dtype=torch.float64)
-_FIT_W = torch.tensor(ANCHOR_WEIGHTS, dtype=torch.float64)
+_FIT_W = {"cubic": torch.tensor(ANCHOR_WEIGHTS, dtype=torch.float64),
+          "near": (ANCHOR_NOISE_M / torch.tensor(ANCHOR_ERROR_M, dtype=torch.float64)) ** 2}
 _M_PER_PX = {dt: torch.tensor(GEOMETRY.scale, dtype=dt) for dt in (torch.float32, torch.float64)}
 
 
@@ -149,12 +158,19 @@ def _moments(dtype: torch.dtype) -> torch.Tensor:
 _MOMENTS = {dt: _moments(dt) for dt in _M_PER_PX}
 
 
-def fit_cubics(y: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
-    """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K), c3 drawn
-    toward 0 by the road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`)
-    present anchors c3 (and c2) are held at 0."""
+def check_fit(fit: str) -> str:
+    """`fit` if it names one of `FITS`, else a UserError listing them."""
+    if fit not in FITS:
+        raise UserError(f"unknown lane-line fit {fit!r}: use one of {', '.join(FITS)}")
+    return fit
+
+
+def fit_cubics(y: torch.Tensor, present: torch.Tensor, fit: str = DEFAULT_FIT) -> torch.Tensor:
+    """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K), with the
+    anchor weights of `fit`, c3 drawn toward 0 by the road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS`
+    (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
     dt = y.dtype
-    w = _FIT_W.to(dt) * present
+    w = _FIT_W[check_fit(fit)].to(dt) * present
     n = present.sum(-1, keepdim=True)
     small = torch.full_like(n, RIDGE)
     prior3 = RIDGE + (ANCHOR_NOISE_M / (CUBIC_PRIOR_STD * FIT_SCALE**3)) ** 2
@@ -174,31 +190,32 @@ def decode(cols: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 
 
 @functools.cache
-def _fit_matrices() -> np.ndarray:
+def _fit_matrices(fit: str = DEFAULT_FIT) -> np.ndarray:
     """`fit_cubics` as (4, K) matrices for all 2^K presence masks, indexed by the mask's bits (anchor k = bit k)."""
     k = len(X_ANCHORS)
     masks = (np.arange(2**k)[:, None] >> np.arange(k)) & 1
     eye = torch.eye(k, dtype=torch.float64).expand(2**k, k, k)
     present = torch.from_numpy(masks).double()[:, None, :].expand(2**k, k, k)
-    return fit_cubics(eye, present).numpy().transpose(0, 2, 1).copy()
+    return fit_cubics(eye, present, fit).numpy().transpose(0, 2, 1).copy()
 
 
 _MASK_BITS = 1 << np.arange(len(X_ANCHORS))
 MIN_PRESENT_ANCHORS = 3  # a line decoded at fewer present anchors is not output
 
 
-def fit_matrices(present: np.ndarray) -> np.ndarray:
-    """`fit_cubics` as (…, 4, K) matrices for presence masks (…, K bools): cubic = M @ y. All masks are solved
-    once, on first use, so no frame pays for a solve."""
-    return _fit_matrices()[present.astype(np.int64) @ _MASK_BITS]
+def fit_matrices(present: np.ndarray, fit: str = DEFAULT_FIT) -> np.ndarray:
+    """`fit_cubics` of `fit` as (…, 4, K) matrices for presence masks (…, K bools): cubic = M @ y. All masks are
+    solved once per fit, on first use, so no frame pays for a solve."""
+    return _fit_matrices(fit)[present.astype(np.int64) @ _MASK_BITS]
 
 
-def lines_from_outputs(cols: torch.Tensor, exist: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
-    """Network outputs for N frames -> cubics (N, 2, 4) through the anchors decoded as present, and existence
-    probabilities (N, 2), 0 for a line with fewer than `MIN_PRESENT_ANCHORS` present anchors."""
+def lines_from_outputs(cols: torch.Tensor, exist: torch.Tensor,
+                       fit: str = DEFAULT_FIT) -> tuple[np.ndarray, np.ndarray]:
+    """Network outputs for N frames -> cubics (N, 2, 4) of `fit` through the anchors decoded as present, and
+    existence probabilities (N, 2), 0 for a line with fewer than `MIN_PRESENT_ANCHORS` present anchors."""
     y, present = decode(cols)
     mask = present.numpy() > 0.5
-    coeffs = np.einsum("nlck,nlk->nlc", fit_matrices(mask), y.double().numpy())
+    coeffs = np.einsum("nlck,nlk->nlc", fit_matrices(mask, fit), y.double().numpy())
     probs = expit(exist.double().numpy()) * (mask.sum(-1) >= MIN_PRESENT_ANCHORS)
     return coeffs, probs
 
@@ -283,15 +300,16 @@ def model_from_checkpoint(ckpt: dict, path: str | Path) -> LaneNet:
 
 
 class NeuralLaneDetector(LaneDetector):
-    """Runs LaneNet (as `FrozenLaneNet`) on a frame; a line under 0.5 existence probability or with fewer than
-    `MIN_PRESENT_ANCHORS` present anchors is None."""
+    """Runs LaneNet (as `FrozenLaneNet`) on a frame and fits its anchors with `fit` (one of `FITS`); a line under
+    0.5 existence probability or with fewer than `MIN_PRESENT_ANCHORS` present anchors is None."""
 
-    def __init__(self, model: LaneNet | None = None, threads: int | None = None) -> None:
+    def __init__(self, model: LaneNet | None = None, threads: int | None = None, fit: str = DEFAULT_FIT) -> None:
         if threads is not None:
             torch.set_num_threads(threads)
         model = model if model is not None else load_model()
         self.input_rows = model.input_rows
         self.model = FrozenLaneNet(model)
+        self.fit = check_fit(fit)
 
     @staticmethod
     def valid_image(image: np.ndarray | None) -> bool:
@@ -305,7 +323,7 @@ class NeuralLaneDetector(LaneDetector):
             image = np.clip(image, 0, 255).astype(np.uint8)
         x = torch.from_numpy(preprocess(image, self.input_rows))[None]
         with torch.inference_mode():
-            coeffs, probs = lines_from_outputs(*self.model(x))
+            coeffs, probs = lines_from_outputs(*self.model(x), self.fit)
         return coeffs[0], probs[0]
 
     @staticmethod

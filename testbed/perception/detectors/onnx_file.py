@@ -14,14 +14,16 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 FRAME_SHAPE = (160, 320, 3)
 FRAME_INPUT = "frame"
 METADATA_X_MAX = "ld3.x_max"
+METADATA_FIT = "ld3.fit"  # the anchor fit baked into the graph; graphs exported before it was recorded: cubic
 
 
 class OnnxFileLaneDetector(LaneDetector):
-    """Runs the detector graph at `path` in an onnxruntime session (one intra-op thread unless told otherwise)."""
+    """Runs the detector graph at `path` in an onnxruntime session (one intra-op thread unless told otherwise); a
+    `fit` asked for that is not the one the graph was exported with is a UserError."""
 
     name = "neural-onnx"
 
-    def __init__(self, path: str | Path, threads: int = 1) -> None:
+    def __init__(self, path: str | Path, threads: int = 1, fit: str | None = None) -> None:
         try:
             import onnxruntime as ort
         except ImportError:
@@ -40,6 +42,10 @@ class OnnxFileLaneDetector(LaneDetector):
             raise UserError(f"{path} is not a detector graph (input {inputs}): export one with "
                             f"`ld3 ld export-onnx --out {Path(path).name}`")
         self.x_max = float(meta[METADATA_X_MAX])
+        self.fit = meta.get(METADATA_FIT, "cubic")
+        if fit is not None and fit != self.fit:
+            raise UserError(f"{path} was exported with the {self.fit} fit, not {fit}: export it again with "
+                            f"`ld3 ld export-onnx --fit {fit}` or drop detector.fit")
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
         image = frame.image

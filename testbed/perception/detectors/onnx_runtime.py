@@ -15,9 +15,11 @@ import torch
 from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.detectors.neural import (
+    DEFAULT_FIT,
     INPUT_WIDTH,
     LaneNet,
     NeuralLaneDetector,
+    check_fit,
     lines_from_outputs,
     load_model,
     preprocess,
@@ -90,19 +92,21 @@ def session_for(model: LaneNet, threads: int = 1) -> OnnxLaneNet:
 
 
 class OnnxLaneDetector(LaneDetector):
-    """`NeuralLaneDetector` with the network in onnxruntime (one intra-op thread unless told otherwise)."""
+    """`NeuralLaneDetector` with the network in onnxruntime (one intra-op thread unless told otherwise), its
+    anchors fitted with `fit`."""
 
-    def __init__(self, model: LaneNet | None = None, threads: int = 1) -> None:
+    def __init__(self, model: LaneNet | None = None, threads: int = 1, fit: str = DEFAULT_FIT) -> None:
         model = model if model is not None else load_model()
         self.input_rows = model.input_rows
         self.model = session_for(model, threads)
+        self.fit = check_fit(fit)
 
     def infer(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""
         if image.dtype != np.uint8:
             image = np.clip(image, 0, 255).astype(np.uint8)
         cols, exist = self.model(preprocess(image, self.input_rows)[None])
-        coeffs, probs = lines_from_outputs(torch.from_numpy(cols), torch.from_numpy(exist))
+        coeffs, probs = lines_from_outputs(torch.from_numpy(cols), torch.from_numpy(exist), self.fit)
         return coeffs[0], probs[0]
 
     def detect(self, frame: CameraFrame) -> LaneDetection:

@@ -38,6 +38,11 @@ class NeuralParams(CameraDetectorParams):
                                                   "default without traffic), lanenet-traffic.pt (fine-tuned with cars "
                                                   "in view; the default with traffic); for neural-onnx also a "
                                                   "detector graph (.onnx) from `ld3 ld export-onnx`")
+    fit: Literal["cubic", "near"] = Field(
+        "cubic", description="the fit of the network's anchors into each line's cubic: cubic (fixed anchor weights, a "
+                             "prior on c3) or near (anchors weighted by the inverse square of their measured error, "
+                             "which grows with distance: misread far anchors move the offset and slope at the car "
+                             "less); a detector graph (.onnx) holds the fit it was exported with")
 
     @field_validator("weights")
     @classmethod
@@ -65,23 +70,24 @@ class OracleParams(Params):
 
 
 def _neural(track, rig, rng: np.random.Generator, weights: str | None = None,
-            runtime: str = "onnxruntime") -> LaneDetector:
+            runtime: str = "onnxruntime", fit: str = "cubic") -> LaneDetector:
     from testbed.perception.detectors.neural import NeuralLaneDetector, load_model
 
     model = load_model(resolve(weights) if weights is not None else None)
     if runtime == "torch":
-        return NeuralLaneDetector(model)
+        return NeuralLaneDetector(model, fit=fit)
     from testbed.perception.detectors.onnx_runtime import OnnxLaneDetector
 
-    return OnnxLaneDetector(model)
+    return OnnxLaneDetector(model, fit=fit)
 
 
-def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None) -> LaneDetector:
+def _neural_onnx(track, rig, rng: np.random.Generator, weights: str | None = None,
+                 fit: str | None = None) -> LaneDetector:
     if weights is not None and weights.endswith(".onnx"):  # an exported detector graph: no torch needed
         from testbed.perception.detectors.onnx_file import OnnxFileLaneDetector
 
-        return OnnxFileLaneDetector(Path(weights).expanduser())
-    return _neural(track, rig, rng, weights, runtime="onnxruntime")
+        return OnnxFileLaneDetector(Path(weights).expanduser(), fit=fit)
+    return _neural(track, rig, rng, weights, runtime="onnxruntime", fit=fit or "cubic")
 
 
 def _classical(track, rig, rng: np.random.Generator) -> LaneDetector:

@@ -80,8 +80,10 @@ def error_stats(err: np.ndarray) -> dict[str, float | None]:
 
 
 def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, traffic: int = 0,
-                   lead_gap: float = LEAD_GAP_M, weights: str | None = None) -> tuple[Scenario, Track]:
-    """The scenario of a cell's drive and its track; a UserError where its road cannot hold the traffic."""
+                   lead_gap: float = LEAD_GAP_M, weights: str | None = None,
+                   fit: str | None = None) -> tuple[Scenario, Track]:
+    """The scenario of a cell's drive and its track (the detector's `weights` and anchor `fit` where given); a
+    UserError where its road cannot hold the traffic."""
     base = load_scenario(cell.preset)
     spec = f"{cell.preset}@{cell.track_seed}"
     track = load_track(spec)
@@ -92,20 +94,22 @@ def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, tr
         fitted = traffic_drive(track, base.lane if base.lane is not None else track.ego_lane, base.start_s,
                                base.vehicle, speed, duration, traffic, lead_gap)
         speed, table = fitted.speed, fitted.traffic
+    params = {k: v for k, v in (("weights", weights), ("fit", fit)) if v is not None}
     sc = base.with_overrides(track=spec, condition=cell.condition, duration=duration, speed=speed, seed=seed,
                              detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}",
-                             traffic=table, **({} if weights is None else {"detector_params": {"weights": weights}}))
+                             traffic=table, **({"detector_params": params} if params else {}))
     return sc, track
 
 
 def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
           existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M,
-          weights: str | None = None) -> dict:
+          weights: str | None = None, fit: str | None = None) -> dict:
     """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
     (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
     or before the first frame), and the detector and weights it read (`weights` None: its default); `weights`
-    the detector's checkpoint (`detector.weights`, default its own, the traffic weights with traffic)."""
-    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights)
+    the detector's checkpoint (`detector.weights`, default its own, the traffic weights with traffic), `fit` its
+    anchor fit (`detector.fit`)."""
+    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights, fit)
     spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
     tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed),
@@ -136,6 +140,7 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     return {"preset": cell.preset, "condition": cell.condition, "track": spec, "speed_mps": round(speed, 2),
             "sim_time_s": round(len(rows) / sim.loop.rates.control_hz, 2), "frames": len(tap.frames),
             "traffic": traffic, "detector": detector, "weights": sc.run_detector_params.get("weights"),
+            "fit": sc.run_detector_params.get("fit"),
             "consequence": result.summary["consequence"],
             "raw": np.abs(raw - phys), "tracked": np.abs(tracked - phys), "occluded": occluded}
 
@@ -148,11 +153,12 @@ def _one_thread() -> None:
 
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
                     workers: int = 1, progress: bool = False, traffic: int = 0,
-                    lead_gap: float | None = None, weights: str | None = None, check: bool = False) -> list[dict]:
+                    lead_gap: float | None = None, weights: str | None = None, check: bool = False,
+                    fit: str | None = None) -> list[dict]:
     """Drive every cell (one torch thread each; `workers` processes at once; `traffic` cars, the lead
     `lead_gap` m ahead, default `LEAD_GAP_M`; the detector's checkpoint `weights`, default its own; on the check
-    block's layouts with `check`), results in cell order; a bad preset, condition, duration, traffic or weights
-    is a UserError before any drive."""
+    block's layouts with `check`; the anchor `fit`, default the detector's own), results in cell order; a bad
+    preset, condition, duration, traffic, weights or fit is a UserError before any drive."""
     if not (math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a time > 0 s, got {duration}")
     if traffic < 0:
@@ -170,8 +176,14 @@ def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "
             DETECTORS.get(detector).settings({"weights": weights}, f"detector {detector}")
         except ParamsError as exc:
             raise UserError(f"--weights: {exc}") from None
+    if fit is not None:
+        try:
+            DETECTORS.get(detector).settings({"fit": fit}, f"detector {detector}")
+        except ParamsError as exc:
+            raise UserError(f"--fit: {exc}") from None
     todo = (check_cells if check else cells)(presets, conditions)
-    options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap, "weights": weights}
+    options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap, "weights": weights,
+               "fit": fit}
     if traffic:
         for cell in todo:
             drive_scenario(cell, detector, duration, **options)
@@ -205,7 +217,8 @@ def mean_target(condition: str) -> float:
 def markdown_table(results: list[dict]) -> str:
     """The detector and weights driven, then per condition × preset and per condition (the ticks of its presets
     pooled), raw against tracked, with the targets."""
-    read = sorted({f"{r['detector']} ({r['weights'] or 'its default weights'})" for r in results if "detector" in r})
+    read = sorted({f"{r['detector']} ({r['weights'] or 'its default weights'}"
+                   f"{', fit ' + r['fit'] if r.get('fit') else ''})" for r in results if "detector" in r})
     lines = [f"Detector: {', '.join(read)}.", ""] if read else []
     lines += ["| condition | preset | track | s | raw mean | raw p99 | raw max | tracked mean | tracked p99 "
               "| tracked max |", "|---|---|---|---|---|---|---|---|---|---|"]

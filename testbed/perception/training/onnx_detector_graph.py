@@ -1,7 +1,7 @@
 """LaneNet as one self-contained ONNX graph (needs torch to export): the RGB frame (160, 320, 3) uint8 in, the two
 ego lines' cubics (2, 4) and existence probabilities (2,) out. The crop, the 2:1 box downsampling (what
 OpenCV's INTER_AREA does at an integer ratio), the per-channel standardisation, the network, the column
-decoding and the anchor fit (the shipped fit matrices, gathered by presence mask) all run inside the graph, so
+decoding and the anchor fit (one fit's matrices, gathered by presence mask) all run inside the graph, so
 `testbed.perception.detectors.onnx_file.OnnxFileLaneDetector` needs onnxruntime only: no torch, no OpenCV."""
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from torch.nn import functional as F
 from testbed.perception.detectors.neural import (
     _MASK_BITS,
     CROP_TOP,
+    DEFAULT_FIT,
     FRAME_SHAPE,
     GEOMETRY,
     MIN_PRESENT_ANCHORS,
@@ -25,21 +26,23 @@ from testbed.perception.detectors.neural import (
     LaneNet,
     _fit_matrices,
     _moments,
+    check_fit,
 )
-from testbed.perception.detectors.onnx_file import FRAME_INPUT, METADATA_X_MAX
+from testbed.perception.detectors.onnx_file import FRAME_INPUT, METADATA_FIT, METADATA_X_MAX
 from testbed.perception.detectors.onnx_runtime import OPSET
 
 
 class DetectorGraph(nn.Module):
-    """Frame -> (cubics (1, 2, 4) float64, existence probabilities (1, 2) float64), as `NeuralLaneDetector.infer`."""
+    """Frame -> (cubics (1, 2, 4) float64, existence probabilities (1, 2) float64), as `NeuralLaneDetector.infer`
+    with the anchor fit `fit`."""
 
-    def __init__(self, model: LaneNet) -> None:
+    def __init__(self, model: LaneNet, fit: str = DEFAULT_FIT) -> None:
         super().__init__()
         self.model = model.eval()
         self.pool = ((FRAME_SHAPE[0] - CROP_TOP) // model.input_rows, 2)
         self.register_buffer("moments", _moments(torch.float32))
         self.register_buffer("scale", torch.tensor(GEOMETRY.scale, dtype=torch.float32))
-        self.register_buffer("fit", torch.from_numpy(_fit_matrices()))
+        self.register_buffer("fit", torch.from_numpy(_fit_matrices(check_fit(fit))))
         self.register_buffer("bits", torch.from_numpy(_MASK_BITS))
         self.cx = float(GEOMETRY.cx)
 
@@ -59,17 +62,17 @@ class DetectorGraph(nn.Module):
         return coeffs, torch.sigmoid(exist.double()) * enough
 
 
-def export_detector_onnx(model: LaneNet, path: str | Path | None = None) -> bytes:
-    """The detector graph of the eval-mode `model` (the valid x range's end in its metadata); also written to
-    `path` when given."""
+def export_detector_onnx(model: LaneNet, path: str | Path | None = None, fit: str = DEFAULT_FIT) -> bytes:
+    """The detector graph of the eval-mode `model` with the anchor fit `fit` (the valid x range's end and the fit in
+    its metadata); also written to `path` when given."""
     buf = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
-        torch.onnx.export(DetectorGraph(model), (torch.zeros(*FRAME_SHAPE, 3, dtype=torch.uint8),), buf,
+        torch.onnx.export(DetectorGraph(model, fit), (torch.zeros(*FRAME_SHAPE, 3, dtype=torch.uint8),), buf,
                           input_names=[FRAME_INPUT], output_names=["cubics", "existence"], opset_version=OPSET,
                           dynamo=False)
     graph = onnx.load_from_string(buf.getvalue())
-    onnx.helper.set_model_props(graph, {METADATA_X_MAX: repr(X_ANCHORS[-1])})
+    onnx.helper.set_model_props(graph, {METADATA_X_MAX: repr(X_ANCHORS[-1]), METADATA_FIT: fit})
     data = graph.SerializeToString()
     if path is not None:
         Path(path).write_bytes(data)

@@ -6,10 +6,13 @@ import pytest
 import torch
 
 from testbed.defense.ld_deviation import LdDeviation
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame
 from testbed.perception.detectors.neural import (
     ANCHOR_WEIGHTS,
+    DEFAULT_FIT,
     DEFAULT_WEIGHTS,
+    FITS,
     GEOMETRY,
     X_ANCHORS,
     FrozenLaneNet,
@@ -18,6 +21,7 @@ from testbed.perception.detectors.neural import (
     decode,
     fit_cubics,
     fit_matrices,
+    lines_from_outputs,
 )
 
 WEIGHTS_SHIPPED = (resources.files("testbed.perception.detectors") / "weights" / DEFAULT_WEIGHTS).is_file()
@@ -132,12 +136,62 @@ def test_cubic_term_needs_enough_anchors():
     assert fit_cubics(y, three).numpy()[2:] == pytest.approx([0.0, 0.0], abs=1e-6)
 
 
-def test_cached_fit_matrices_match_the_fit():
+@pytest.mark.parametrize("fit", FITS)
+def test_cached_fit_matrices_match_the_fit(fit):
     rng = np.random.default_rng(7)
     present = rng.random((5, 2, len(X_ANCHORS))) > 0.3
     y = rng.normal(0.0, 2.0, (5, 2, len(X_ANCHORS)))
-    direct = fit_cubics(torch.tensor(y), torch.tensor(present, dtype=torch.float64)).numpy()
-    np.testing.assert_allclose(np.einsum("nlck,nlk->nlc", fit_matrices(present), y), direct, atol=1e-9)
+    direct = fit_cubics(torch.tensor(y), torch.tensor(present, dtype=torch.float64), fit).numpy()
+    np.testing.assert_allclose(np.einsum("nlck,nlk->nlc", fit_matrices(present, fit), y), direct, atol=1e-9)
+
+
+def test_the_default_fit_is_the_cubic():
+    """Without a fit named the decoding is the cubic fit's, to the bit."""
+    rng = np.random.default_rng(3)
+    cols = torch.tensor(rng.normal(0.0, 3.0, (4, 2, len(X_ANCHORS), len(GEOMETRY.cell_u) + 1)))
+    exist = torch.tensor(rng.normal(0.0, 2.0, (4, 2)))
+    assert DEFAULT_FIT == "cubic"
+    for got, want in zip(lines_from_outputs(cols, exist), lines_from_outputs(cols, exist, "cubic"), strict=True):
+        assert got.tobytes() == want.tobytes()
+    near = lines_from_outputs(cols, exist, "near")[0]
+    assert not np.allclose(near, lines_from_outputs(cols, exist)[0])
+
+
+@pytest.mark.parametrize("coeffs", [[1.7, 0.03, 0.0, 0.0], [-1.7, 0.0, 1 / 80, 0.0], [1.75, 0.02, -1 / 40, 0.0]])
+def test_near_fit_returns_lines_and_arcs_exactly(coeffs):
+    """The near fit changes only the anchor weights: c3 = 0 curves come back within 1e-4 (the ridge and prior's
+    pull; c0 in m) from all anchors, from the near five and from the far seven."""
+    y = torch.tensor(np.polynomial.polynomial.polyval(np.asarray(X_ANCHORS), coeffs))
+    k = len(X_ANCHORS)
+    for present in (np.ones(k), np.r_[np.ones(5), np.zeros(k - 5)], np.r_[np.zeros(k - 7), np.ones(7)]):
+        fitted = fit_cubics(y, torch.tensor(present), "near").numpy()
+        np.testing.assert_allclose(fitted, coeffs, atol=1e-4)
+
+
+def test_near_fit_bounds_what_a_far_misread_does_at_the_car():
+    """A 1 m misread at an anchor 17 m or farther moves the near fit's c0 by at most 0.24 m and c1 by at most
+    0.08 (the cubic fit: 0.46 m and 0.14), and at the 30 m anchor c0 by at most 0.06 m (cubic 0.25 m)."""
+    k = len(X_ANCHORS)
+    far = np.asarray(X_ANCHORS) >= 17.0
+    near, cubic = fit_matrices(np.ones(k, bool), "near"), fit_matrices(np.ones(k, bool), "cubic")
+    assert np.abs(near[0, far]).max() <= 0.24 and np.abs(near[1, far]).max() <= 0.08
+    assert np.abs(cubic[0, far]).max() > 0.45 and np.abs(cubic[1, far]).max() > 0.13
+    assert abs(near[0, -1]) <= 0.06 < abs(cubic[0, -1])
+    assert (np.abs(near[:2, far]) < np.abs(cubic[:2, far])).all()
+
+
+def test_an_unknown_fit_is_refused_in_one_line():
+    with pytest.raises(UserError, match="unknown lane-line fit 'spline': use one of cubic, near"):
+        fit_matrices(np.ones(len(X_ANCHORS), bool), "spline")
+
+
+def test_the_detectors_fit_parameter_lists_the_fits():
+    from typing import get_args
+
+    from testbed.perception.detectors.registry import NeuralParams
+
+    assert get_args(NeuralParams.model_fields["fit"].annotation) == FITS
+    assert NeuralParams.model_fields["fit"].default == DEFAULT_FIT
 
 
 @pytest.mark.parametrize("rows", [56, 112])

@@ -75,3 +75,25 @@ def test_the_detector_graph_runs_without_torch_and_opencv(graph, heldout_frames,
     expected = NeuralLaneDetector(load_model()).detect(CameraFrame(0.0, image))
     left, right = (float(v) for v in done.stdout.split())
     assert left == pytest.approx(expected.left_prob, abs=1e-4) and right == pytest.approx(expected.right_prob, abs=1e-4)
+
+
+def test_a_graph_exported_with_the_near_fit_detects_as_the_torch_detector_with_it(heldout_frames, tmp_path):
+    path = tmp_path / "near.onnx"
+    export_detector_onnx(load_model(), path, fit="near")
+    ours, reference = OnnxFileLaneDetector(path, fit="near"), NeuralLaneDetector(load_model(), fit="near")
+    assert ours.fit == "near"
+    lines = 0
+    for image, _ in heldout_frames[:10]:
+        a, b = ours.detect(CameraFrame(0.0, image)), reference.detect(CameraFrame(0.0, image))
+        for x, y in ((a.left, b.left), (a.right, b.right)):
+            assert (x is None) == (y is None)
+            if x is not None:
+                np.testing.assert_allclose(x, y, atol=1e-4)
+                lines += 1
+    assert lines > 5
+
+
+def test_a_graph_is_refused_for_a_fit_it_was_not_exported_with(graph):
+    assert OnnxFileLaneDetector(graph).fit == "cubic"
+    with pytest.raises(ValueError, match="exported with the cubic fit, not near"):
+        OnnxFileLaneDetector(graph, fit="near")

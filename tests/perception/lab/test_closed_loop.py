@@ -41,6 +41,7 @@ def test_a_drive_in_traffic_reads_the_traffic_weights_unless_told_otherwise():
     assert drive_scenario(cell, "neural", 30.0)[0].run_detector_params == {}
     told = drive_scenario(cell, "neural", 30.0, traffic=6, weights="lanenet.pt")[0]
     assert told.run_detector_params == {"weights": "lanenet.pt"}
+    assert drive_scenario(cell, "neural", 30.0, fit="near")[0].run_detector_params == {"fit": "near"}
 
 
 def test_error_stats_ignore_ticks_without_a_deviation():
@@ -93,6 +94,13 @@ def test_weights_other_than_a_neural_detectors_checkpoint_are_refused_before_any
         run_closed_loop(["slr"], ["day"], weights="nowhere.pt")
     with pytest.raises(UserError, match="--weights: "):
         run_closed_loop(["slr"], ["day"], detector="classical", weights="lanenet-traffic.pt")
+
+
+def test_a_fit_other_than_a_neural_detectors_is_refused_before_any_drive():
+    with pytest.raises(UserError, match="--fit: "):
+        run_closed_loop(["slr"], ["day"], fit="spline")
+    with pytest.raises(UserError, match="--fit: "):
+        run_closed_loop(["slr"], ["day"], detector="classical", fit="near")
 
 
 @pytest.mark.slow
