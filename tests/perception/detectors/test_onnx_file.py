@@ -27,11 +27,11 @@ def graph(tmp_path_factory):
     return path
 
 
-def test_the_detector_graph_detects_as_the_torch_detector(graph, heldout_frames):
-    assert (*FRAME_SHAPE, 3) == FILE_FRAME_SHAPE
-    ours, reference = OnnxFileLaneDetector(graph), NeuralLaneDetector(load_model())
+def _lines_agreeing(ours, reference, frames) -> int:
+    """Asserts both detectors give every frame the same lines (existence, range, cubics within 1e-4); returns how
+    many lines were compared."""
     lines = 0
-    for image, _ in heldout_frames:
+    for image, _ in frames:
         a, b = ours.detect(CameraFrame(0.0, image)), reference.detect(CameraFrame(0.0, image))
         assert a.left_prob == pytest.approx(b.left_prob, abs=1e-4)
         assert a.right_prob == pytest.approx(b.right_prob, abs=1e-4)
@@ -41,7 +41,13 @@ def test_the_detector_graph_detects_as_the_torch_detector(graph, heldout_frames)
             if x is not None:
                 np.testing.assert_allclose(x, y, atol=1e-4)
                 lines += 1
-    assert lines > 20
+    return lines
+
+
+def test_the_detector_graph_detects_as_the_torch_detector(graph, heldout_frames):
+    assert (*FRAME_SHAPE, 3) == FILE_FRAME_SHAPE
+    ours, reference = OnnxFileLaneDetector(graph), NeuralLaneDetector(load_model())
+    assert _lines_agreeing(ours, reference, heldout_frames) > 20
     assert ours.detect(CameraFrame(0.0, None)).left is None
 
 
@@ -82,15 +88,7 @@ def test_a_graph_exported_with_the_near_fit_detects_as_the_torch_detector_with_i
     export_detector_onnx(load_model(), path, fit="near")
     ours, reference = OnnxFileLaneDetector(path, fit="near"), NeuralLaneDetector(load_model(), fit="near")
     assert ours.fit == "near"
-    lines = 0
-    for image, _ in heldout_frames[:10]:
-        a, b = ours.detect(CameraFrame(0.0, image)), reference.detect(CameraFrame(0.0, image))
-        for x, y in ((a.left, b.left), (a.right, b.right)):
-            assert (x is None) == (y is None)
-            if x is not None:
-                np.testing.assert_allclose(x, y, atol=1e-4)
-                lines += 1
-    assert lines > 5
+    assert _lines_agreeing(ours, reference, heldout_frames[:10]) > 5
 
 
 def test_a_graph_is_refused_for_a_fit_it_was_not_exported_with(graph):
