@@ -190,8 +190,10 @@ def test_the_detectors_fit_parameter_lists_the_fits():
 
     from testbed.perception.detectors.registry import NeuralParams
 
-    assert get_args(NeuralParams.model_fields["fit"].annotation) == FITS
-    assert NeuralParams.model_fields["fit"].default == DEFAULT_FIT
+    listed, none = get_args(NeuralParams.model_fields["fit"].annotation)
+    assert get_args(listed) == FITS and none is type(None)
+    assert NeuralParams.model_fields["fit"].default is None  # unset: the detector's own, DEFAULT_FIT
+    assert NeuralLaneDetector(LaneNet()).fit == DEFAULT_FIT
 
 
 @pytest.mark.parametrize("rows", [56, 112])

@@ -89,6 +89,11 @@ def test_a_graph_exported_with_the_near_fit_detects_as_the_torch_detector_with_i
     ours, reference = OnnxFileLaneDetector(path, fit="near"), NeuralLaneDetector(load_model(), fit="near")
     assert ours.fit == "near"
     assert _lines_agreeing(ours, reference, heldout_frames[:10]) > 5
+    from testbed.perception.detectors.registry import DETECTORS, make_detector
+
+    unset = {"weights": str(path)}  # no detector.fit: the graph's own, and the resolved settings claim none
+    assert make_detector("neural-onnx", track=None, rig=None, params=unset).fit == "near"
+    assert DETECTORS.get("neural-onnx").settings(unset, "detector neural-onnx").fit is None
 
 
 def test_a_graph_is_refused_for_a_fit_it_was_not_exported_with(graph):
