@@ -12,20 +12,11 @@ acceleration, road load, sent steer, the actuator's angle and rate) is read and 
 """
 
 from libc.math cimport atan, atan2, cos, fabs, sin, tan
+from tracks.float_order cimport py_max, py_min
 
 from vehicles import road_load
 
 cdef double GRAVITY = road_load.GRAVITY, AIR_DENSITY = road_load.AIR_DENSITY, SOFT_SPEED = road_load._SOFT_SPEED
-
-
-cdef inline double _py_max(double a, double b) noexcept:
-    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
-    return b if b > a else a
-
-
-cdef inline double _py_min(double a, double b) noexcept:
-    """Python's `min(a, b)` of two floats: `a` unless `b` is smaller."""
-    return b if b < a else a
 
 
 cdef class VehicleMotion:
@@ -60,21 +51,21 @@ cdef class VehicleMotion:
         vehicle, steering, p = self.vehicle, self.steering, self.pb
         cdef double v = vehicle._speed, max_angle = steering.max_angle, angle = steering.angle, target, max_step
         cdef double delta, accel, load, force, r = self.wheel_radius, drive, spin, front, rear
-        target = _py_max(-max_angle, _py_min(max_angle, vehicle._cmd_steer))
+        target = py_max(-max_angle, py_min(max_angle, vehicle._cmd_steer))
         max_step = steering.max_rate * dt
-        delta = _py_max(-max_step, _py_min(max_step, target - angle))
+        delta = py_max(-max_step, py_min(max_step, target - angle))
         angle += delta
         steering.angle, steering.rate = angle, delta / dt
         if angle != <double>vehicle._sent_steer:
             self._send_steer(angle)
-        accel = _py_max(-self.max_decel, _py_min(_py_min(self.max_accel, vehicle._cmd_accel),
+        accel = py_max(-self.max_decel, py_min(py_min(self.max_accel, vehicle._cmd_accel),
                                                  self.governor * (self.max_speed - v)))
-        load = self.crr_mg * v / _py_max(fabs(v), SOFT_SPEED) + self.drag * v * fabs(v)
+        load = self.crr_mg * v / py_max(fabs(v), SOFT_SPEED) + self.drag * v * fabs(v)
         vehicle._load = load
         force = self.m_eff * accel + load
         if force >= 0.0:
             drive = force * r / 2.0
-            spin = (_py_max(v, 0.0) + self.slip) / r
+            spin = (py_max(v, 0.0) + self.slip) / r
             p.setJointMotorControlArray(self.body, self.wheel_ids, p.VELOCITY_CONTROL,
                                         targetVelocities=(0.0, 0.0, spin, spin), forces=(0.0, 0.0, drive, drive),
                                         physicsClientId=self.cid)

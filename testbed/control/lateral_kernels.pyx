@@ -9,18 +9,9 @@ every command is the same to the bit; `tests/control/test_lateral_kernels.py` ho
 """
 
 from libc.math cimport fabs, isinf, sin
+from tracks.float_order cimport py_max, py_min
 
 import numpy as np
-
-
-cdef inline double _py_max(double a, double b) noexcept:
-    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
-    return b if b > a else a
-
-
-cdef inline double _py_min(double a, double b) noexcept:
-    """Python's `min(a, b)` of two floats: `a` unless `b` is smaller."""
-    return b if b < a else a
 
 
 cdef class LateralLaw:
@@ -52,7 +43,7 @@ cdef class LateralLaw:
 
     cdef Py_ssize_t _schedule_at(self, double speed, double* frac) except -1:
         """`LqrLateralController._schedule_at`."""
-        cdef double pos = (_py_min(_py_max(speed, self.lo), self.hi) - self.lo) / self.step
+        cdef double pos = (py_min(py_max(speed, self.lo), self.hi) - self.lo) / self.step
         cdef Py_ssize_t i
         if pos != pos:
             raise ValueError("cannot convert float NaN to integer")
@@ -70,7 +61,7 @@ cdef class LateralLaw:
         if speed < self.hold_speed:
             return last
         if yaw_rate is None:
-            rate_v = v * last / _py_max(self.wheelbase + self.kv * v * v, 0.5 * self.wheelbase)
+            rate_v = v * last / py_max(self.wheelbase + self.kv * v * v, 0.5 * self.wheelbase)
         else:
             rate_v = yaw_rate
         self._steady(v, plan.curvature, &steer_ss, &heading_ss)
@@ -95,5 +86,5 @@ cdef class LateralLaw:
             if v * v == 0.0:
                 raise ZeroDivisionError("float division by zero")
             self._steady(v, self.max_lat_accel / (v * v), &steer_max, &heading_max)
-            limit = _py_min(self.max_steer, fabs(steer_ss) + fabs(steer_max))
-        return _py_min(_py_max(steer, -limit), limit)
+            limit = py_min(self.max_steer, fabs(steer_ss) + fabs(steer_max))
+        return py_min(py_max(steer, -limit), limit)

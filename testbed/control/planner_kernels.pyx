@@ -14,6 +14,7 @@ from libc.math cimport INFINITY, cos, fabs, pow, sin, sqrt
 import numpy as np
 
 from tracks.angles cimport wrap_angle
+from tracks.float_order cimport py_max
 from tracks.map_kernels cimport NO_LANE, PLACED, MapKernel
 
 
@@ -92,11 +93,6 @@ cdef class PathKernel:
         return ds, v2
 
 
-cdef inline double _py_max(double a, double b) noexcept:
-    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
-    return b if b > a else a
-
-
 cdef class CurveLimit:
     """`LanePlanner._curve_limit` compiled: the curves ahead (`PathKernel.curves_ahead`, up to `horizon` every
     `step` m at `lateral_accel`, `horizon` the distance to slow from the cruise speed at `decel` and a step) sampled
@@ -126,7 +122,7 @@ cdef class CurveLimit:
             self.d, self.v2 = np.array(ds, dtype=float), np.array(v2, dtype=float)
             self.sampled, self.sampled_t, self.travel = True, t, 0.0
         elif t_last is not None:
-            self.travel += _py_max(speed, 0.0) * _py_max(t - <double>t_last, 0.0)
+            self.travel += py_max(speed, 0.0) * py_max(t - <double>t_last, 0.0)
         n = self.d.shape[0]
         if n == 0:
             return INFINITY
