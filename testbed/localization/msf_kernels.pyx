@@ -12,6 +12,7 @@ from libc.math cimport cos, sin, sqrt
 import numpy as np
 
 from tracks.angles cimport wrap_angle
+from tracks.float_order cimport py_max
 
 
 cdef class Predictor:
@@ -52,11 +53,6 @@ cdef class Predictor:
         cdef Py_ssize_t i
         for i in range(self.p.shape[0]):
             self.p[i, i] = self.p[i, i] + self.q[i] * dt
-
-
-cdef inline double _py_max(double a, double b) noexcept:
-    """Python's `max(a, b)` of two floats: `a` unless `b` is greater."""
-    return b if b > a else a
 
 
 cdef class ImuPropagation:
@@ -102,7 +98,7 @@ cdef class ImuPropagation:
         ab, gb = imu.accel_bias, imu.gyro_bias
         for k in range(n):
             ts = times[k]
-            dt = _py_max(0.0, ts - last_t) if has_last else 0.0
+            dt = py_max(0.0, ts - last_t) if has_last else 0.0
             last_t, has_last = ts, True
             sq = sqrt(dt)
             ab += self.accel_bias_walk * sq * draws[4 * k]
