@@ -20,6 +20,7 @@ import pybullet as pb
 from testbed.conditions import Condition
 from testbed.ground import OPEN_GROUND_RGBA, GroundCanvas
 from testbed.lane_detection import CameraFrame
+from testbed.tiny_boxes import TinyBoxes
 from tracks.pose import Pose
 from vehicles.camera_rig import CameraRig
 
@@ -96,10 +97,12 @@ class ImageEffects:
 
 
 class RenderScene(Protocol):
-    """What the camera renders: a PyBullet client holding the roadside bodies (and the road's tile meshes when
-    there is no canvas), and the ground canvas the road surface is drawn from (None: no canvas)."""
+    """What the camera renders: the roadside and traffic boxes for TinyRenderer's compiled clone, or (None) a PyBullet
+    client holding them as bodies (and the road's tile meshes when there is no canvas), and the ground canvas the
+    road surface is drawn from (None: no canvas)."""
 
-    client: int
+    boxes: TinyBoxes | None
+    client: int | None
     canvas: GroundCanvas | None
 
 
@@ -118,13 +121,19 @@ class FrontCamera:
         self._empty_scene: tuple[np.ndarray, np.ndarray] | None = None
 
     def _scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
-        """TinyRenderer's picture of the render client (RGBA, and where nothing was drawn). A client without a
-        body draws the same empty picture from every pose: that one is rendered once and reused."""
+        """TinyRenderer's picture of the scene's boxes (RGBA, and where nothing was drawn): by its compiled clone
+        where the scene has the boxes, else by TinyRenderer from the render client. A client without a body draws
+        the same empty picture from every pose: that one is rendered once and reused."""
+        c = self.condition
+        boxes = self.streamer.boxes
+        if boxes is not None:
+            rgba, depth = boxes.render(self.rig.view_matrix(pose), self.projection, c.light_dir, c.light_rgb,
+                                       c.ambient, c.diffuse, self.rig.width, self.rig.height)
+            return rgba, depth >= EMPTY_DEPTH
         bodiless = pb.getNumBodies(physicsClientId=self.client) == 0
         if bodiless and self._empty_scene is not None:
             rgba, empty = self._empty_scene
             return rgba.copy(), empty
-        c = self.condition
         _, _, rgba, depth, _ = pb.getCameraImage(
             self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
             lightDirection=list(c.light_dir), lightColor=list(c.light_rgb), lightDistance=100.0, shadow=0,

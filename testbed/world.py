@@ -20,6 +20,8 @@ import pybullet as pb
 from testbed.errors import UserError
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
 from testbed.rates import PHYSICS_HZ
+from testbed.tiny_boxes import TinyBoxes, box_mesh
+from testbed.tiny_boxes import kernel as tiny_kernel
 from tracks.obstacles import road_obstacles
 from tracks.pose import Pose
 from tracks.texture import tile_mesh, tile_texture
@@ -144,6 +146,15 @@ class PhysicsWorld:
             pb.disconnect(self.client)
 
 
+def _place_boxes(boxes: TinyBoxes, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
+    """`_place_bodies` for the clone's boxes: the same positions and quaternions."""
+    for i, p in poses.items():
+        boxes.move(bodies[i], (p.x, p.y, z), (0.0, 0.0, math.sin(0.5 * p.yaw), math.cos(0.5 * p.yaw)))
+    for i in shown - poses.keys():
+        boxes.move(bodies[i], (0.0, 0.0, HIDDEN_Z), (0.0, 0.0, 0.0, 1.0))
+    return set(poses)
+
+
 def _place_bodies(client: int, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
     """Put bodies[i] at poses[i] (height z) and the shown bodies without a pose below the ground; the set of
     bodies now shown."""
@@ -166,15 +177,19 @@ class TileStreamer:
     """
 
     def __init__(self, track, lighting: Lighting, ahead_m: float = 100.0, behind_m: float = 10.0,
-                 ground: str = "canvas", texture_budget: int = 40) -> None:
+                 ground: str = "canvas", texture_budget: int = 40, clone: bool = True) -> None:
         if ground not in GROUND_MODES:
             raise UserError(f"unknown ground mode {ground!r}; choose one of {', '.join(GROUND_MODES)}")
         self.track = track
         self.ahead = ahead_m
         self.behind = behind_m
         self.budget = texture_budget
-        self.client = pb.connect(pb.DIRECT)
         self.canvas = GroundCanvas(track, lighting) if ground == "canvas" else None
+        module = tiny_kernel() if clone and self.canvas is not None else None
+        self.boxes: TinyBoxes | None = TinyBoxes(module) if module is not None else None
+        """The roadside and traffic boxes for TinyRenderer's compiled clone (canvas mode, where it is built); None:
+        they are bodies of the render client, drawn by TinyRenderer."""
+        self.client: int | None = pb.connect(pb.DIRECT) if self.boxes is None else None
         self._tmp = tempfile.TemporaryDirectory(prefix="ld3-tiles-")
         self.loaded: dict[int, list[int]] = {}
         self.textures_loaded = 0
@@ -186,7 +201,10 @@ class TileStreamer:
         self._reset_scene()
 
     def _reset_scene(self) -> None:
-        pb.resetSimulation(physicsClientId=self.client)
+        if self.boxes is not None:
+            self.boxes.clear()
+        else:
+            pb.resetSimulation(physicsClientId=self.client)
         self.loaded.clear()
         self.textures_loaded = 0
         self._traffic_bodies, self._traffic_shown = [], set()
@@ -200,6 +218,13 @@ class TileStreamer:
         self._add_traffic_bodies(count, length, width, height)
 
     def _add_traffic_bodies(self, count: int, length: float, width: float, height: float) -> None:
+        if self.boxes is not None:
+            mesh = box_mesh((0.5 * length, 0.5 * width, 0.5 * height), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+            self._traffic_bodies.extend(self.boxes.add([mesh], TRAFFIC_COLOURS[i % len(TRAFFIC_COLOURS)],
+                                                       (0.0, 0.0, HIDDEN_Z)) for i in range(count))
+            if self._traffic_poses:
+                self.place_traffic(self._traffic_poses)
+            return
         shape = pb.createVisualShape(pb.GEOM_BOX, halfExtents=[0.5 * length, 0.5 * width, 0.5 * height],
                                      physicsClientId=self.client)
         for i in range(count):
@@ -216,6 +241,9 @@ class TileStreamer:
         given are hidden below the ground."""
         self._traffic_poses = dict(poses)
         z = 0.5 * self._traffic_size[3] if self._traffic_size is not None else 0.0
+        if self.boxes is not None:
+            self._traffic_shown = _place_boxes(self.boxes, self._traffic_bodies, poses, z, self._traffic_shown)
+            return
         self._traffic_shown = _place_bodies(self.client, self._traffic_bodies, poses, z, self._traffic_shown)
 
     def update(self, pose: Pose) -> None:
@@ -236,7 +264,10 @@ class TileStreamer:
             missing = wanted
         for i in sorted(self.loaded.keys() - wanted):
             for body in self.loaded.pop(i):
-                pb.removeBody(body, physicsClientId=self.client)
+                if self.boxes is not None:
+                    self.boxes.remove(body)
+                else:
+                    pb.removeBody(body, physicsClientId=self.client)
         for i in sorted(missing):
             self.loaded[i] = self._load_tile(i)
         if self.canvas is not None:
@@ -271,18 +302,23 @@ class TileStreamer:
                 by_kind.setdefault(box.kind, []).append(box)
         bodies = []
         for kind, boxes in sorted(by_kind.items()):
+            colour = OBSTACLE_COLOURS.get(kind, (0.6, 0.6, 0.6, 1.0))
+            if self.boxes is not None:
+                meshes = [box_mesh(b.half_extents, b.center, pb.getQuaternionFromEuler((0.0, 0.0, b.yaw)))
+                          for b in boxes]
+                bodies.append(self.boxes.add(meshes, colour))
+                continue
             vs = pb.createVisualShapeArray(
                 shapeTypes=[pb.GEOM_BOX] * len(boxes), halfExtents=[list(b.half_extents) for b in boxes],
                 visualFramePositions=[list(b.center) for b in boxes],
                 visualFrameOrientations=[pb.getQuaternionFromEuler((0.0, 0.0, b.yaw)) for b in boxes],
                 physicsClientId=self.client)
             body = pb.createMultiBody(baseVisualShapeIndex=vs, physicsClientId=self.client)
-            colour = OBSTACLE_COLOURS.get(kind, (0.6, 0.6, 0.6, 1.0))
             pb.changeVisualShape(body, -1, rgbaColor=list(colour), physicsClientId=self.client)
             bodies.append(body)
         return bodies
 
     def close(self) -> None:
-        if pb.isConnected(self.client):
+        if self.client is not None and pb.isConnected(self.client):
             pb.disconnect(self.client)
         self._tmp.cleanup()
