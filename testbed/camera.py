@@ -120,7 +120,7 @@ class FrontCamera:
         self.projection = rig.projection_matrix(NEAR_M, FAR_M)
         self._empty_scene: tuple[np.ndarray, np.ndarray] | None = None
 
-    def _scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+    def scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """TinyRenderer's picture of the scene's boxes (RGBA, and where nothing was drawn): by its compiled clone
         where the scene has the boxes, else by TinyRenderer from the render client. A client without a body draws
         the same empty picture from every pose: that one is rendered once and reused."""
@@ -149,7 +149,7 @@ class FrontCamera:
         return rgba, empty
 
     def render(self, pose: Pose) -> np.ndarray:
-        rgba, empty = self._scene(pose)
+        rgba, empty = self.scene(pose)
         below = self.effects.below_horizon
         canvas = self.streamer.canvas
         ground = (below & empty).view(np.uint8)

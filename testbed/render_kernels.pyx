@@ -11,11 +11,11 @@ import numpy as np
 cdef extern from "tiny_raster.h":
     ctypedef struct tr_target:
         pass
-    void tr_begin(tr_target *t, unsigned char *rgb, float *zbuf, int width, int height, const float *proj)
+    void tr_begin(tr_target *t, unsigned char *rgba, float *zbuf, int width, int height, const float *proj)
     void tr_render_boxes(tr_target *t, const float *verts, float *normals, int nboxes, const float *model_cm,
                          const float *view_cm, const float *proj_cm, const float *light, const float *light_rgb,
                          float ambient, float diffuse, const float *colour)
-    void tr_finish(const tr_target *t, unsigned char *rgba, float *depth)
+    void tr_finish(const tr_target *t, float *depth)
 
 
 def render_bodies(list bodies, const float[::1] view, const float[::1] proj, const float[::1] light,
@@ -25,7 +25,6 @@ def render_bodies(list bodies, const float[::1] view, const float[::1] proj, con
     does), its model matrix float32 (16,) column-major and its colour float32 (3,) (the texel 255 times the rgba,
     truncated). `view` and `proj` column-major float32 (16,), `light` the unit light direction float32 (3,)."""
     cdef tr_target t
-    cdef unsigned char[:, :, ::1] rgb = np.empty((height, width, 3), dtype=np.uint8)
     cdef float[:, ::1] zbuf = np.empty((height, width), dtype=np.float32)
     rgba = np.empty((height, width, 4), dtype=np.uint8)
     depth = np.empty((height, width), dtype=np.float32)
@@ -34,12 +33,12 @@ def render_bodies(list bodies, const float[::1] view, const float[::1] proj, con
     cdef const float[:, :, ::1] verts
     cdef float[:, :, ::1] normals
     cdef const float[::1] model, colour
-    tr_begin(&t, &rgb[0, 0, 0], &zbuf[0, 0], width, height, &proj[0])
+    tr_begin(&t, &rgba_v[0, 0, 0], &zbuf[0, 0], width, height, &proj[0])
     for body in bodies:
         verts, normals, model, colour = body
         if verts.shape[0] == 0:
             continue
         tr_render_boxes(&t, &verts[0, 0, 0], &normals[0, 0, 0], verts.shape[0], &model[0], &view[0], &proj[0],
                         &light[0], &light_rgb[0], ambient, diffuse, &colour[0])
-    tr_finish(&t, &rgba_v[0, 0, 0], &depth_v[0, 0])
+    tr_finish(&t, &depth_v[0, 0])
     return rgba, depth

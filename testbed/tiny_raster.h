@@ -7,7 +7,9 @@
 #define TINY_RASTER_H
 
 #include <float.h>
+#include <limits.h>
 #include <math.h>
+#include <string.h>
 
 typedef struct {
     float m[4][4];
@@ -96,8 +98,8 @@ static inline void tr_normalize3(float *v) {
 }
 
 typedef struct {
-    unsigned char *rgb; /* height x width x 3, TinyRenderer's row order (row 0 at the bottom) */
-    float *zbuf;        /* height x width */
+    unsigned char *rgba; /* height x width x 4, the picture's row order (TinyRenderer's flipped: row 0 at the top) */
+    float *zbuf;         /* height x width, TinyRenderer's row order (row 0 at the bottom) */
     int width, height;
     tr_mat4 viewport;
     float near_plane, far_plane;
@@ -165,6 +167,64 @@ static inline void tr_barycentric(const float a[2], const float b[2], const floa
     }
 }
 
+/* The rows of a column where the triangle's barycentric coordinates may all be non-negative: a pixel outside them
+ * lies beyond an edge by far more than any rounding of `tr_barycentric` moves it, so TinyRenderer rejects it; the
+ * rows inside are tested as TinyRenderer tests them. Only skips work: the pixels drawn are the same. */
+typedef struct {
+    int exact;        /* 1: no bound (non-finite points); test every row */
+    double ax, ay, s0x, s0y, s1x, s1y, uz, tol;
+} tr_span;
+
+static int tr_span_init(tr_span *sp, const float pts2[3][2]) {
+    double A[2] = {pts2[0][0], pts2[0][1]}, B[2] = {pts2[1][0], pts2[1][1]}, C[2] = {pts2[2][0], pts2[2][1]};
+    sp->exact = 0;
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(pts2[i][0]) || !isfinite(pts2[i][1])) sp->exact = 1;
+    sp->ax = A[0];
+    sp->ay = A[1];
+    sp->s0x = C[0] - A[0];
+    sp->s0y = B[0] - A[0];
+    sp->s1x = C[1] - A[1];
+    sp->s1y = B[1] - A[1];
+    sp->uz = sp->s0x * sp->s1y - sp->s0y * sp->s1x; /* tr_barycentric's u.z: the same for every pixel */
+    if (sp->exact) return 1;
+    if (!(fabs(sp->uz) > 1e-2)) return 0;
+    double m = 0.0;
+    for (int i = 0; i < 3; i++) m = fmax(m, fmax(fabs(pts2[i][0]), fabs(pts2[i][1])));
+    m += 1e4; /* pixel coordinates are below it */
+    sp->tol = 1e-9 * (1.0 + 8.0 * m * m / fabs(sp->uz)); /* rounding of the coordinates is below 1e-12 of this */
+    return 1;
+}
+
+/* Narrow [*y0, *y1] to the rows of column x where every real barycentric coordinate is at least -tol, one row of
+ * margin each side. u.x = s0y (ay - y) - (ax - x) s1y, u.y = (ax - x) s1x - s0x (ay - y); b = (u.y, u.x, u.z - u.x -
+ * u.y) / u.z. */
+static void tr_span_rows(const tr_span *sp, int x, int *y0, int *y1) {
+    if (sp->exact) return;
+    double dx = sp->ax - x;
+    double cx0 = (sp->s0y * sp->ay - dx * sp->s1y) / sp->uz, cx1 = -sp->s0y / sp->uz; /* u.x / u.z = cx0 + cx1 y */
+    double cy0 = (dx * sp->s1x - sp->s0x * sp->ay) / sp->uz, cy1 = sp->s0x / sp->uz; /* u.y / u.z */
+    double c[3][2] = {{cy0, cy1}, {cx0, cx1}, {1.0 - cx0 - cy0, -cx1 - cy1}};
+    double lo = -1e30, hi = 1e30;
+    for (int k = 0; k < 3; k++) {
+        double a = c[k][0] + sp->tol, b = c[k][1]; /* a + b y >= 0 */
+        if (b > 0) {
+            lo = fmax(lo, -a / b);
+        } else if (b < 0) {
+            hi = fmin(hi, -a / b);
+        } else if (a < 0) {
+            *y1 = *y0 - 1;
+            return;
+        }
+    }
+    if (lo > hi + 2.0) {
+        *y1 = *y0 - 1;
+        return;
+    }
+    if (lo > -1e8) *y0 = (int)fmax((double)*y0, floor(lo) - 1.0);
+    if (hi < 1e8) *y1 = (int)fmin((double)*y1, ceil(hi) + 1.0);
+}
+
 /* our_gl.cpp triangle (clipped == 0: the near/far discards) and triangleClipped (the clipped points bound and
  * depth-test the pixels, the original ones shade them). */
 static void tr_triangle(tr_target *t, const float clipc[4][3], const float orgc[4][3], int clipped,
@@ -182,8 +242,12 @@ static void tr_triangle(tr_target *t, const float clipc[4][3], const float orgc[
     }
     double clipz[3] = {clipc[2][0], clipc[2][1], clipc[2][2]};
     unsigned char colour[3];
+    tr_span span;
+    if (!tr_span_init(&span, pts2)) return; /* degenerate: TinyRenderer rejects every pixel */
     for (int x = (int)bmin[0]; x <= bmax[0]; x++) {
-        for (int y = (int)bmin[1]; y <= bmax[1]; y++) {
+        int y0 = (int)bmin[1], y1 = INT_MAX;
+        tr_span_rows(&span, x, &y0, &y1);
+        for (int y = y0; y <= bmax[1] && y <= y1; y++) {
             if (x < 0 || y < 0 || x >= t->width || y >= t->height) continue; /* only where TinyRenderer overruns */
             double bc[3], bcc[3];
             tr_barycentric(pts2[0], pts2[1], pts2[2], x, y, bc);
@@ -219,7 +283,7 @@ static void tr_triangle(tr_target *t, const float clipc[4][3], const float orgc[
             tr_fragment(sh, bar, colour);
             if (!clipped && (frag_depth < -t->far_plane || frag_depth > t->near_plane)) continue;
             t->zbuf[idx] = (float)frag_depth;
-            unsigned char *p = t->rgb + 3 * idx;
+            unsigned char *p = t->rgba + 4 * (x + (t->height - 1 - y) * t->width);
             p[0] = colour[0];
             p[1] = colour[1];
             p[2] = colour[2];
@@ -338,8 +402,8 @@ static const int TR_CUBE_INDICES[36] = {0, 1, 2, 0, 2, 3, 6, 5, 4, 7, 6, 4, 10, 
 
 /* TinyRendererVisualShapeConverter::render's set-up: the viewport, the near and far planes read off the
  * projection, the colour buffer cleared to white and the depth buffer to minus the far plane. */
-static void tr_begin(tr_target *t, unsigned char *rgb, float *zbuf, int width, int height, const float *proj) {
-    t->rgb = rgb;
+static void tr_begin(tr_target *t, unsigned char *rgba, float *zbuf, int width, int height, const float *proj) {
+    t->rgba = rgba;
     t->zbuf = zbuf;
     t->width = width;
     t->height = height;
@@ -353,10 +417,8 @@ static void tr_begin(tr_target *t, unsigned char *rgb, float *zbuf, int width, i
     t->viewport.m[2][2] = .5f;
     t->near_plane = proj[14] / (proj[10] - 1);
     t->far_plane = proj[14] / (proj[10] + 1);
-    for (int i = 0; i < width * height; i++) {
-        rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = 255;
-        zbuf[i] = -t->far_plane;
-    }
+    memset(rgba, 255, (size_t)4 * width * height); /* white, and the alpha copyCameraImageData sets */
+    for (int i = 0; i < width * height; i++) zbuf[i] = -t->far_plane;
 }
 
 /* The boxes of one body (24 vertices and normals each, as PyBullet's box mesh; the normals are updated in place),
@@ -377,20 +439,20 @@ static void tr_render_boxes(tr_target *t, const float *verts, float *normals, in
                          light_rgb, ambient, diffuse, colour);
 }
 
-/* copyCameraImageData after the vertical flip: RGBA (alpha 255) and the depth mapped to [0, 1]. */
-static void tr_finish(const tr_target *t, unsigned char *rgba, float *depth) {
+/* copyCameraImageData's depth after the vertical flip, mapped to [0, 1] (the RGBA was drawn flipped). */
+static inline float tr_depth(float near, float far, float zb) {
+    float z_c = -zb;
+    return far * (near + z_c) / (2. * far * near + far * z_c - near * z_c);
+}
+
+static void tr_finish(const tr_target *t, float *depth) {
     float far = t->far_plane, near = t->near_plane;
+    float clear = -far, clear_depth = tr_depth(near, far, clear); /* where nothing was drawn */
     for (int r = 0; r < t->height; r++) {
         int src = (t->height - 1 - r) * t->width, dst = r * t->width;
         for (int x = 0; x < t->width; x++) {
-            const unsigned char *p = t->rgb + 3 * (src + x);
-            unsigned char *q = rgba + 4 * (dst + x);
-            q[0] = p[0];
-            q[1] = p[1];
-            q[2] = p[2];
-            q[3] = 255;
-            float z_c = -t->zbuf[src + x];
-            depth[dst + x] = far * (near + z_c) / (2. * far * near + far * z_c - near * z_c);
+            float zb = t->zbuf[src + x];
+            depth[dst + x] = zb == clear ? clear_depth : tr_depth(near, far, zb);
         }
     }
 }

@@ -33,7 +33,7 @@ def test_a_bodiless_scene_is_rendered_once_and_every_frame_matches_a_fresh_rende
             streamer.update(pose)
             assert pb.getNumBodies(physicsClientId=streamer.client) == 0
             fresh = FrontCamera(streamer, rig, cond, np.random.default_rng(7))
-            (rgb, empty), (rgb0, empty0) = reused._scene(pose), fresh._scene(pose)
+            (rgb, empty), (rgb0, empty0) = reused.scene(pose), fresh.scene(pose)
             assert np.array_equal(rgb, rgb0) and np.array_equal(empty, empty0)
             rgb[:] = 0  # the caller draws on its copy, never on the kept picture
         assert len(calls) == 1 + 3  # the reused camera drew once; each fresh one drew its only frame

@@ -76,7 +76,7 @@ def test_the_clone_draws_tinyrenderers_picture(preset, condition, traffic):
                 poses = _traffic(track, rng, track.reference.project(pose.x, pose.y)[0], traffic)
                 for s in (clone, tiny):
                     s.place_traffic(poses)
-            (rgba_c, empty_c), (rgba_t, empty_t) = (cam._scene(pose) for cam in cameras)
+            (rgba_c, empty_c), (rgba_t, empty_t) = (cam.scene(pose) for cam in cameras)
             assert np.array_equal(empty_c, empty_t)
             assert np.array_equal(rgba_c, rgba_t)
             assert np.array_equal(cameras[0].render(pose), cameras[1].render(pose))

@@ -56,8 +56,9 @@ LOOP_SECTIONS = ("physics", "vehicle actuation", "localization", "map", "control
                  "logging", "consequence monitor", "render", "ground canvas", "image effects", "tile streaming",
                  "detector", "traffic")
 """The parts `bench loop` splits the loop's wall time into (plus `rest`: the loop's own glue). The camera's
-frame is `render` (TinyRenderer's picture of the roadside bodies, and compositing), `ground canvas` (the road
-drawn from the canvas) and `image effects` (the condition's sky, exposure and noise)."""
+frame is `render` (TinyRenderer's picture of the roadside and traffic boxes, drawn by its compiled clone where it is
+built, and compositing), `ground canvas` (the road drawn from the canvas) and `image effects` (the condition's sky,
+exposure and noise)."""
 
 
 def _instrument(sim, timer: SectionTimer) -> None:
@@ -223,6 +224,7 @@ def bench_loop(seconds: float = 20.0, scenario: str = "urban-straight", detector
     }
     if camera:
         out |= {"ground": ground, "resolution": f"{sim.parts.rig.width}x{sim.parts.rig.height}",
+                "boxes_drawn_by": "tinyrenderer" if sim.parts.streamer.boxes is None else "clone",
                 "tile_render_resets": sim.parts.streamer.resets,
                 "ground_canvas_recentres": sim.parts.streamer.canvas.rebuilds if sim.parts.streamer.canvas else None}
     return out
@@ -262,6 +264,55 @@ def bench_render(frames: int = 200, scenario: str = "urban-straight") -> dict[st
                        "streaming_ms_mean": round(float(np.mean(stream_ms)), 3)}
     ratio = out["mesh"]["render_ms_median"] / out["canvas"]["render_ms_median"]
     out["render_speedup_mesh_over_canvas"] = round(ratio, 2)
+    out["boxes"] = bench_boxes(frames, scenario)
+    return out
+
+
+def bench_boxes(frames: int = 200, scenario: str = "urban-straight") -> dict[str, Any] | None:
+    """Cost of the camera's picture of the roadside (and traffic) boxes alone (CPU ms per frame, median and p99):
+    TinyRenderer's compiled clone against TinyRenderer itself, in one process, at the same poses (as
+    `bench_render`'s), each scene streamed by its own streamer; whether the pictures were all the same bytes. None
+    where the clone is not built."""
+    import numpy as np
+
+    from testbed.camera import FrontCamera
+    from testbed.eval.run.runner import SimRun
+    from testbed.eval.run.scenario import load_scenario
+    from testbed.tiny_boxes import kernel
+    from testbed.world import TileStreamer
+    from tracks.pose import Pose
+
+    if kernel() is None:
+        return None
+    one_core()
+    sim = SimRun(load_scenario(scenario).with_overrides(duration=1.0, detector="oracle"), render=False)
+    track, condition, rig = sim.parts.track, sim.parts.condition, sim.parts.rig
+    lane = track.lanes[sim.parts.lane]
+    sim.close()
+    streamers = {"clone": TileStreamer(track, condition.lighting),
+                 "tinyrenderer": TileStreamer(track, condition.lighting, clone=False)}
+    cameras = {name: FrontCamera(s, rig, condition, np.random.default_rng(0)) for name, s in streamers.items()}
+    times: dict[str, list[float]] = {name: [] for name in streamers}
+    same = True
+    try:
+        for k in range(frames):
+            s = 10.0 + 0.6 * k
+            pose = Pose(*lane.position(s, 0.2), lane.heading_at(s))
+            pictures = []
+            for name, camera in cameras.items():
+                streamers[name].update(pose)
+                t0 = time.thread_time()
+                pictures.append(camera.scene(pose))
+                times[name].append(1e3 * (time.thread_time() - t0))
+            (rgba_a, empty_a), (rgba_b, empty_b) = pictures
+            same &= bool(np.array_equal(rgba_a, rgba_b) and np.array_equal(empty_a, empty_b))
+    finally:
+        for streamer in streamers.values():
+            streamer.close()
+    out: dict[str, Any] = {name: {"ms_median": round(float(np.median(t)), 3),
+                                  "ms_p99": round(float(np.percentile(t, 99)), 3)} for name, t in times.items()}
+    out["speedup"] = round(out["tinyrenderer"]["ms_median"] / out["clone"]["ms_median"], 2)
+    out["identical"] = same
     return out
 
 
