@@ -1,5 +1,5 @@
-"""The front camera: TinyRenderer's picture of a render client without a body is drawn once and reused, to
-the byte."""
+"""The front camera drawing with TinyRenderer itself (the streamer's render client; the path where the compiled
+clone is not built): the picture of a render client without a body is drawn once and reused, to the byte."""
 
 import numpy as np
 import pybullet as pb
@@ -22,7 +22,7 @@ def _poses(track, stations):
 def test_a_bodiless_scene_is_rendered_once_and_every_frame_matches_a_fresh_render(monkeypatch):
     track = load_track("slr")  # no roadside body: the render client stays empty
     cond = get_condition("dusk")
-    streamer = TileStreamer(track, cond.lighting)
+    streamer = TileStreamer(track, cond.lighting, clone=False)
     rig = CameraRig(get_vehicle("sedan").camera)
     calls = []
     real = pb.getCameraImage
@@ -44,7 +44,7 @@ def test_a_bodiless_scene_is_rendered_once_and_every_frame_matches_a_fresh_rende
 def test_a_scene_with_bodies_is_rendered_every_frame(monkeypatch):
     track = load_track("highway")  # guardrails: roadside bodies in view
     cond = get_condition("day")
-    streamer = TileStreamer(track, cond.lighting)
+    streamer = TileStreamer(track, cond.lighting, clone=False)
     calls = []
     real = pb.getCameraImage
     monkeypatch.setattr(camera_module.pb, "getCameraImage", lambda *a, **k: calls.append(1) or real(*a, **k))
