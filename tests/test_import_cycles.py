@@ -154,7 +154,7 @@ LAYERS: dict[str, int] = {
     "testbed.control": 1, "testbed.attacks": 1, "testbed.chassis": 1, "testbed.loop": 1, "testbed.assembly": 1,
     "testbed.presets": 1, "testbed.extras": 1,
     # 2 the simulation: world, camera, the run-time lane detectors, traffic
-    "testbed.world": 2, "testbed.ground": 2, "testbed.camera": 2, "testbed.conditions": 2,
+    "testbed.world": 2, "testbed.ground": 2, "testbed.camera": 2, "testbed.tiny_boxes": 2, "testbed.conditions": 2,
     "testbed.perception": 2, "testbed.traffic": 2, "testbed.direct_chassis": 2,
     # 3 one run (scenario, build, runner, summary, outputs), the CAN link and the vehicle beside it, and the lane
     # detectors' training

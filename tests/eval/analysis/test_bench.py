@@ -4,8 +4,15 @@ import importlib.util
 import json
 
 from testbed.cli import EXIT_USAGE, main
-from testbed.eval.analysis.bench import LOOP_SECTIONS, SectionTimer, StepSimulationClock, bench_lane_detectors
+from testbed.eval.analysis.bench import (
+    LOOP_SECTIONS,
+    SectionTimer,
+    StepSimulationClock,
+    bench_boxes,
+    bench_lane_detectors,
+)
 from testbed.rates import PHYSICS_HZ
+from testbed.tiny_boxes import kernel
 
 
 def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
@@ -37,9 +44,20 @@ def test_loop_bench_with_camera_splits_the_frame_into_bodies_ground_and_effects(
     assert main(["bench", "loop", "--camera", "on", "--detector", "oracle", "--seconds", "0.5", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["camera"] is True and result["resolution"] == "320x160"
+    assert result["boxes_drawn_by"] == ("tinyrenderer" if kernel() is None else "clone")
     assert set(result["time_fraction"]) == {*LOOP_SECTIONS, "rest"}
     for section in ("render", "ground canvas", "image effects", "tile streaming", "detector"):
         assert result["time_fraction"][section] > 0, section
+
+
+def test_box_bench_times_the_clone_against_tinyrenderer_on_the_same_pictures():
+    result = bench_boxes(frames=5)
+    if kernel() is None:
+        assert result is None
+        return
+    assert result["identical"] is True
+    for name in ("clone", "tinyrenderer"):
+        assert 0.0 < result[name]["ms_median"] <= result[name]["ms_p99"]
 
 
 def test_loop_bench_refuses_a_camera_detector_without_camera_and_loop_options_elsewhere(capsys):
