@@ -1,5 +1,7 @@
 """The PyBullet world: a physics client (ground, roadside collision bodies, the vehicle) stepped at a
-fixed rate, and a separate render client that streams the track's textured tiles around the car.
+fixed rate, and the track streamed around the car for the camera: a ground canvas and the roadside boxes for
+TinyRenderer's compiled clone, or a separate render client holding the boxes as bodies (where the clone is not
+built) and the textured tiles (mesh mode).
 
 Two clients, because TinyRenderer never frees a loaded texture: the render client is reset whenever
 its texture budget is spent and reloads only the tiles near the car, so a road of any length runs
@@ -168,12 +170,14 @@ def _place_bodies(client: int, bodies: list[int], poses: dict[int, Pose], z: flo
 
 
 class TileStreamer:
-    """The track around the car, streamed into the render client (roadside bodies) and a ground canvas.
+    """The track around the car, streamed into a ground canvas and the roadside boxes the camera draws.
 
     `ground="canvas"` (default): the road surface goes into a `GroundCanvas` that the camera draws by
-    homography; only roadside bodies go to TinyRenderer. `ground="mesh"`: the tiles are textured meshes
-    TinyRenderer rasterises (the reference the canvas is tested against, and several times slower). In
-    mesh mode the render client is reset when its texture budget is spent.
+    homography; the roadside and traffic boxes go to `boxes`, drawn by TinyRenderer's compiled clone (with
+    `clone=False`, or where it is not built, they are bodies of a render client TinyRenderer draws, to the same
+    bytes). `ground="mesh"`: the tiles are textured meshes TinyRenderer rasterises (the reference the canvas is
+    tested against, and several times slower), with the boxes as bodies beside them; the render client is reset
+    when its texture budget is spent.
     """
 
     def __init__(self, track, lighting: Lighting, ahead_m: float = 100.0, behind_m: float = 10.0,
