@@ -76,12 +76,10 @@ def texel_colour(rgba: Sequence[float]) -> np.ndarray:
 class BoxBody:
     """One body's boxes (vertices, and normals TinyRenderer renormalises in place each frame), pose and colour."""
 
-    def __init__(self, boxes: list[tuple[np.ndarray, np.ndarray]], colour: Sequence[float]) -> None:
-        self.verts = np.ascontiguousarray(np.stack([v for v, _ in boxes]) if boxes else np.zeros((0, 24, 3)),
-                                          dtype=np.float32)
-        self.normals = np.ascontiguousarray(np.stack([n for _, n in boxes]) if boxes else np.zeros((0, 24, 3)),
-                                            dtype=np.float32)
-        self.model = model_matrix((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    def __init__(self, boxes: list[tuple[np.ndarray, np.ndarray]], colour: Sequence[float], model: np.ndarray) -> None:
+        self.verts = np.ascontiguousarray(np.stack([v for v, _ in boxes]), dtype=np.float32)
+        self.normals = np.ascontiguousarray(np.stack([n for _, n in boxes]), dtype=np.float32)
+        self.model = model
         self.colour = texel_colour(colour)
 
     def as_tuple(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -97,17 +95,12 @@ class TinyBoxes:
         self._order: list[int] = []
         self._next = 0
 
-    def __len__(self) -> int:
-        return len(self._order)
-
     def add(self, boxes: list[tuple[np.ndarray, np.ndarray]], colour: Sequence[float],
             position: Sequence[float] = (0.0, 0.0, 0.0), quaternion: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> int:
         """A new body of `boxes` (from `box_mesh`) at the pose; its key."""
         key = self._next
         self._next += 1
-        body = BoxBody(boxes, colour)
-        body.model = model_matrix(position, quaternion)
-        self._bodies[key] = body
+        self._bodies[key] = BoxBody(boxes, colour, model_matrix(position, quaternion))
         self._order.append(key)
         return key
 
