@@ -2,20 +2,22 @@
 several roads and in every condition's lighting, with traffic cars, streamed by two streamers (the clone's boxes,
 and the render client's bodies), give the same RGBA and the same "nothing drawn" mask."""
 
+from types import ModuleType
+
 import numpy as np
 import pybullet as pb
 import pytest
 
 from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS
-from testbed.tiny_boxes import bullet_rotation, kernel
+from testbed.tiny_boxes import TinyBoxes, box_mesh, bullet_rotation, kernel
 from testbed.world import TileStreamer
 from tracks.pose import Pose
 from tracks.presets import load_track
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
 
-pytestmark = pytest.mark.skipif(kernel() is None, reason="the render kernel is not built (or LD3_COMPILED=0)")
+needs_kernel = pytest.mark.skipif(kernel() is None, reason="the render kernel is not built (or LD3_COMPILED=0)")
 
 CASES = [("highway", "night", 0), ("urban-curvy", "dusk", 0), ("urban-straight", "day", 0), ("local", "rain", 0),
          ("two-way", "shadows", 4), ("urban-straight", "worn", 3), ("two-way", "night", 4)]
@@ -31,6 +33,17 @@ def test_the_rotation_is_bullets():
         ours = bullet_rotation(q)
         theirs = np.array(pb.getMatrixFromQuaternion(list(q))).reshape(3, 3)
         assert np.array_equal(ours, theirs)
+
+
+def test_a_removed_body_gives_its_place_to_the_last_one():
+    boxes = TinyBoxes(ModuleType("no-kernel"))  # the order only: nothing is drawn
+    mesh = box_mesh((1.0, 1.0, 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    keys = [boxes.add([mesh], (0.5, 0.5, 0.5, 1.0)) for _ in range(5)]
+    boxes.remove(keys[1])
+    boxes.remove(keys[4])  # the last: nothing moves
+    assert boxes._order == [keys[0], keys[3], keys[2]]
+    key = boxes.add([mesh], (0.5, 0.5, 0.5, 1.0))
+    assert boxes._order == [keys[0], keys[3], keys[2], key]
 
 
 def _poses(track, rng, n):
@@ -54,6 +67,7 @@ def _traffic(track, rng, pose_s, count):
     return poses
 
 
+@needs_kernel
 @pytest.mark.parametrize(("preset", "condition", "traffic"), CASES)
 def test_the_clone_draws_tinyrenderers_picture(preset, condition, traffic):
     track = load_track(preset)
