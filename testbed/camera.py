@@ -122,27 +122,28 @@ class FrontCamera:
 
     def scene(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """TinyRenderer's picture of the scene's boxes (RGBA, and where nothing was drawn): by its compiled clone
-        where the scene has the boxes, else by TinyRenderer from the render client. A client without a body draws
+        where the scene has the boxes, else by TinyRenderer from the render client. A scene without a body draws
         the same empty picture from every pose: that one is rendered once and reused."""
         c = self.condition
         boxes = self.streamer.boxes
-        if boxes is not None:
-            rgba, depth = boxes.render(self.rig.view_matrix(pose), self.projection, c.light_dir, c.light_rgb,
-                                       c.ambient, c.diffuse, self.rig.width, self.rig.height)
-            return rgba, depth >= EMPTY_DEPTH
-        bodiless = pb.getNumBodies(physicsClientId=self.client) == 0
+        bodiless = boxes.body_count == 0 if boxes is not None else pb.getNumBodies(physicsClientId=self.client) == 0
         if bodiless and self._empty_scene is not None:
             rgba, empty = self._empty_scene
             return rgba.copy(), empty
-        _, _, rgba, depth, _ = pb.getCameraImage(
-            self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
-            lightDirection=list(c.light_dir), lightColor=list(c.light_rgb), lightDistance=100.0, shadow=0,
-            lightAmbientCoeff=c.ambient, lightDiffuseCoeff=c.diffuse, lightSpecularCoeff=0.0,
-            renderer=pb.ER_TINY_RENDERER, flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client,
-        )
-        shape = (self.rig.height, self.rig.width)
-        rgba = np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4))
-        empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
+        if boxes is not None:
+            rgba, depth = boxes.render(self.rig.view_matrix(pose), self.projection, c.light_dir, c.light_rgb,
+                                       c.ambient, c.diffuse, self.rig.width, self.rig.height)
+            empty = depth >= EMPTY_DEPTH
+        else:
+            _, _, rgba, depth, _ = pb.getCameraImage(
+                self.rig.width, self.rig.height, self.rig.view_matrix(pose), self.projection,
+                lightDirection=list(c.light_dir), lightColor=list(c.light_rgb), lightDistance=100.0, shadow=0,
+                lightAmbientCoeff=c.ambient, lightDiffuseCoeff=c.diffuse, lightSpecularCoeff=0.0,
+                renderer=pb.ER_TINY_RENDERER, flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=self.client,
+            )
+            shape = (self.rig.height, self.rig.width)
+            rgba = np.reshape(np.asarray(rgba, dtype=np.uint8), (*shape, 4))
+            empty = np.reshape(np.asarray(depth), shape) >= EMPTY_DEPTH
         if bodiless:
             empty.flags.writeable = False
             self._empty_scene = (rgba.copy(), empty)

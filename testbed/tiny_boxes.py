@@ -95,6 +95,10 @@ class TinyBoxes:
         self._order: list[int] = []
         self._next = 0
 
+    @property
+    def body_count(self) -> int:
+        return len(self._order)
+
     def add(self, boxes: list[tuple[np.ndarray, np.ndarray]], colour: Sequence[float],
             position: Sequence[float] = (0.0, 0.0, 0.0), quaternion: Sequence[float] = (0.0, 0.0, 0.0, 1.0)) -> int:
         """A new body of `boxes` (from `box_mesh`) at the pose; its key."""

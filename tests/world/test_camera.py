@@ -1,8 +1,9 @@
-"""The front camera drawing with TinyRenderer itself (the streamer's render client; the path where the compiled
-clone is not built): the picture of a render client without a body is drawn once and reused, to the byte."""
+"""The front camera: the picture of a scene without a body is drawn once and reused, to the byte, by TinyRenderer
+itself (the streamer's render client; the path where the compiled clone is not built) and by the clone."""
 
 import numpy as np
 import pybullet as pb
+import pytest
 
 import testbed.camera as camera_module
 from testbed.camera import FrontCamera
@@ -57,3 +58,31 @@ def test_a_scene_with_bodies_is_rendered_every_frame(monkeypatch):
         assert len(calls) == 2
     finally:
         streamer.close()
+
+
+def test_the_clone_draws_a_bodiless_scene_once_too(monkeypatch):
+    track = load_track("slr")
+    cond = get_condition("night")
+    streamer = TileStreamer(track, cond.lighting)
+    if streamer.boxes is None:
+        streamer.close()
+        pytest.skip("the render kernel is not built (or LD3_COMPILED=0)")
+    rig = CameraRig(get_vehicle("sedan").camera)
+    tiny = TileStreamer(track, cond.lighting, clone=False)
+    calls = []
+    real = type(streamer.boxes).render
+    monkeypatch.setattr(type(streamer.boxes), "render", lambda *a, **k: calls.append(1) or real(*a, **k))
+    try:
+        reused = FrontCamera(streamer, rig, cond, np.random.default_rng(7))
+        reference = FrontCamera(tiny, rig, cond, np.random.default_rng(7))
+        for pose in _poses(track, [20.0, 60.0, 100.0]):
+            streamer.update(pose)
+            tiny.update(pose)
+            assert streamer.boxes.body_count == 0
+            (rgb, empty), (rgb0, empty0) = reused.scene(pose), reference.scene(pose)
+            assert np.array_equal(rgb, rgb0) and np.array_equal(empty, empty0)
+            rgb[:] = 0
+        assert len(calls) == 1
+    finally:
+        streamer.close()
+        tiny.close()
