@@ -261,8 +261,9 @@ def fit_matrices(present: np.ndarray, fit: str = DEFAULT_FIT) -> np.ndarray:
 
 def lines_from_outputs(cols: torch.Tensor, exist: torch.Tensor,
                        fit: str = DEFAULT_FIT) -> tuple[np.ndarray, np.ndarray]:
-    """Network outputs for N frames -> cubics (N, 2, 4) of `fit` through the anchors decoded as present, and
-    existence probabilities (N, 2), 0 for a line with fewer than `MIN_PRESENT_ANCHORS` present anchors."""
+    """Network outputs for N frames -> cubics (N, 2, 4) of `fit` through the anchors decoded as present (`spread`:
+    solved per frame with the columns' variances), and existence probabilities (N, 2), 0 for a line with fewer than
+    `MIN_PRESENT_ANCHORS` present anchors."""
     y, present = decode(cols)
     mask = present.numpy() > 0.5
     if fit == "spread":  # solved per frame: its weights are the frame's own
