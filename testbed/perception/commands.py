@@ -84,8 +84,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("lanenet.onnx"))
     p.add_argument("--network-only", action="store_true",
                    help="export only the network (preprocessed input in, column and existence logits out)")
-    p.add_argument("--fit", choices=("cubic", "near"), default="cubic",
-                   help="the anchor fit inside the detector graph (detector.fit; default cubic)")
+    p.add_argument("--fit", choices=("cubic", "near", "spread"), default="cubic",
+                   help="the anchor fit inside the detector graph (detector.fit; default cubic; spread is solved per "
+                        "frame and cannot be baked into a graph)")
     p.set_defaults(func=_export_onnx)
 
     from testbed.perception.detectors.registry import DETECTORS
@@ -109,7 +110,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--weights", metavar="CHECKPOINT",
                    help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
                         "default: the shipped lanenet.pt, or lanenet-traffic.pt with --traffic)")
-    p.add_argument("--fit", choices=("cubic", "near"),
+    p.add_argument("--fit", choices=("cubic", "near", "spread"),
                    help="the neural detector's anchor fit (detector.fit; default: the detector's own)")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)

@@ -227,6 +227,8 @@ OTHER_COMMANDS = [
     Case("ld-eval-data", ("ld", "eval", "--data", "{ws}/nodata", "--out", "{ws}/e"), "nodata"),
     Case("ld-export-weights", ("ld", "export-onnx", "--weights", "{ws}/no.pt", "--out", "{ws}/e.onnx"), "no.pt"),
     Case("ld-export-fit", ("ld", "export-onnx", "--fit", "spline", "--out", "{ws}/e.onnx"), "--fit"),
+    Case("ld-export-fit-spread", ("ld", "export-onnx", "--fit", "spread", "--out", "{ws}/e.onnx"),
+         "solved per frame and cannot be baked into a detector graph"),
     Case("ld-export-fit-network-only", ("ld", "export-onnx", "--network-only", "--fit", "near", "--out",
                                         "{ws}/e.onnx"), "drop --fit"),
     Case("ld-train-data", ("ld", "train", "--data", "{ws}/nodata", "--out", "{ws}/w.pt"), "nodata"),

@@ -11,7 +11,9 @@ zero-mean Gaussian prior on c3 from road geometry (`CUBIC_PRIOR_STD`; arcs, c3 =
 a few bad anchors from bending the line; c0 is its extrapolation to the reference point. The fit is one of
 `FITS`: `cubic` weighs the anchors by `ANCHOR_WEIGHTS` (10:1 from the nearest to the farthest); `near` by the
 inverse square of each anchor's measured error (`ANCHOR_ERROR_M`, 40:1), so that misread far anchors move c0 and
-c1 less; both return arcs exactly. A pooled branch
+c1 less; `spread` per frame by the inverse of the column distribution's variance at each anchor plus that error
+squared (the network's own uncertainty: wide where it misreads; solved per frame, no per-mask matrix); all return
+arcs exactly. A pooled branch
 gives the existence logit of each line. Inference runs `FrozenLaneNet`: BatchNorm folded into the
 convolutions, the forward pass as plain functional calls.
 """
@@ -49,7 +51,8 @@ CUBIC_MIN_ANCHORS, QUADRATIC_MIN_ANCHORS = 5, 4
 # mean |decoded - label| offset (m) per anchor, both shipped checkpoints on 1800 training frames (presets, with and
 # without traffic): the `near` fit's anchor noise
 ANCHOR_ERROR_M = (0.042, 0.048, 0.055, 0.061, 0.071, 0.086, 0.102, 0.124, 0.145, 0.206, 0.266)
-FITS = ("cubic", "near")
+FITS = ("cubic", "near", "spread")
+MATRIX_FITS = ("cubic", "near")  # fits linear in the anchors: one matrix per presence mask, exportable into a graph
 DEFAULT_FIT = "cubic"
 FRAME_SHAPE = (160, 320)  # rendered frame (H, W) the model is trained on
 CROP_TOP = 48  # rows above are sky
@@ -142,6 +145,8 @@ _T = torch.tensor(X_ANCHORS, dtype=torch.float64) / FIT_SCALE
 _VANDER = torch.stack([_T**p for p in range(4)], dim=-1)  # (K, 4)
 _OUTER = _VANDER[:, :, None] * _VANDER[:, None, :]  # (K, 4, 4)
 _UNSCALE = torch.tensor([FIT_SCALE**p for p in range(4)], dtype=torch.float64)
+_VANDER_NP, _OUTER_NP, _UNSCALE_NP, _EYE4 = _VANDER.numpy(), _OUTER.numpy(), _UNSCALE.numpy(), np.eye(4)
+_PRIOR3 = RIDGE + (ANCHOR_NOISE_M / (CUBIC_PRIOR_STD * FIT_SCALE**3)) ** 2  # t-basis ridge of the c3 prior
 _FIT_W = {"cubic": torch.tensor(ANCHOR_WEIGHTS, dtype=torch.float64),
           "near": (ANCHOR_NOISE_M / torch.tensor(ANCHOR_ERROR_M, dtype=torch.float64)) ** 2}
 _M_PER_PX = {dt: torch.tensor(GEOMETRY.scale, dtype=dt) for dt in (torch.float32, torch.float64)}
@@ -165,17 +170,33 @@ def check_fit(fit: str) -> str:
     return fit
 
 
-def fit_cubics(y: torch.Tensor, present: torch.Tensor, fit: str = DEFAULT_FIT) -> torch.Tensor:
+def spread_weights(variance: np.ndarray) -> np.ndarray:
+    """The `spread` fit's anchor weights from the column distributions' variances (…, K) in m²: the inverse of
+    the variance plus the anchor's measured error squared (`ANCHOR_ERROR_M`, its floor), at the scale of the other
+    fits (unit weight for `ANCHOR_NOISE_M`); a zero variance gives the `near` fit's weight."""
+    return ANCHOR_NOISE_M**2 / (variance + _FLOOR2)
+
+
+_FLOOR2 = np.asarray(ANCHOR_ERROR_M) ** 2
+
+
+def fit_cubics(y: torch.Tensor, present: torch.Tensor, fit: str = DEFAULT_FIT,
+               variance: torch.Tensor | None = None) -> torch.Tensor:
     """Weighted least-squares cubics (…, 4) through anchor offsets y (…, K) where `present` (…, K), with the
-    anchor weights of `fit`, c3 drawn toward 0 by the road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS`
-    (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and c2) are held at 0."""
+    anchor weights of `fit` (for `spread`, from the anchors' `variance` (…, K), m²), c3 drawn toward 0 by the
+    road-geometry prior; with fewer than `CUBIC_MIN_ANCHORS` (`QUADRATIC_MIN_ANCHORS`) present anchors c3 (and
+    c2) are held at 0."""
     dt = y.dtype
-    w = _FIT_W[check_fit(fit)].to(dt) * present
+    if check_fit(fit) == "spread":
+        if variance is None:
+            raise ValueError("the spread fit weighs the anchors by their variance: pass it")
+        w = torch.from_numpy(spread_weights(variance.detach().cpu().double().numpy())).to(y) * present
+    else:
+        w = _FIT_W[fit].to(dt) * present
     n = present.sum(-1, keepdim=True)
     small = torch.full_like(n, RIDGE)
-    prior3 = RIDGE + (ANCHOR_NOISE_M / (CUBIC_PRIOR_STD * FIT_SCALE**3)) ** 2
     ridge = torch.cat([small, small, torch.where(n < QUADRATIC_MIN_ANCHORS, PINNED, RIDGE),
-                       torch.where(n < CUBIC_MIN_ANCHORS, PINNED, prior3)], dim=-1)
+                       torch.where(n < CUBIC_MIN_ANCHORS, PINNED, _PRIOR3)], dim=-1)
     a = torch.einsum("...k,kij->...ij", w, _OUTER.to(dt)) + torch.diag_embed(ridge)
     b = torch.einsum("...k,ki,...k->...i", w, _VANDER.to(dt), y)
     return torch.linalg.solve(a, b.unsqueeze(-1)).squeeze(-1) / _UNSCALE.to(dt)
@@ -189,9 +210,38 @@ def decode(cols: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return (u - GEOMETRY.cx) * _M_PER_PX[cols.dtype], mass
 
 
+def anchor_variance(cols: np.ndarray) -> np.ndarray:
+    """Column logits (…, K, N_COLS + 1) -> the variance (…, K, float64) in m² of each anchor's column distribution
+    (the absent class left out: the softmax over the columns alone), mapped to metres at the anchor's distance by
+    the homography's scale: the network's own uncertainty about the anchor."""
+    logits = np.asarray(cols, np.float64)[..., :N_COLS]
+    p = np.exp(logits - logits.max(-1, keepdims=True))
+    p /= p.sum(-1, keepdims=True)
+    du = GEOMETRY.cell_u - (p * GEOMETRY.cell_u).sum(-1, keepdims=True)
+    return (p * du**2).sum(-1) * GEOMETRY.scale**2
+
+
+def spread_cubics(y: np.ndarray, present: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """`fit_cubics` of the `spread` fit in numpy (…, 4) for anchor offsets y, presence (bools) and variances (…, K):
+    a frame's two 4×4 solves, without torch's per-call cost on tensors this small."""
+    w = spread_weights(variance) * present
+    n = present.sum(-1)
+    ridge = np.zeros((*n.shape, 4))
+    ridge[..., :2] = RIDGE
+    ridge[..., 2] = np.where(n < QUADRATIC_MIN_ANCHORS, PINNED, RIDGE)
+    ridge[..., 3] = np.where(n < CUBIC_MIN_ANCHORS, PINNED, _PRIOR3)
+    a = (w @ _OUTER_NP.reshape(len(X_ANCHORS), 16)).reshape(*n.shape, 4, 4) + ridge[..., None] * _EYE4
+    b = (w * y) @ _VANDER_NP
+    return np.linalg.solve(a, b[..., None])[..., 0] / _UNSCALE_NP
+
+
 @functools.cache
 def _fit_matrices(fit: str = DEFAULT_FIT) -> np.ndarray:
-    """`fit_cubics` as (4, K) matrices for all 2^K presence masks, indexed by the mask's bits (anchor k = bit k)."""
+    """`fit_cubics` as (4, K) matrices for all 2^K presence masks, indexed by the mask's bits (anchor k = bit k);
+    only for `MATRIX_FITS`: the spread fit's weights change with every frame."""
+    if check_fit(fit) not in MATRIX_FITS:
+        raise UserError(f"the {fit} fit weighs each frame's anchors by the network's spread: it has no per-mask "
+                        f"matrices (use one of {', '.join(MATRIX_FITS)})")
     k = len(X_ANCHORS)
     masks = (np.arange(2**k)[:, None] >> np.arange(k)) & 1
     eye = torch.eye(k, dtype=torch.float64).expand(2**k, k, k)
@@ -211,11 +261,15 @@ def fit_matrices(present: np.ndarray, fit: str = DEFAULT_FIT) -> np.ndarray:
 
 def lines_from_outputs(cols: torch.Tensor, exist: torch.Tensor,
                        fit: str = DEFAULT_FIT) -> tuple[np.ndarray, np.ndarray]:
-    """Network outputs for N frames -> cubics (N, 2, 4) of `fit` through the anchors decoded as present, and
-    existence probabilities (N, 2), 0 for a line with fewer than `MIN_PRESENT_ANCHORS` present anchors."""
+    """Network outputs for N frames -> cubics (N, 2, 4) of `fit` through the anchors decoded as present (`spread`:
+    solved per frame with the columns' variances), and existence probabilities (N, 2), 0 for a line with fewer than
+    `MIN_PRESENT_ANCHORS` present anchors."""
     y, present = decode(cols)
     mask = present.numpy() > 0.5
-    coeffs = np.einsum("nlck,nlk->nlc", fit_matrices(mask, fit), y.double().numpy())
+    if fit == "spread":  # solved per frame: its weights are the frame's own
+        coeffs = spread_cubics(y.double().numpy(), mask, anchor_variance(cols.numpy()))
+    else:
+        coeffs = np.einsum("nlck,nlk->nlc", fit_matrices(mask, fit), y.double().numpy())
     probs = expit(exist.double().numpy()) * (mask.sum(-1) >= MIN_PRESENT_ANCHORS)
     return coeffs, probs
 

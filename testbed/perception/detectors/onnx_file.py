@@ -14,6 +14,7 @@ from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 FRAME_SHAPE = (160, 320, 3)
 FRAME_INPUT = "frame"
 METADATA_X_MAX = "ld3.x_max"
+GRAPH_FITS = ("cubic", "near")  # the anchor fits a detector graph can hold (`neural.MATRIX_FITS`)
 METADATA_FIT = "ld3.fit"  # the anchor fit baked into the graph; graphs exported before it was recorded: cubic
 
 
@@ -44,8 +45,10 @@ class OnnxFileLaneDetector(LaneDetector):
         self.x_max = float(meta[METADATA_X_MAX])
         self.fit = meta.get(METADATA_FIT, "cubic")
         if fit is not None and fit != self.fit:
-            raise UserError(f"{path} was exported with the {self.fit} fit, not {fit}: export it again with "
-                            f"`ld3 ld export-onnx --fit {fit}` or drop detector.fit")
+            remedy = (f"export it again with `ld3 ld export-onnx --fit {fit}`" if fit in GRAPH_FITS else
+                      f"the {fit} fit is solved per frame outside any graph: set detector.weights to the checkpoint "
+                      f"(.pt)")
+            raise UserError(f"{path} was exported with the {self.fit} fit, not {fit}: {remedy} or drop detector.fit")
 
     def detect(self, frame: CameraFrame) -> LaneDetection:
         image = frame.image

@@ -38,11 +38,13 @@ class NeuralParams(CameraDetectorParams):
                                                   "default without traffic), lanenet-traffic.pt (fine-tuned with cars "
                                                   "in view; the default with traffic); for neural-onnx also a "
                                                   "detector graph (.onnx) from `ld3 ld export-onnx`")
-    fit: Literal["cubic", "near"] | None = Field(
+    fit: Literal["cubic", "near", "spread"] | None = Field(
         None, description="the fit of the network's anchors into each line's cubic: cubic (fixed anchor weights, a "
-                          "prior on c3) or near (anchors weighted by the inverse square of their measured error, "
+                          "prior on c3), near (anchors weighted by the inverse square of their measured error, "
                           "which grows with distance: misread far anchors move the offset and slope at the car "
-                          "less); unset: cubic, and for a detector graph (.onnx) the fit it was exported with")
+                          "less) or spread (each frame's anchors weighted by the network's own spread of its "
+                          "column scores there, near's error as the floor; not in a detector graph (.onnx)); "
+                          "unset: cubic, and for a detector graph the fit it was exported with")
 
     @field_validator("weights")
     @classmethod

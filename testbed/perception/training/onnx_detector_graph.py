@@ -15,12 +15,14 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from testbed.errors import UserError
 from testbed.perception.detectors.neural import (
     _MASK_BITS,
     CROP_TOP,
     DEFAULT_FIT,
     FRAME_SHAPE,
     GEOMETRY,
+    MATRIX_FITS,
     MIN_PRESENT_ANCHORS,
     X_ANCHORS,
     LaneNet,
@@ -64,7 +66,11 @@ class DetectorGraph(nn.Module):
 
 def export_detector_onnx(model: LaneNet, path: str | Path | None = None, fit: str = DEFAULT_FIT) -> bytes:
     """The detector graph of the eval-mode `model` with the anchor fit `fit` (the valid x range's end and the fit in
-    its metadata); also written to `path` when given."""
+    its metadata); also written to `path` when given. The `spread` fit, solved per frame, is refused in one line."""
+    if check_fit(fit) not in MATRIX_FITS:
+        raise UserError(f"the {fit} fit is solved per frame and cannot be baked into a detector graph: export with "
+                        f"--fit {' or '.join(MATRIX_FITS)}, or run detector neural-onnx on the checkpoint (.pt), whose "
+                        f"fit runs outside the network's graph")
     buf = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes

@@ -14,14 +14,17 @@ from testbed.perception.detectors.neural import (
     DEFAULT_WEIGHTS,
     FITS,
     GEOMETRY,
+    MATRIX_FITS,
     X_ANCHORS,
     FrozenLaneNet,
     LaneNet,
     NeuralLaneDetector,
+    anchor_variance,
     decode,
     fit_cubics,
     fit_matrices,
     lines_from_outputs,
+    spread_cubics,
 )
 
 WEIGHTS_SHIPPED = (resources.files("testbed.perception.detectors") / "weights" / DEFAULT_WEIGHTS).is_file()
@@ -136,7 +139,7 @@ def test_cubic_term_needs_enough_anchors():
     assert fit_cubics(y, three).numpy()[2:] == pytest.approx([0.0, 0.0], abs=1e-6)
 
 
-@pytest.mark.parametrize("fit", FITS)
+@pytest.mark.parametrize("fit", MATRIX_FITS)
 def test_cached_fit_matrices_match_the_fit(fit):
     rng = np.random.default_rng(7)
     present = rng.random((5, 2, len(X_ANCHORS))) > 0.3
@@ -180,9 +183,84 @@ def test_near_fit_bounds_what_a_far_misread_does_at_the_car():
     assert (np.abs(near[:2, far]) < np.abs(cubic[:2, far])).all()
 
 
+def _logits(p: np.ndarray) -> torch.Tensor:
+    """Column logits (…, N_COLS + 1) whose softmax is `p` (zeros as -1e9)."""
+    return torch.tensor(np.log(np.where(p > 0, p, 1e-300)), dtype=torch.float32)
+
+
+def test_an_anchors_variance_is_its_column_distributions_in_metres():
+    """One column cell: variance 0; two cells 8 px apart with equal mass: (4 px)², in m² at the anchor's scale;
+    the absent class does not widen it."""
+    k, n = len(X_ANCHORS), len(GEOMETRY.cell_u)
+    p = np.zeros((3, k, n + 1))
+    p[0, :, 20] = 1.0
+    p[1, :, 20] = p[1, :, 21] = 0.5
+    p[2, :, 20] = p[2, :, 21] = 0.2
+    p[2, :, n] = 0.6
+    var = anchor_variance(_logits(p).numpy())
+    np.testing.assert_allclose(var[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(var[1], 16.0 * GEOMETRY.scale**2, rtol=1e-9)
+    np.testing.assert_allclose(var[2], var[1], rtol=1e-9)
+
+
+def test_the_spread_fit_with_sharp_anchors_is_the_near_fit_and_numpy_agrees_with_torch():
+    rng = np.random.default_rng(11)
+    present = rng.random((6, 2, len(X_ANCHORS))) > 0.3
+    y = rng.normal(0.0, 2.0, (6, 2, len(X_ANCHORS)))
+    sharp = fit_cubics(torch.tensor(y), torch.tensor(present).double(), "spread", torch.zeros(y.shape)).numpy()
+    near = fit_cubics(torch.tensor(y), torch.tensor(present).double(), "near").numpy()
+    np.testing.assert_allclose(sharp, near, atol=1e-9)
+    variance = rng.random(y.shape) * 0.3
+    direct = fit_cubics(torch.tensor(y), torch.tensor(present).double(), "spread", torch.tensor(variance)).numpy()
+    np.testing.assert_allclose(spread_cubics(y, present, variance), direct, atol=1e-7)
+    assert not np.allclose(direct, near, atol=1e-3)
+    with pytest.raises(ValueError, match="pass it"):
+        fit_cubics(torch.tensor(y), torch.tensor(present).double(), "spread")
+
+
+@pytest.mark.parametrize("coeffs", [[1.7, 0.03, 0.0, 0.0], [-1.7, 0.0, 1 / 80, 0.0], [1.75, 0.02, -1 / 40, 0.0]])
+def test_spread_fit_returns_lines_and_arcs_exactly_whatever_the_spread(coeffs):
+    """Anchor spreads up to 0.3 m (the shipped weights' typical at 5–20 m) reweigh exact anchors: c3 = 0 curves come
+    back within 1e-3 (c0 in m) from all anchors and from the near five (wider anchors give the c3 prior more pull
+    than the near fit's: 0.2 mm at radius 40 m)."""
+    y = np.polynomial.polynomial.polyval(np.asarray(X_ANCHORS), coeffs)
+    variance = (0.3 * np.random.default_rng(2).random(len(X_ANCHORS))) ** 2
+    for present in (np.ones(len(X_ANCHORS), bool), np.arange(len(X_ANCHORS)) < 5):
+        np.testing.assert_allclose(spread_cubics(y, present, variance), coeffs, atol=1e-3)
+
+
+def test_a_misread_anchor_the_network_is_unsure_of_moves_the_spread_fit_less():
+    """A 1 m misread at the 8 m anchor: with that anchor's spread 0.5 m its pull on c0 is under a fifth of the
+    near fit's (the same anchors sharp)."""
+    k = len(X_ANCHORS)
+    y = np.zeros(k)
+    y[3] = 1.0
+    present = np.ones(k, bool)
+    sure = spread_cubics(y, present, np.zeros(k))
+    unsure = spread_cubics(y, present, np.where(np.arange(k) == 3, 0.25, 0.0))
+    assert abs(sure[0]) > 0.1 and abs(unsure[0]) < abs(sure[0]) / 5
+
+
+def test_lines_from_outputs_with_the_spread_fit_follow_the_frames_spread():
+    """Decoded through `lines_from_outputs`: the spread fit of each line is `spread_cubics` of its decoded anchors
+    and their variances, and it differs from the near fit where the spreads differ."""
+    rng = np.random.default_rng(4)
+    cols = torch.tensor(rng.normal(0.0, 3.0, (3, 2, len(X_ANCHORS), len(GEOMETRY.cell_u) + 1)), dtype=torch.float32)
+    exist = torch.zeros(3, 2)
+    coeffs, probs = lines_from_outputs(cols, exist, "spread")
+    y, mass = decode(cols)
+    want = spread_cubics(y.double().numpy(), mass.numpy() > 0.5, anchor_variance(cols.numpy()))
+    np.testing.assert_array_equal(coeffs, want)
+    np.testing.assert_array_equal(probs, lines_from_outputs(cols, exist, "near")[1])
+    assert not np.allclose(coeffs, lines_from_outputs(cols, exist, "near")[0], atol=1e-3)
+
+
 def test_an_unknown_fit_is_refused_in_one_line():
-    with pytest.raises(UserError, match="unknown lane-line fit 'spline': use one of cubic, near"):
+    with pytest.raises(UserError, match="unknown lane-line fit 'spline': use one of cubic, near, spread"):
         fit_matrices(np.ones(len(X_ANCHORS), bool), "spline")
+    with pytest.raises(UserError, match="the spread fit weighs each frame's anchors by the network's spread: it has "
+                                        "no per-mask matrices"):
+        fit_matrices(np.ones(len(X_ANCHORS), bool), "spread")
 
 
 def test_the_detectors_fit_parameter_lists_the_fits():

@@ -72,15 +72,16 @@ def test_the_neural_detector_runs_onnxruntime_unless_told_torch(model):
     assert np.array_equal(ours.right, reference.right) and ours.right_prob == reference.right_prob
 
 
+@pytest.mark.parametrize("fit", ["near", "spread"])
 @pytest.mark.parametrize("name", ["neural", "neural-onnx"])
-def test_the_neural_detectors_fit_their_anchors_as_told(model, name):
+def test_the_neural_detectors_fit_their_anchors_as_told(model, name, fit):
     from testbed.perception.detectors.registry import make_detector
 
     frame = CameraFrame(0.0, np.random.default_rng(6).integers(0, 255, (*FRAME_SHAPE, 3), dtype=np.uint8))
-    near = make_detector(name, track=None, rig=None, params={"fit": "near"})
-    assert near.fit == "near" and make_detector(name, track=None, rig=None).fit == "cubic"
-    reference = NeuralLaneDetector(model, fit="near").infer(frame.image)[0]
-    np.testing.assert_allclose(near.infer(frame.image)[0], reference, atol=1e-3)
+    told = make_detector(name, track=None, rig=None, params={"fit": fit})
+    assert told.fit == fit and make_detector(name, track=None, rig=None).fit == "cubic"
+    reference = NeuralLaneDetector(model, fit=fit).infer(frame.image)[0]
+    np.testing.assert_allclose(told.infer(frame.image)[0], reference, atol=1e-3)
 
 
 def test_one_session_per_network_in_a_process(model):

@@ -10,6 +10,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame
 from testbed.perception.detectors.neural import FRAME_SHAPE, NeuralLaneDetector, load_model
 from testbed.perception.detectors.onnx_file import FRAME_SHAPE as FILE_FRAME_SHAPE
@@ -100,3 +101,17 @@ def test_a_graph_is_refused_for_a_fit_it_was_not_exported_with(graph):
     assert OnnxFileLaneDetector(graph).fit == "cubic"
     with pytest.raises(ValueError, match="exported with the cubic fit, not near"):
         OnnxFileLaneDetector(graph, fit="near")
+    with pytest.raises(ValueError, match="not spread: the spread fit is solved per frame outside any graph: set "
+                                         r"detector\.weights to the checkpoint"):
+        OnnxFileLaneDetector(graph, fit="spread")
+
+
+def test_the_spread_fit_is_not_exported_into_a_graph(tmp_path):
+    from testbed.perception.detectors.neural import MATRIX_FITS
+    from testbed.perception.detectors.onnx_file import GRAPH_FITS
+
+    assert GRAPH_FITS == MATRIX_FITS
+    with pytest.raises(UserError, match="the spread fit is solved per frame and cannot be baked into a detector "
+                                        "graph: export with --fit cubic or near"):
+        export_detector_onnx(load_model(), tmp_path / "spread.onnx", fit="spread")
+    assert not (tmp_path / "spread.onnx").exists()
