@@ -25,21 +25,17 @@ static inline float tr_dot4(const float *a, const float *b) {
     return r;
 }
 
-static inline float tr_dot3(const float *a, const float *b) {
-    float r = 0.0f;
-    r += a[2] * b[2];
-    r += a[1] * b[1];
-    r += a[0] * b[0];
-    return r;
-}
-
-static inline double tr_dot3d(const double *a, const double *b) {
-    double r = 0.0;
-    r += a[2] * b[2];
-    r += a[1] * b[1];
-    r += a[0] * b[0];
-    return r;
-}
+/* The three-component form, for floats and for doubles. */
+#define TR_DOT3(name, T)                                  \
+    static inline T name(const T *a, const T *b) {        \
+        T r = 0;                                          \
+        r += a[2] * b[2];                                 \
+        r += a[1] * b[1];                                 \
+        r += a[0] * b[0];                                 \
+        return r;                                         \
+    }
+TR_DOT3(tr_dot3, float)
+TR_DOT3(tr_dot3d, double)
 
 static inline float tr_minf(float a, float b) { return a < b ? a : b; } /* b3Min */
 static inline float tr_maxf(float a, float b) { return a > b ? a : b; } /* b3Max */
