@@ -32,6 +32,9 @@ OPEN_GROUND_RGB = (84, 107, 66)
 OPEN_GROUND_RGBA = (*OPEN_GROUND_RGB, 255)
 SEGMENT_SPACING_M = 2.0
 MAX_WARP_ERROR_M = 0.005  # m: largest lateral misplacement of the road texture by a segment's warp
+BUFFER_HEADROOM = 1.25
+"""A canvas buffer holds this much more than the canvas it is made for, so that the buffer it leaves at the next
+recentre still fits the one after (a canvas grows by a tenth or so once the road ahead bends): no fresh pages."""
 
 
 @dataclass(frozen=True)
@@ -118,7 +121,7 @@ class GroundCanvas:
         if old.size:
             lo = old_origin + np.round((lo - old_origin) * self.ppm) / self.ppm  # on the old pixel grid
         w, h = (int(v) for v in np.ceil((hi - lo) * self.ppm))
-        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(h * w * 4, np.uint8)
+        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(int(h * w * 4 * BUFFER_HEADROOM), np.uint8)
         image = spare[: h * w * 4].reshape(h, w, 4)
         x0 = y0 = x1 = y1 = 0  # the region carried over
         if old.size:
