@@ -32,6 +32,9 @@ OPEN_GROUND_RGB = (84, 107, 66)
 OPEN_GROUND_RGBA = (*OPEN_GROUND_RGB, 255)
 SEGMENT_SPACING_M = 2.0
 MAX_WARP_ERROR_M = 0.005  # m: largest lateral misplacement of the road texture by a segment's warp
+BUFFER_HEADROOM = 1.25
+"""A canvas buffer holds this much more than the canvas it is made for, so that the buffer it leaves at the next
+recentre still fits the one after (a canvas grows by a tenth or so once the road ahead bends): no fresh pages."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,15 @@ class Lighting:
         return self.ambient + self.diffuse * cos_inc * np.asarray(self.colour, dtype=float)
 
 
+def lit_levels(gain: np.ndarray) -> np.ndarray:
+    """The lit value of every byte in each channel, (1, 256, 3) uint8 for `cv2.LUT`: `cv2.transform` by the diagonal
+    gain, whose -0.5 offset turns cv2's rounding into TinyRenderer's truncation of the lit colour. A channel's lit
+    value depends on its own byte alone (the other channels' terms are exact zeros), so looking the bytes up gives
+    the transform's bytes at a fraction of its cost."""
+    levels = np.repeat(np.arange(256, dtype=np.uint8)[None, :, None], 3, axis=2)
+    return cv2.transform(levels, np.column_stack([np.diag(gain), [-0.5] * 3]))
+
+
 class GroundCanvas:
     """World-aligned canvas (RGBA uint8, alpha unused, `px_per_m` px per metre) holding the lit textures of a
     set of tiles.
@@ -61,6 +73,8 @@ class GroundCanvas:
         self.track = track
         self.ppm = float(track.px_per_m)
         self.gain = lighting.ground_gain()
+        self.light = lit_levels(self.gain)
+        """Each channel's 256 byte values as lit (`lit_levels`): a tile is lit by looking its bytes up."""
         self.margin = margin_m
         self.tiles: set[int] = set()
         self.rebuilds = 0
@@ -107,7 +121,7 @@ class GroundCanvas:
         if old.size:
             lo = old_origin + np.round((lo - old_origin) * self.ppm) / self.ppm  # on the old pixel grid
         w, h = (int(v) for v in np.ceil((hi - lo) * self.ppm))
-        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(h * w * 4, np.uint8)
+        spare = self._spare if self._spare.size >= h * w * 4 else np.empty(int(h * w * 4 * BUFFER_HEADROOM), np.uint8)
         image = spare[: h * w * 4].reshape(h, w, 4)
         x0 = y0 = x1 = y1 = 0  # the region carried over
         if old.size:
@@ -151,9 +165,7 @@ class GroundCanvas:
     def texture(self, i: int) -> np.ndarray:
         """Tile i's texture as lit on this canvas, RGBA (cached while the tile is held)."""
         if i not in self._textures:
-            # TinyRenderer truncates the lit colour to an integer: the -0.5 offset turns cv2's rounding into that.
-            light = np.column_stack([np.diag(self.gain), [-0.5] * 3])
-            self._textures[i] = cv2.cvtColor(cv2.transform(tile_texture(self.track, i), light), cv2.COLOR_RGB2RGBA)
+            self._textures[i] = cv2.cvtColor(cv2.LUT(tile_texture(self.track, i), self.light), cv2.COLOR_RGB2RGBA)
         return self._textures[i]
 
     def _paint(self, i: int) -> None:

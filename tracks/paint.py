@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tracks.compiled import compiled_module
 from tracks.tile_frame import TileFrame
 
 ASPHALT = (86.0, 86.0, 90.0)
@@ -30,8 +31,18 @@ WHITE = (236.0, 236.0, 230.0)
 YELLOW = (232.0, 182.0, 42.0)
 
 
-def value_noise(frame: TileFrame, cell: float, salt: int) -> np.ndarray:
-    """Smooth noise in [0, 1] over global (s, t) on a `cell`-metre lattice, seeded by (track seed, salt)."""
+class NoiseRows(NamedTuple):
+    """`value_noise` before its interpolation along s: the noise at each lattice row interpolated across t
+    (`along_t`, float32 (lattice rows, W)), and each image row's lattice row below it (`row`) and smoothstep
+    weight of the one above (`weight`, float32)."""
+
+    along_t: np.ndarray
+    row: np.ndarray
+    weight: np.ndarray
+
+
+def noise_rows(frame: TileFrame, cell: float, salt: int) -> NoiseRows:
+    """`value_noise(frame, cell, salt)` up to its last step, the interpolation along s."""
     s, t = frame.s_of_rows() / cell, (frame.t_of_cols() - frame.t_min) / cell
     k0, k1 = math.floor(s.min()), math.floor(s.max()) + 1
     n_cols = math.floor(t.max()) + 2
@@ -42,8 +53,13 @@ def value_noise(frame: TileFrame, cell: float, salt: int) -> np.ndarray:
     fs, ft = s - ks, t - ms
     fs, ft = fs * fs * (3 - 2 * fs), ft * ft * (3 - 2 * ft)
     along_t = (lattice[:, ms] * (1 - ft) + lattice[:, ms + 1] * ft).astype(np.float32)  # separable: t first
-    r = ks - k0
-    w = fs.astype(np.float32)[:, None]
+    return NoiseRows(along_t, ks - k0, fs.astype(np.float32))
+
+
+def value_noise(frame: TileFrame, cell: float, salt: int) -> np.ndarray:
+    """Smooth noise in [0, 1] over global (s, t) on a `cell`-metre lattice, seeded by (track seed, salt)."""
+    along_t, r, weight = noise_rows(frame, cell, salt)
+    w = weight[:, None]
     return along_t[r] * (1 - w) + along_t[r + 1] * w
 
 
@@ -59,7 +75,8 @@ def _band(x: np.ndarray, lo: float, hi: float, px_per_m: float) -> np.ndarray:
 
 class AsphaltPainter:
     """Base layer: asphalt with seeded grain and large-scale tone over the paved surface (the whole tile
-    width in intersections), roadside ground beyond the edges and the tops of curbs and dividers."""
+    width in intersections), roadside ground beyond the edges and the tops of curbs and dividers. Its per-pixel
+    layer runs in `tracks.paint_kernels` where that is built (the same bytes), else in numpy (the reference)."""
 
     def __init__(self, tone: float = 1.0, grain: float = 7.0, tone_variation: float = 0.10) -> None:
         self.tone, self.grain, self.tone_variation = tone, grain, tone_variation
@@ -80,9 +97,17 @@ class AsphaltPainter:
                 if body.kind in BODY_COLOURS and body.spacing == 0.0:
                     near, far = outer + side * body.gap, outer + side * (body.gap + body.thickness)
                     ground[(t >= min(near, far)) & (t <= max(near, far))] = BODY_COLOURS[body.kind]
-        layer = np.broadcast_to(ground.astype(np.float32), (frame.height, frame.width, 3)).copy()
         s = frame.s_of_rows()
         crossing = np.array([track.in_intersection(v) for v in s])
+        kernel = compiled_module("tracks.paint_kernels")
+        if kernel is not None:
+            noise = noise_rows(frame, 2.0, 31)
+            normal = rng.standard_normal((frame.height, frame.width), dtype=np.float32)
+            kernel.asphalt(ground.astype(np.float32), crossing.view(np.uint8),
+                           (np.asarray(ASPHALT) * self.tone).astype(np.float32), np.ascontiguousarray(noise.along_t),
+                           noise.row.astype(np.int32), noise.weight, self.tone_variation, normal, self.grain, img)
+            return
+        layer = np.broadcast_to(ground.astype(np.float32), (frame.height, frame.width, 3)).copy()
         layer[crossing] = np.asarray(ASPHALT) * self.tone
         tone = 1.0 + np.float32(self.tone_variation) * (2.0 * value_noise(frame, 2.0, 31) - 1.0)
         grain = rng.standard_normal((frame.height, frame.width), dtype=np.float32) * np.float32(self.grain)

@@ -8,7 +8,7 @@ import pytest
 
 from testbed.camera import FrontCamera
 from testbed.conditions import get_condition
-from testbed.ground import OPEN_GROUND_RGB, GroundCanvas
+from testbed.ground import OPEN_GROUND_RGB, GroundCanvas, lit_levels
 from testbed.world import TileStreamer
 from tracks.pose import Pose
 from tracks.presets import load_track
@@ -103,3 +103,15 @@ def test_canvas_keeps_the_lane_lines_where_the_map_has_them_on_the_sharpest_bend
         bright = rgb[:, 0].reshape(len(s), len(across))  # red: white and yellow paint alike
         paint_centre = across[np.argmax(bright, axis=1)]
         assert np.abs(paint_centre).max() <= 0.06
+
+
+@pytest.mark.parametrize("condition", ["day", "dusk", "night", "rain"])
+def test_lit_levels_light_a_tile_as_the_diagonal_transform(condition):
+    """Looking each byte up in `lit_levels` gives `cv2.transform`'s bytes, at every width (its vector body and
+    scalar tail alike)."""
+    gain = get_condition(condition).lighting.ground_gain()
+    light = np.column_stack([np.diag(gain), [-0.5] * 3])
+    rng = np.random.default_rng(8)
+    for width in (*range(1, 40), 241, 397, 586):
+        img = rng.integers(0, 256, (23, width, 3), dtype=np.uint8)
+        assert np.array_equal(cv2.LUT(img, lit_levels(gain)), cv2.transform(img, light)), width

@@ -16,6 +16,7 @@ from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.perception.detectors.neural import (
     DEFAULT_FIT,
+    FRAME_SHAPE,
     INPUT_WIDTH,
     LaneNet,
     NeuralLaneDetector,
@@ -93,13 +94,16 @@ def session_for(model: LaneNet, threads: int = 1) -> OnnxLaneNet:
 
 class OnnxLaneDetector(LaneDetector):
     """`NeuralLaneDetector` with the network in onnxruntime (one intra-op thread unless told otherwise), its
-    anchors fitted with `fit`."""
+    anchors fitted with `fit`. Built, it infers one blank frame: what a process's first frame costs once (the fit's
+    per-mask matrices, the session's first run, the decoding's first torch calls) is paid then, not by a run's
+    first camera tick; the detector keeps nothing from a frame, so its outputs are unchanged."""
 
     def __init__(self, model: LaneNet | None = None, threads: int = 1, fit: str = DEFAULT_FIT) -> None:
         model = model if model is not None else load_model()
         self.input_rows = model.input_rows
         self.model = session_for(model, threads)
         self.fit = check_fit(fit)
+        self.infer(np.zeros((*FRAME_SHAPE, 3), np.uint8))  # a process's first frame pays its one-off costs here
 
     def infer(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cubics (2, 4) and existence probabilities (2,) for one valid frame."""

@@ -105,3 +105,20 @@ def test_without_onnxruntime_the_neural_detector_names_the_extra_and_the_torch_r
     monkeypatch.setattr(onnx_runtime, "_SESSIONS", {})
     with pytest.raises(UserError, match=r"ld3-testbed\[nn\].*detector\.runtime"):
         OnnxLaneDetector(model)
+
+
+def test_a_built_detector_has_paid_the_first_frame_and_detects_as_a_fresh_one(model):
+    """Building it infers a blank frame: the fit's per-mask matrices exist before the first camera frame, and the
+    detections are those of a detector that saw nothing before."""
+    from testbed.perception.detectors import neural
+
+    neural._fit_matrices.cache_clear()
+    built = OnnxLaneDetector(model, fit="near")
+    assert neural._fit_matrices.cache_info().currsize == 1
+    rng = np.random.default_rng(2)
+    frames = [CameraFrame(0.05 * k, rng.integers(0, 255, (*FRAME_SHAPE, 3), dtype=np.uint8)) for k in range(3)]
+    for frame in frames:
+        a, b = built.detect(frame), OnnxLaneDetector(model, fit="near").detect(frame)
+        assert (a.left_prob, a.right_prob) == (b.left_prob, b.right_prob)
+        for la, lb in ((a.left, b.left), (a.right, b.right)):
+            assert (la is None and lb is None) or np.array_equal(la, lb)
