@@ -221,6 +221,19 @@ static void tr_span_rows(const tr_span *sp, int x, int *y0, int *y1) {
     if (hi < 1e8) *y1 = (int)fmin((double)*y1, ceil(hi) + 1.0);
 }
 
+/* our_gl.cpp's coordinates of pixel (x, y) in the screen triangle `p2` (bc), and perspective-correct (bcc): each
+ * divided by its vertex's w in `p`, then by their sum. */
+static inline void tr_perspective(float p2[3][2], float p[3][4], int x, int y, double bc[3], double bcc[3]) {
+    tr_barycentric(p2[0], p2[1], p2[2], x, y, bc);
+    bcc[0] = bc[0] / p[0][3];
+    bcc[1] = bc[1] / p[1][3];
+    bcc[2] = bc[2] / p[2][3];
+    double sum = bcc[0] + bcc[1] + bcc[2];
+    bcc[2] /= sum;
+    bcc[1] /= sum;
+    bcc[0] /= sum;
+}
+
 /* our_gl.cpp triangle (clipped == 0: the near/far discards) and triangleClipped (the clipped points bound and
  * depth-test the pixels, the original ones shade them). */
 static void tr_triangle(tr_target *t, const float clipc[4][3], const float orgc[4][3], int clipped,
@@ -246,28 +259,14 @@ static void tr_triangle(tr_target *t, const float clipc[4][3], const float orgc[
         for (int y = y0; y <= bmax[1] && y <= y1; y++) {
             if (x < 0 || y < 0 || x >= t->width || y >= t->height) continue; /* only where TinyRenderer overruns */
             double bc[3], bcc[3];
-            tr_barycentric(pts2[0], pts2[1], pts2[2], x, y, bc);
-            bcc[0] = bc[0] / pts[0][3];
-            bcc[1] = bc[1] / pts[1][3];
-            bcc[2] = bc[2] / pts[2][3];
-            double sum = bcc[0] + bcc[1] + bcc[2];
-            bcc[2] /= sum;
-            bcc[1] /= sum;
-            bcc[0] /= sum;
+            tr_perspective(pts2, pts, x, y, bc, bcc);
             double frag_depth = -1. * tr_dot3d(clipz, bcc);
             int idx = x + y * t->width;
             if (bc[0] < 0 || bc[1] < 0 || bc[2] < 0 || t->zbuf[idx] > frag_depth) continue;
             float bar[3];
             if (clipped) {
-                double b2[3];
-                tr_barycentric(org2[0], org2[1], org2[2], x, y, b2);
-                b2[0] = b2[0] / org[0][3];
-                b2[1] = b2[1] / org[1][3];
-                b2[2] = b2[2] / org[2][3];
-                double s2 = b2[0] + b2[1] + b2[2];
-                b2[2] /= s2;
-                b2[1] /= s2;
-                b2[0] /= s2;
+                double screen2[3], b2[3];
+                tr_perspective(org2, org, x, y, screen2, b2);
                 bar[0] = (float)b2[0];
                 bar[1] = (float)b2[1];
                 bar[2] = (float)b2[2];
