@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import math
 import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import cv2
@@ -77,6 +78,7 @@ class PhysicsWorld:
         self.traffic_bodies: list[int] = []
         self._traffic_z = 0.0
         self._traffic_shown: set[int] = set()
+        self._move = _client_move(self.client)
         self.vehicle = PyBulletVehicle(self.client, params, start)
         self.update_obstacles(start)
 
@@ -119,7 +121,7 @@ class PhysicsWorld:
     def place_traffic(self, poses: dict[int, Pose]) -> None:
         """Move traffic car i's body to poses[i] (its centre on the ground, its heading); the bodies of cars
         not given are put out of reach below the ground."""
-        self._traffic_shown = _place_bodies(self.client, self.traffic_bodies, poses, self._traffic_z,
+        self._traffic_shown = _place_bodies(self._move, self.traffic_bodies, poses, self._traffic_z,
                                             self._traffic_shown)
 
     def traffic_touching(self) -> list[int]:
@@ -148,24 +150,25 @@ class PhysicsWorld:
             pb.disconnect(self.client)
 
 
-def _place_boxes(boxes: TinyBoxes, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
-    """`_place_bodies` for the clone's boxes: the same positions and quaternions."""
-    for i, p in poses.items():
-        boxes.move(bodies[i], (p.x, p.y, z), (0.0, 0.0, math.sin(0.5 * p.yaw), math.cos(0.5 * p.yaw)))
-    for i in shown - poses.keys():
-        boxes.move(bodies[i], (0.0, 0.0, HIDDEN_Z), (0.0, 0.0, 0.0, 1.0))
-    return set(poses)
+Move = Callable[[int, Sequence[float], Sequence[float]], None]
+"""Sets a body's position and quaternion (x, y, z, w): a client's `resetBasePositionAndOrientation`, or the clone's
+`TinyBoxes.move`."""
 
 
-def _place_bodies(client: int, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
+def _client_move(client: int) -> Move:
+    """`Move` for the bodies of a PyBullet client."""
+    def move(body: int, position: Sequence[float], quaternion: Sequence[float]) -> None:
+        pb.resetBasePositionAndOrientation(body, position, quaternion, physicsClientId=client)
+    return move
+
+
+def _place_bodies(move: Move, bodies: list[int], poses: dict[int, Pose], z: float, shown: set[int]) -> set[int]:
     """Put bodies[i] at poses[i] (height z) and the shown bodies without a pose below the ground; the set of
     bodies now shown."""
     for i, p in poses.items():
-        pb.resetBasePositionAndOrientation(bodies[i], [p.x, p.y, z], [0.0, 0.0, math.sin(0.5 * p.yaw),
-                                                                      math.cos(0.5 * p.yaw)], physicsClientId=client)
+        move(bodies[i], [p.x, p.y, z], [0.0, 0.0, math.sin(0.5 * p.yaw), math.cos(0.5 * p.yaw)])
     for i in shown - poses.keys():
-        pb.resetBasePositionAndOrientation(bodies[i], [0.0, 0.0, HIDDEN_Z], [0.0, 0.0, 0.0, 1.0],
-                                           physicsClientId=client)
+        move(bodies[i], [0.0, 0.0, HIDDEN_Z], [0.0, 0.0, 0.0, 1.0])
     return set(poses)
 
 
@@ -194,6 +197,7 @@ class TileStreamer:
         """The roadside and traffic boxes for TinyRenderer's compiled clone (canvas mode, where it is built); None:
         they are bodies of the render client, drawn by TinyRenderer."""
         self.client: int | None = pb.connect(pb.DIRECT) if self.boxes is None else None
+        self._move: Move = self.boxes.move if self.boxes is not None else _client_move(self.client)
         self._tmp = tempfile.TemporaryDirectory(prefix="ld3-tiles-")
         self.loaded: dict[int, list[int]] = {}
         self.textures_loaded = 0
@@ -245,10 +249,7 @@ class TileStreamer:
         given are hidden below the ground."""
         self._traffic_poses = dict(poses)
         z = 0.5 * self._traffic_size[3] if self._traffic_size is not None else 0.0
-        if self.boxes is not None:
-            self._traffic_shown = _place_boxes(self.boxes, self._traffic_bodies, poses, z, self._traffic_shown)
-            return
-        self._traffic_shown = _place_bodies(self.client, self._traffic_bodies, poses, z, self._traffic_shown)
+        self._traffic_shown = _place_bodies(self._move, self._traffic_bodies, poses, z, self._traffic_shown)
 
     def update(self, pose: Pose) -> None:
         """Load the tiles within half the window (`behind` + `ahead`) along the road of the point that far ahead of
