@@ -29,6 +29,7 @@ BODY_COLOURS = {
 }
 WHITE = (236.0, 236.0, 230.0)
 YELLOW = (232.0, 182.0, 42.0)
+_KERNELS = compiled_module("tracks.paint_kernels")
 
 
 class NoiseRows(NamedTuple):
@@ -99,11 +100,10 @@ class AsphaltPainter:
                     ground[(t >= min(near, far)) & (t <= max(near, far))] = BODY_COLOURS[body.kind]
         s = frame.s_of_rows()
         crossing = np.array([track.in_intersection(v) for v in s])
-        kernel = compiled_module("tracks.paint_kernels")
-        if kernel is not None:
+        if _KERNELS is not None:
             noise = noise_rows(frame, 2.0, 31)
             normal = rng.standard_normal((frame.height, frame.width), dtype=np.float32)
-            kernel.asphalt(ground.astype(np.float32), crossing.view(np.uint8),
+            _KERNELS.asphalt(ground.astype(np.float32), crossing.view(np.uint8),
                            (np.asarray(ASPHALT) * self.tone).astype(np.float32), np.ascontiguousarray(noise.along_t),
                            noise.row.astype(np.int32), noise.weight, self.tone_variation, normal, self.grain, img)
             return

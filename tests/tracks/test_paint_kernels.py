@@ -20,7 +20,7 @@ def _painted(painter: AsphaltPainter, track, i: int, reference: bool) -> np.ndar
     frame = tile_frame(track, i)
     img = np.zeros((frame.height, frame.width, 3), np.uint8)
     if reference:
-        with mock.patch.object(paint, "compiled_module", lambda name: None):
+        with mock.patch.object(paint, "_KERNELS", None):
             painter.paint(img, frame, np.random.default_rng([track.seed, i]))
     else:
         painter.paint(img, frame, np.random.default_rng([track.seed, i]))
