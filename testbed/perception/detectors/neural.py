@@ -146,6 +146,7 @@ _VANDER = torch.stack([_T**p for p in range(4)], dim=-1)  # (K, 4)
 _OUTER = _VANDER[:, :, None] * _VANDER[:, None, :]  # (K, 4, 4)
 _UNSCALE = torch.tensor([FIT_SCALE**p for p in range(4)], dtype=torch.float64)
 _VANDER_NP, _OUTER_NP, _UNSCALE_NP, _EYE4 = _VANDER.numpy(), _OUTER.numpy(), _UNSCALE.numpy(), np.eye(4)
+_FLOOR2 = np.asarray(ANCHOR_ERROR_M) ** 2  # the spread fit's floor: each anchor's measured error, squared
 _PRIOR3 = RIDGE + (ANCHOR_NOISE_M / (CUBIC_PRIOR_STD * FIT_SCALE**3)) ** 2  # t-basis ridge of the c3 prior
 _FIT_W = {"cubic": torch.tensor(ANCHOR_WEIGHTS, dtype=torch.float64),
           "near": (ANCHOR_NOISE_M / torch.tensor(ANCHOR_ERROR_M, dtype=torch.float64)) ** 2}
@@ -175,9 +176,6 @@ def spread_weights(variance: np.ndarray) -> np.ndarray:
     the variance plus the anchor's measured error squared (`ANCHOR_ERROR_M`, its floor), at the scale of the other
     fits (unit weight for `ANCHOR_NOISE_M`); a zero variance gives the `near` fit's weight."""
     return ANCHOR_NOISE_M**2 / (variance + _FLOOR2)
-
-
-_FLOOR2 = np.asarray(ANCHOR_ERROR_M) ** 2
 
 
 def fit_cubics(y: torch.Tensor, present: torch.Tensor, fit: str = DEFAULT_FIT,
