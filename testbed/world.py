@@ -55,12 +55,12 @@ OBSTACLE_UPDATE_STEPS = 24
 class PhysicsWorld:
     """Physics client: flat ground, the track's static collision bodies near the car, and one vehicle.
 
-    Roadside bodies are streamed like the render tiles (one compound body per tile, kind and side of the road,
-    for the tiles within `obstacle_window_m` of the car): Bullet updates every body's bounds each step, so
-    loading a whole road's curbs at once would make each step an order of magnitude slower. A side's body
-    keeps its bounds off a car in its lane, where a body spanning the road would pair with every link of
-    the car every step. The ground and the static bodies are rigid bodies (maximal coordinates): as
-    fixed-base multibodies, each would have its dynamics run every step.
+    Roadside bodies are streamed like the render tiles (one compound body per tile and kind, for the
+    tiles within `obstacle_window_m` of the car): Bullet updates an awake body's bounds each step, so
+    loading a whole road's curbs at once would make each step an order of magnitude slower. The ground and
+    the static bodies are rigid bodies (maximal coordinates): as fixed-base multibodies, each would have its
+    dynamics run every step; the roadside bodies are put to sleep, which keeps Bullet from recomputing their
+    bounds every step (they never move) and not from colliding with the car.
     """
 
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
@@ -93,20 +93,10 @@ class PhysicsWorld:
                 self.obstacle_kind.pop(body, None)
                 pb.removeBody(body, physicsClientId=self.client)
         for i in sorted(wanted - self._tile_bodies.keys()):
-            left = self._left_of_road_centre(i)
-            groups: dict[tuple[str, bool], list] = {}
+            by_kind: dict[str, list] = {}
             for box in road_obstacles(self.track, i):
-                groups.setdefault((box.kind, left(box.center)), []).append(box)
-            self._tile_bodies[i] = [self._add_compound(kind, boxes) for (kind, _), boxes in sorted(groups.items())]
-
-    def _left_of_road_centre(self, tile: int) -> Callable[[Sequence[float]], bool]:
-        """Whether a point lies left of the road's centre line, as seen from the middle of `tile` (the side of
-        a roadside box of the tile)."""
-        track = self.track
-        x, y, heading = track.reference.frame(min((tile + 0.5) * track.tile_length, track.length))
-        c, s = math.cos(heading), math.sin(heading)
-        centre = 0.5 * (track.boundaries[0].t + track.boundaries[-1].t)
-        return lambda p: (p[1] - y) * c - (p[0] - x) * s > centre
+                by_kind.setdefault(box.kind, []).append(box)
+            self._tile_bodies[i] = [self._add_compound(kind, boxes) for kind, boxes in sorted(by_kind.items())]
 
     def _add_compound(self, kind: str, boxes: list) -> int:
         shape = pb.createCollisionShapeArray(
@@ -117,6 +107,7 @@ class PhysicsWorld:
             physicsClientId=self.client,
         )
         body = pb.createMultiBody(0, shape, useMaximalCoordinates=True, physicsClientId=self.client)
+        pb.changeDynamics(body, -1, activationState=pb.ACTIVATION_STATE_SLEEP, physicsClientId=self.client)
         self.obstacle_kind[body] = kind
         return body
 
@@ -127,7 +118,8 @@ class PhysicsWorld:
                                         physicsClientId=self.client)
         self._traffic_z = 0.5 * height
         for _ in range(count):
-            body = pb.createMultiBody(0, shape, basePosition=[0.0, 0.0, HIDDEN_Z], physicsClientId=self.client)
+            body = pb.createMultiBody(0, shape, basePosition=[0.0, 0.0, HIDDEN_Z], useMaximalCoordinates=True,
+                                      physicsClientId=self.client)
             self.obstacle_kind[body] = "vehicle"
             self.traffic_bodies.append(body)
 
