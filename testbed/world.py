@@ -52,25 +52,33 @@ PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
 
 
+def obstacle_window(params: VehicleParams, physics_hz: float) -> float:
+    """Along-road radius (m) around the car within which its roadside bodies are kept: twice the car's length and
+    the road it covers at its top speed between two updates (`OBSTACLE_UPDATE_STEPS` physics steps), so every
+    body it can touch before the next update is there (the factor covers its station running ahead of its path
+    on the inside of a bend, and a speed past its governor's cap)."""
+    return 2.0 * (params.max_speed * OBSTACLE_UPDATE_STEPS / physics_hz + params.length)
+
+
 class PhysicsWorld:
     """Physics client: flat ground, the track's static collision bodies near the car, and one vehicle.
 
-    Roadside bodies are streamed like the render tiles (one compound body per tile and kind, for the
-    tiles within `obstacle_window_m` of the car): Bullet updates an awake body's bounds each step, so
-    loading a whole road's curbs at once would make each step an order of magnitude slower. The ground and
-    the static bodies are rigid bodies (maximal coordinates): as fixed-base multibodies, each would have its
-    dynamics run every step; the roadside bodies are put to sleep, which keeps Bullet from recomputing their
-    bounds every step (they never move) and not from colliding with the car.
+    Roadside bodies are streamed like the render tiles (one compound body per tile and kind, for the tiles
+    within `obstacle_window_m` of the car, by default `obstacle_window`): Bullet updates an awake body's bounds
+    each step, so loading a whole road's curbs at once would make each step an order of magnitude slower. The
+    ground and the static bodies are rigid bodies (maximal coordinates): as fixed-base multibodies, each would
+    have its dynamics run every step; the roadside bodies are put to sleep, which keeps Bullet from recomputing
+    their bounds every step (they never move), not from colliding with the car.
     """
 
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
-                 obstacle_window_m: float = 60.0) -> None:
+                 obstacle_window_m: float | None = None) -> None:
         self.client = pb.connect(pb.DIRECT)
         self.track = track
         self.dt = 1.0 / physics_hz
         self.t = 0.0
         self.steps = 0
-        self.window = obstacle_window_m
+        self.window = obstacle_window(params, physics_hz) if obstacle_window_m is None else obstacle_window_m
         pb.setGravity(0, 0, -9.81, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(fixedTimeStep=self.dt, numSolverIterations=10, physicsClientId=self.client)
         plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self.client)

@@ -7,7 +7,7 @@ import math
 import pybullet as pb
 import pytest
 
-from testbed.world import PhysicsWorld
+from testbed.world import OBSTACLE_UPDATE_STEPS, PhysicsWorld, obstacle_window
 from tracks.pose import Pose
 from tracks.presets import load_track
 from vehicles.params import get_vehicle
@@ -57,5 +57,25 @@ def test_a_car_driven_off_the_road_hits_the_roadside_body_on_that_side(track_nam
         lateral = -(moved.x - start.x) * math.sin(start.yaw - turn) + (moved.y - start.y) * math.cos(start.yaw - turn)
         assert math.copysign(1.0, lateral) == math.copysign(1.0, turn)
         assert abs(lateral) < 12.0  # stopped or turned aside by the body, not through it
+    finally:
+        world.close()
+
+
+def test_the_bodies_of_the_road_under_the_car_are_there_at_every_step_at_top_speed():
+    world = _world("highway", 60.0, lane=1)
+    try:
+        vehicle, track = world.vehicle, world.track
+        assert world.window == obstacle_window(vehicle.params, 1.0 / world.dt) < 60.0
+        vehicle.reset_pose(vehicle.pose(), vehicle.params.max_speed)
+        vehicle.apply(0.0, vehicle.params.max_accel)
+        half = 0.5 * vehicle.params.length
+        for step in range(4 * OBSTACLE_UPDATE_STEPS):
+            if step % 2 == 0:
+                vehicle.actuate(2 * world.dt)
+            world.step()
+            pose = vehicle.pose()
+            s, _ = track.reference.project(pose.x, pose.y)
+            assert set(track.tiles_along(s, half, half)) <= world._tile_bodies.keys(), step
+        assert s > 60.0 + 3 * OBSTACLE_UPDATE_STEPS * world.dt * vehicle.params.max_speed * 0.9
     finally:
         world.close()
