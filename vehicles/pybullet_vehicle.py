@@ -71,9 +71,6 @@ class PyBulletVehicle:
         }
         self.wheel_link_ids: tuple[int, ...] = tuple(joints[f"spin_{n}"] for n in WHEEL_NAMES)
         self.steer_joint_ids: tuple[int, ...] = tuple(joints[n] for n in STEER_JOINT_NAMES)
-        for j in joints.values():  # the knuckles: no shape, yet PyBullet gives them a collider that pairs every step
-            if not p.getCollisionShapeData(self.body_id, j, physicsClientId=client_id):
-                p.setCollisionFilterGroupMask(self.body_id, j, 0, 0, physicsClientId=client_id)
         p.changeDynamics(self.body_id, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=client_id)
         for j in self.wheel_link_ids:
             p.changeDynamics(self.body_id, j, maxJointVelocity=_MAX_WHEEL_SPEED, physicsClientId=client_id)
