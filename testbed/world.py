@@ -66,9 +66,9 @@ class PhysicsWorld:
     Roadside bodies are streamed like the render tiles (one compound body per tile and kind, for the tiles
     within `obstacle_window_m` of the car, by default `obstacle_window`): Bullet updates an awake body's bounds
     each step, so loading a whole road's curbs at once would make each step an order of magnitude slower. The
-    ground and the static bodies are rigid bodies (maximal coordinates): as fixed-base multibodies, each would
-    have its dynamics run every step; the roadside bodies are put to sleep, which keeps Bullet from recomputing
-    their bounds every step (they never move), not from colliding with the car.
+    ground, the roadside bodies and the traffic cars' bodies are rigid bodies (maximal coordinates): as
+    fixed-base multibodies, each would have its dynamics run every step; the roadside bodies are put to sleep,
+    which keeps Bullet from recomputing their bounds every step (they never move), not from colliding with the car.
     """
 
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
