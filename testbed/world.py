@@ -25,7 +25,7 @@ from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
 from testbed.rates import PHYSICS_HZ
 from testbed.tiny_boxes import TinyBoxes, box_mesh
 from testbed.tiny_boxes import kernel as tiny_kernel
-from tracks.obstacles import road_obstacles
+from tracks.obstacles import clear_band, road_obstacles
 from tracks.pose import Pose
 from tracks.texture import tile_mesh, tile_texture
 from vehicles.params import VehicleParams
@@ -50,6 +50,12 @@ MESH_SPACING_M = SEGMENT_SPACING_M
 GROUND_MODES = ("canvas", "mesh")
 PAINTED_KINDS = frozenset({"curb"})
 OBSTACLE_UPDATE_STEPS = 24
+CONTACT_SLACK_M = 0.25
+"""Added to the reach within which `PhysicsWorld.contact_kinds` asks PyBullet for contacts: Bullet keeps a contact
+point until its bodies part by its breaking threshold (0.02 m), and the path over a few steps is not the chord."""
+CONTACT_SKIP_STEPS = 4
+"""`contact_kinds` skips its query only within this many physics steps of the last one (its reach counts the car's
+motion since then as the chord)."""
 
 
 def obstacle_window(params: VehicleParams, physics_hz: float) -> float:
@@ -69,6 +75,10 @@ class PhysicsWorld:
     ground, the roadside bodies and the traffic cars' bodies are rigid bodies (maximal coordinates): as
     fixed-base multibodies, each would have its dynamics run every step; the roadside bodies are put to sleep,
     which keeps Bullet from recomputing their bounds every step (they never move), not from colliding with the car.
+
+    `contact_kinds` answers without asking PyBullet (an empty set, what the query would return) while no roadside
+    body or shown traffic car can be within reach of the car; with `verify_skips` it asks anyway and raises when
+    a skipped query had contacts (tests).
     """
 
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
@@ -89,8 +99,18 @@ class PhysicsWorld:
         self.traffic_bodies: list[int] = []
         self._traffic_z = 0.0
         self._traffic_shown: set[int] = set()
+        self._traffic_poses: dict[int, Pose] = {}
+        self._stepped_traffic: dict[int, Pose] = {}
+        self._traffic_reach = 0.0
         self._move = _client_move(self.client)
         self.vehicle = PyBulletVehicle(self.client, params, start)
+        self._band = clear_band(track)
+        self._reach = _body_reach(self.client, self.vehicle, params.cg_height)
+        self._contiguous = False
+        self._last_query: tuple[int, Pose] | None = None
+        self.verify_skips = False
+        self.skipped = 0
+        """Contact queries answered without PyBullet so far."""
         self.update_obstacles(start)
 
     def update_obstacles(self, pose: Pose) -> None:
@@ -105,6 +125,7 @@ class PhysicsWorld:
             for box in road_obstacles(self.track, i):
                 by_kind.setdefault(box.kind, []).append(box)
             self._tile_bodies[i] = [self._add_compound(kind, boxes) for kind, boxes in sorted(by_kind.items())]
+        self._contiguous = not wanted or max(wanted) - min(wanted) < len(wanted)
 
     def _add_compound(self, kind: str, boxes: list) -> int:
         shape = pb.createCollisionShapeArray(
@@ -125,6 +146,7 @@ class PhysicsWorld:
         shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.5 * length, 0.5 * width, 0.5 * height],
                                         physicsClientId=self.client)
         self._traffic_z = 0.5 * height
+        self._traffic_reach = 0.5 * math.sqrt(length * length + width * width + height * height)
         for _ in range(count):
             body = pb.createMultiBody(0, shape, basePosition=[0.0, 0.0, HIDDEN_Z], useMaximalCoordinates=True,
                                       physicsClientId=self.client)
@@ -136,6 +158,7 @@ class PhysicsWorld:
         not given are put out of reach below the ground."""
         self._traffic_shown = _place_bodies(self._move, self.traffic_bodies, poses, self._traffic_z,
                                             self._traffic_shown)
+        self._traffic_poses = dict(poses)
 
     def traffic_touching(self) -> list[int]:
         """Indices of the traffic cars the vehicle touches now."""
@@ -146,7 +169,9 @@ class PhysicsWorld:
     def step(self) -> None:
         """One physics step (the vehicle's motors were set by its last `actuate`), with its road load."""
         if self.steps % OBSTACLE_UPDATE_STEPS == 0:
-            self.update_obstacles(self.vehicle.pose())
+            sensed = self.vehicle.sensed
+            self.update_obstacles(self.vehicle.pose() if sensed is None else sensed[0])
+        self._stepped_traffic = self._traffic_poses
         self.vehicle.apply_road_load()
         pb.stepSimulation(physicsClientId=self.client)
         self.steps += 1
@@ -154,6 +179,34 @@ class PhysicsWorld:
 
     def contact_kinds(self) -> set[str]:
         """Kinds of bodies the vehicle touches now (curb, barrier, guardrail, divider, tree, vehicle)."""
+        if self._out_of_reach():
+            if self.verify_skips and self._query_contacts():
+                raise RuntimeError(f"a skipped contact query at step {self.steps} had contacts")
+            self.skipped += 1
+            return set()
+        return self._query_contacts()
+
+    def _out_of_reach(self) -> bool:
+        """True when the contacts of the last step surely hold no roadside body and no traffic car: the car (its
+        bodies' reach about its reference point, as sensed after the last step, plus its motion since the last
+        query and `CONTACT_SLACK_M`) within the track's band clear of roadside bodies, the loaded tiles one stretch
+        of road, and every traffic car shown during the step beyond the two reaches."""
+        sensed = self.vehicle.sensed
+        last = self._last_query
+        if sensed is None:
+            self._last_query = None
+            return False
+        pose = sensed[0]
+        self._last_query = (self.steps, pose)
+        if last is None or self.steps - last[0] > CONTACT_SKIP_STEPS or not self._contiguous:
+            return False
+        reach = self._reach + math.hypot(pose.x - last[1].x, pose.y - last[1].y) + CONTACT_SLACK_M
+        if not self.track.band_holds_disc(pose.x, pose.y, reach, self._band):
+            return False
+        reach += self._traffic_reach
+        return all(math.hypot(p.x - pose.x, p.y - pose.y) > reach for p in self._stepped_traffic.values())
+
+    def _query_contacts(self) -> set[str]:
         known = self.obstacle_kind
         return {known[c[2]] for c in pb.getContactPoints(bodyA=self.vehicle.body_id, physicsClientId=self.client)
                 if c[2] in known}
@@ -166,6 +219,17 @@ class PhysicsWorld:
 Move = Callable[[int, Sequence[float], Sequence[float]], None]
 """Sets a body's position and quaternion (x, y, z, w): a client's `resetBasePositionAndOrientation`, or the clone's
 `TinyBoxes.move`."""
+
+
+def _body_reach(client: int, vehicle: PyBulletVehicle, cg_height: float) -> float:
+    """The farthest any point of the vehicle's colliders (their bounds as placed, upright) lies from its reference
+    point, in 3-D: a bound whatever its attitude, as the point moves with the body."""
+    body, ref = vehicle.body_id, vehicle.pose()
+    ref_z = pb.getBasePositionAndOrientation(body, physicsClientId=client)[0][2] - cg_height
+    corners = [(x, y, z) for link in range(-1, pb.getNumJoints(body, physicsClientId=client))
+               for lo, hi in [pb.getAABB(body, link, physicsClientId=client)]
+               for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    return max(math.sqrt((x - ref.x) ** 2 + (y - ref.y) ** 2 + (z - ref_z) ** 2) for x, y, z in corners)
 
 
 def _client_move(client: int) -> Move:

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
 
 _SAGITTA = 0.02  # m, the largest gap allowed between a chunk box and the curved edge
 _OVERLAP = 0.02  # m added to each chunk's half length so neighbours close up on curves
+_BAND_SLACK = 0.1  # m: how far a box may reach inside its body's near face (sagitta and overlap are 0.02 each)
 
 
 def road_obstacles(track: Track, tile: int | None = None) -> list[CollisionBox]:
@@ -43,6 +44,17 @@ def road_obstacles(track: Track, tile: int | None = None) -> list[CollisionBox]:
                     else:
                         boxes += _continuous(track, body, t_mid, a, b, i)
     return boxes
+
+
+def clear_band(track: Track) -> tuple[float, float]:
+    """The lateral band (t_lo, t_hi, m from the reference line) no roadside box of `road_obstacles` reaches into:
+    each side's innermost body's near face, less `_BAND_SLACK` (a chunk's sagitta and overlap, a square's
+    corners on a bend); ±inf on a side without bodies."""
+    sides = []
+    for side, edge, outer in ((-1.0, track.right, track.boundaries[0].t), (1.0, track.left, track.boundaries[-1].t)):
+        gaps = [body.gap for body in edge.bodies]
+        sides.append(outer + side * (min(gaps) - _BAND_SLACK) if gaps else side * math.inf)
+    return sides[0], sides[1]
 
 
 def _free_pieces(intersections: list[tuple[float, float]], s0: float, s1: float) -> list[tuple[float, float]]:

@@ -162,8 +162,13 @@ class Track:
         `radius` inside the paved range and 2·radius inside the road's ends, where the curvature is mild
         enough at that offset (|k|·(|t| + radius) ≤ ½) that t changes no faster than the point moves and s
         at most twice as fast. False means: test the points themselves."""
+        return self.band_holds_disc(x, y, radius, self.paved_range)
+
+    def band_holds_disc(self, x: float, y: float, radius: float, band: tuple[float, float]) -> bool:
+        """`surface_holds_disc` for the lateral band [lo, hi] (t, m) in place of the paved range: every point within
+        `radius` of (x, y) surely has lo ≤ t ≤ hi and 0 ≤ s ≤ length."""
         s, t = self.reference.project(x, y)
-        lo, hi = self.paved_range
+        lo, hi = band
         return (self.max_abs_curvature * (abs(t) + radius) <= 0.5 and lo + radius <= t <= hi - radius
                 and 2.0 * radius <= s <= self.length - 2.0 * radius)
 
