@@ -35,6 +35,7 @@ _MAX_WHEEL_SPEED = 400.0  # rad/s, PyBullet's joint velocity cap (default 100 ra
 _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
+_WHEEL_VELOCITY_GAIN = 1.0  # PyBullet's velocity gain of a VELOCITY_CONTROL motor command that gives none
 _ORIGIN = (0.0, 0.0, 0.0)
 _KERNELS = compiled_module("vehicles.vehicle_kernels")
 
@@ -90,7 +91,7 @@ class PyBulletVehicle:
         """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
         self._motion = None if _KERNELS is None else _KERNELS.VehicleMotion(
             self, p, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
-            _STEER_VELOCITY_GAIN, Pose)
+            _STEER_VELOCITY_GAIN, _WHEEL_VELOCITY_GAIN, Pose)
         """`actuate` and `sense` compiled (vehicles/vehicle_kernels.pyx), where built; None: the methods below,
         the reference it is tested equal to."""
         self.reset_pose(pose)
@@ -110,8 +111,6 @@ class PyBulletVehicle:
             return
         prm, v = self.params, self._speed
         delta = self._steering.step(self._cmd_steer, dt)
-        if delta != self._sent_steer:  # motors keep their targets: resend on change
-            self._send_steer(delta)
         accel = max(-prm.max_decel, min(prm.max_accel, self._cmd_accel, _GOVERNOR_GAIN * (prm.max_speed - v)))
         self._load = road_load(prm, v)
         force = self._m_eff * accel + self._load
@@ -126,6 +125,9 @@ class PyBulletVehicle:
             rear = -force * (1.0 - prm.front_brake_share) * r / 2.0
             targets = (0.0, 0.0, 0.0, 0.0)
             torques = (front, front, rear, rear)
+        if delta != self._sent_steer:  # motors keep their targets: resend on change
+            self._send_all(delta, targets, torques)
+            return
         p.setJointMotorControlArray(
             self.body_id,
             self.wheel_link_ids,
@@ -165,6 +167,24 @@ class PyBulletVehicle:
             forces=(_STEER_TORQUE, _STEER_TORQUE),
             positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN),
             velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN),
+            physicsClientId=self._cid,
+        )
+        self._sent_steer = delta
+
+    def _send_all(self, delta: float, targets: tuple[float, ...], torques: tuple[float, ...]) -> None:
+        """`_send_steer(delta)` and the wheels' velocity command in one PyBullet call: the wheels' motors as a
+        velocity command leaves them (position target 0 at gain 0, `_WHEEL_VELOCITY_GAIN`), each motor's state
+        the same as after the two calls."""
+        left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
+        p.setJointMotorControlArray(
+            self.body_id,
+            self.steer_joint_ids + self.wheel_link_ids,
+            p.POSITION_CONTROL,
+            targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
+            targetVelocities=(0.0, 0.0, *targets),
+            forces=(_STEER_TORQUE, _STEER_TORQUE, *torques),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN, 0.0, 0.0, 0.0, 0.0),
+            velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN) + (_WHEEL_VELOCITY_GAIN,) * 4,
             physicsClientId=self._cid,
         )
         self._sent_steer = delta

@@ -23,20 +23,22 @@ cdef class VehicleMotion:
     """Actuation and sensing of one `PyBulletVehicle` (its body, joints and parameters as built) through the
     `pybullet` module `pb` it was built with (so this module imports no simulator), with the vehicle module's
     constants handed in: the governor's gain, the traction slip, the acceleration filter's time constant,
-    the steering motors' torque and gains, and the `Pose` type the pose is reported in."""
+    the steering motors' torque and gains, the wheel motors' velocity gain, and the `Pose` type the pose is reported in."""
 
-    cdef object vehicle, steering, pose_type, steer_ids, wheel_ids, pb
+    cdef object vehicle, steering, pose_type, steer_ids, wheel_ids, joint_ids, wheel_kv, pb
     cdef int body, cid
     cdef double max_decel, max_accel, max_speed, wheel_radius, front_share, m_eff, crr_mg, drag, wheelbase, half_track
     cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz
 
     def __init__(self, vehicle, pb, double governor, double slip, double filter_tau, double steer_torque,
-                 double steer_kp, double steer_kv, pose_type):
+                 double steer_kp, double steer_kv, double wheel_kv, pose_type):
         prm = vehicle.params
         self.pb = pb
         self.vehicle, self.steering, self.pose_type = vehicle, vehicle._steering, pose_type
         self.body, self.cid = vehicle.body_id, vehicle._cid
         self.steer_ids, self.wheel_ids = vehicle.steer_joint_ids, vehicle.wheel_link_ids
+        self.joint_ids = self.steer_ids + self.wheel_ids
+        self.wheel_kv = (wheel_kv,) * 4
         self.max_decel, self.max_accel, self.max_speed = prm.max_decel, prm.max_accel, prm.max_speed
         self.wheel_radius, self.front_share, self.m_eff = prm.wheel_radius, prm.front_brake_share, vehicle._m_eff
         self.crr_mg = prm.rolling_resistance * prm.mass * GRAVITY  # road_load's product, left to right
@@ -56,8 +58,7 @@ cdef class VehicleMotion:
         delta = py_max(-max_step, py_min(max_step, target - angle))
         angle += delta
         steering.angle, steering.rate = angle, delta / dt
-        if angle != <double>vehicle._sent_steer:
-            self._send_steer(angle)
+        cdef bint resend = angle != <double>vehicle._sent_steer
         accel = py_max(-self.max_decel, py_min(py_min(self.max_accel, vehicle._cmd_accel),
                                                  self.governor * (self.max_speed - v)))
         load = self.crr_mg * v / py_max(fabs(v), SOFT_SPEED) + self.drag * v * fabs(v)
@@ -66,26 +67,36 @@ cdef class VehicleMotion:
         if force >= 0.0:
             drive = force * r / 2.0
             spin = (py_max(v, 0.0) + self.slip) / r
+            if resend:
+                self._send_all(angle, (0.0, 0.0, spin, spin), (0.0, 0.0, drive, drive))
+                return
             p.setJointMotorControlArray(self.body, self.wheel_ids, p.VELOCITY_CONTROL,
                                         targetVelocities=(0.0, 0.0, spin, spin), forces=(0.0, 0.0, drive, drive),
                                         physicsClientId=self.cid)
         else:
             front = -force * self.front_share * r / 2.0
             rear = -force * (1.0 - self.front_share) * r / 2.0
+            if resend:
+                self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (front, front, rear, rear))
+                return
             p.setJointMotorControlArray(self.body, self.wheel_ids, p.VELOCITY_CONTROL,
                                         targetVelocities=(0.0, 0.0, 0.0, 0.0), forces=(front, front, rear, rear),
                                         physicsClientId=self.cid)
 
-    cdef _send_steer(self, double delta):
-        """`PyBulletVehicle._send_steer`: the front wheels to their Ackermann angles."""
+    cdef _send_all(self, double delta, tuple targets, tuple torques):
+        """`PyBulletVehicle._send_all`: the front wheels to their Ackermann angles and the wheels' velocity command,
+        in one call."""
         cdef double t = tan(delta), left, right, wb = self.wheelbase
         p = self.pb
         left = atan2(wb * t, wb - self.half_track * t)
         right = atan2(wb * t, wb + self.half_track * t)
-        p.setJointMotorControlArray(self.body, self.steer_ids, p.POSITION_CONTROL, targetPositions=(left, right),
-                                    forces=(self.steer_torque, self.steer_torque),
-                                    positionGains=(self.steer_kp, self.steer_kp),
-                                    velocityGains=(self.steer_kv, self.steer_kv), physicsClientId=self.cid)
+        p.setJointMotorControlArray(self.body, self.joint_ids, p.POSITION_CONTROL,
+                                    targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
+                                    targetVelocities=(0.0, 0.0) + targets,
+                                    forces=(self.steer_torque, self.steer_torque) + torques,
+                                    positionGains=(self.steer_kp, self.steer_kp, 0.0, 0.0, 0.0, 0.0),
+                                    velocityGains=(self.steer_kv, self.steer_kv) + self.wheel_kv,
+                                    physicsClientId=self.cid)
         self.vehicle._sent_steer = delta
 
     def sense(self, double dt):
