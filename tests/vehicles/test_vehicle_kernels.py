@@ -69,7 +69,7 @@ def test_the_compiled_vehicle_commands_and_senses_as_the_python_one(params, monk
                 car.sense(interval)
             assert state(fast) == state(slow), k
             assert sent[worlds[0]] == sent[worlds[1]], k
-        assert len(sent[worlds[0]]) > 1200  # every interval's wheel torques, and the steering when it moved
+        assert len(sent[worlds[0]]) > 1200  # every interval's command (the steering in it when it moved) and the resets
     finally:
         for w in worlds:
             p.disconnect(w)
