@@ -9,7 +9,8 @@ OUT     ?= runs/demo
 $(PY):
 	python3 -m venv .venv
 
-KERNELS := $(wildcard tracks/*.pyx tracks/*.pxd testbed/*.pyx testbed/*.h testbed/*/*.pyx testbed/*/*.pxd)
+KERNELS := $(wildcard tracks/*.pyx tracks/*.pxd vehicles/*.pyx testbed/*.pyx testbed/*.h testbed/*/*.pyx \
+                       testbed/*/*.pxd testbed/*/*/*.pyx)
 
 $(STAMP): pyproject.toml setup.py $(KERNELS) | $(PY)
 	$(PY) -m pip install --quiet torch==2.13.0
