@@ -109,7 +109,7 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                         "per preset × condition for checking what was tuned on the first")
     p.add_argument("--weights", metavar="CHECKPOINT",
                    help="the neural detector's checkpoint (detector.weights: a path, or a shipped one by name; "
-                        "default: the shipped lanenet.pt, or lanenet-traffic.pt with --traffic)")
+                        "default: the shipped lanenet.pt, with and without --traffic)")
     p.add_argument("--fit", choices=("cubic", "near", "spread"),
                    help="the neural detector's anchor fit (detector.fit; default: the detector's own)")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))

@@ -309,8 +309,8 @@ def benign_traffic_runs(detector: str) -> list[CampaignRun]:
     `BENIGN_TRAFFIC_CARS` cars
     (`testbed.perception.lab.traffic_drive`: every car at the ego's speed, started at rest with the ego, a lead car
     close ahead in the ego lane),
-    for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`; a neural detector reads the traffic weights, as in
-    any run with traffic."""
+    for the preset's duration up to `BENIGN_TRAFFIC_DURATION_S`; a neural detector reads the shipped weights, as
+    every run does."""
     from testbed.conditions import CONDITIONS
     from testbed.perception.lab.traffic_drive import traffic_drive
     from tracks.presets import load_track
@@ -461,7 +461,7 @@ for _spec in (
     CampaignSpec("benign", "benign LD3 runs on every preset, 5 seeds each: false alarms", benign_runs, benign_table),
     CampaignSpec("benign-traffic", "benign LD3 runs in traffic (6 cars at the ego's speed, a lead car close ahead "
                  "in the ego lane, oncoming cars on the two-way road) on every preset × camera condition, 3 seeds, "
-                 "15 s, the neural detector with lanenet-traffic.pt: false alarms and the tracked D_LD error",
+                 "15 s, the neural detector: false alarms and the tracked D_LD error",
                  benign_traffic_runs, benign_traffic_table),
     CampaignSpec("fusionripper-grid", "FusionRipper d×f grid without defense, 20 drives per cell (start time, "
                  "noise seed and road layout vary; paper Table 2)" + LATER_NOTE, fr_grid_runs, fr_grid_table,

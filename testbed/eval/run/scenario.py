@@ -20,7 +20,7 @@ from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.params import error_key, error_problem
-from testbed.perception.detectors.registry import DETECTORS, params_in_traffic
+from testbed.perception.detectors.registry import DETECTORS
 from testbed.presets import TRACKS, VEHICLES
 from testbed.rates import STRICT, Rates
 from testbed.registry import FIXES, Capability, UnknownComponent, missing_needs
@@ -98,10 +98,8 @@ class Scenario(BaseModel):
 
     @property
     def run_detector_params(self) -> dict[str, Any]:
-        """The `[detector]` parameters the run's detector is built with: as given, but with traffic a neural
-        detector that names no weights reads the traffic weights (`params_in_traffic`)."""
-        if self.traffic.vehicles:
-            return params_in_traffic(self.detector, self.detector_params)
+        """The `[detector]` parameters the run's detector is built with: as given, with and without traffic (a
+        neural detector that names no weights reads the shipped `lanenet.pt` in every run)."""
         return dict(self.detector_params)
 
     @classmethod

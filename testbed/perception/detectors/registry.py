@@ -8,7 +8,6 @@ lane detections reach the defense and whether it reads rendered camera frames (t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,9 +33,8 @@ class CameraDetectorParams(Params):
 class NeuralParams(CameraDetectorParams):
     """Parameters of the neural detectors (torch and onnxruntime)."""
 
-    weights: str | None = Field(None, description="checkpoint path, or a shipped checkpoint by name: lanenet.pt (the "
-                                                  "default without traffic), lanenet-traffic.pt (fine-tuned with cars "
-                                                  "in view; the default with traffic); for neural-onnx also a "
+    weights: str | None = Field(None, description="checkpoint path, or the shipped checkpoint by name: lanenet.pt (the "
+                                                  "default, with and without traffic); for neural-onnx also a "
                                                   "detector graph (.onnx) from `ld3 ld export-onnx`")
     fit: Literal["cubic", "near", "spread"] | None = Field(
         None, description="the fit of the network's anchors into each line's cubic: cubic (fixed anchor weights, a "
@@ -114,18 +112,6 @@ DETECTORS.add(Component("classical", _classical, "inverse perspective mapping an
 DETECTORS.add(Component("oracle", _oracle, "the map's ego lines through the true pose (no camera)", provides=_LD,
                         params=OracleParams))
 DETECTORS.add(Component("none", lambda track, rig, rng: None, "no lane detector"))
-
-
-TRAFFIC_WEIGHTS = "lanenet-traffic.pt"
-"""The shipped checkpoint a neural detector reads in a run with traffic when it names no weights."""
-
-
-def params_in_traffic(name: str, params: Mapping[str, Any]) -> dict[str, Any]:
-    """`[detector]` parameters of detector `name` as run with traffic cars: a neural detector that names no
-    `weights` reads `TRAFFIC_WEIGHTS` (the default weights misread the lines behind a close lead car)."""
-    if issubclass(DETECTORS.get(name).params, NeuralParams) and params.get("weights") is None:
-        return {**params, "weights": TRAFFIC_WEIGHTS}
-    return dict(params)
 
 
 def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = None,

@@ -11,8 +11,7 @@ With traffic (`traffic` cars, `testbed.perception.lab.traffic_drive`: a lead car
 every car starting at rest with the ego) each frame also gets its occluded fraction
 (`testbed.perception.training.occlusion`: the share of the ego lines' points in the detector's range that a car hides
 from the camera), held per tick like D_LD, and the tables split the ticks into occluded (fraction > 0) and
-clear. A neural detector given no weights then reads the traffic weights, as any run with traffic does
-(`Scenario.run_detector_params`).
+clear. A neural detector given no weights reads the shipped `lanenet.pt`, with traffic as without.
 """
 
 from __future__ import annotations
@@ -107,7 +106,7 @@ def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: in
     """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
     (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
     or before the first frame), and the detector and weights it read (`weights` None: its default); `weights`
-    the detector's checkpoint (`detector.weights`, default its own, the traffic weights with traffic), `fit` its
+    the detector's checkpoint (`detector.weights`, default its own), `fit` its
     anchor fit (`detector.fit`)."""
     sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights, fit)
     spec, speed = sc.track, sc.speed

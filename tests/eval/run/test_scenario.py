@@ -129,8 +129,8 @@ def test_component_parameters_are_validated_when_the_scenario_is(item, message):
 
 
 def test_neural_weights_must_exist(tmp_path):
-    with pytest.raises(ScenarioError, match=r"no checkpoint at .*missing\.pt: name a shipped one \(lanenet\.pt, "
-                                            r"lanenet-traffic\.pt\), train one with `ld3 ld train`"):
+    with pytest.raises(ScenarioError, match=r"no checkpoint at .*missing\.pt: name a shipped one \(lanenet\.pt\), "
+                                            r"train one with `ld3 ld train`"):
         apply_settings(load_scenario("local"), ["detector.kind=neural", f"detector.weights={tmp_path}/missing.pt"])
 
 

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
+import torch
 
 from testbed.errors import UserError
-from testbed.perception.detectors.registry import TRAFFIC_WEIGHTS
+from testbed.perception.detectors.weights import resolve
 from testbed.perception.lab import closed_loop
 from testbed.perception.lab.closed_loop import (
     drive,
@@ -35,9 +36,9 @@ def test_the_check_layouts_drive_the_second_held_out_block(monkeypatch):
     assert not {c.track_seed for c in driven} & {c.track_seed for c in cells(["slr", "local"], ["day", "worn"])}
 
 
-def test_a_drive_in_traffic_reads_the_traffic_weights_unless_told_otherwise():
+def test_a_drive_in_traffic_reads_the_shipped_weights_unless_told_otherwise():
     cell = Cell("urban-straight", "day", 9010)
-    assert drive_scenario(cell, "neural", 30.0, traffic=6)[0].run_detector_params == {"weights": TRAFFIC_WEIGHTS}
+    assert drive_scenario(cell, "neural", 30.0, traffic=6)[0].run_detector_params == {}
     assert drive_scenario(cell, "neural", 30.0)[0].run_detector_params == {}
     told = drive_scenario(cell, "neural", 30.0, traffic=6, weights="lanenet.pt")[0]
     assert told.run_detector_params == {"weights": "lanenet.pt"}
@@ -93,7 +94,7 @@ def test_weights_other_than_a_neural_detectors_checkpoint_are_refused_before_any
     with pytest.raises(UserError, match=r"--weights: .*no checkpoint at nowhere\.pt"):
         run_closed_loop(["slr"], ["day"], weights="nowhere.pt")
     with pytest.raises(UserError, match="--weights: "):
-        run_closed_loop(["slr"], ["day"], detector="classical", weights="lanenet-traffic.pt")
+        run_closed_loop(["slr"], ["day"], detector="classical", weights="lanenet.pt")
 
 
 def test_a_fit_other_than_a_neural_detectors_is_refused_before_any_drive():
@@ -104,10 +105,13 @@ def test_a_fit_other_than_a_neural_detectors_is_refused_before_any_drive():
 
 
 @pytest.mark.slow
-def test_a_drive_with_other_weights_scores_that_checkpoints_detections():
+def test_a_drive_with_other_weights_scores_that_checkpoints_detections(tmp_path):
     cell = Cell("urban-straight", "day", 9010)
+    state = torch.load(resolve("lanenet.pt"), map_location="cpu", weights_only=False)
+    state["state_dict"] = {k: v * 0.9 if v.is_floating_point() else v for k, v in state["state_dict"].items()}
+    torch.save(state, tmp_path / "scaled.pt")
     shipped, tuned = drive(cell, "neural", duration=2.0), drive(cell, "neural", duration=2.0,
-                                                                 weights="lanenet-traffic.pt")
+                                                                 weights=str(tmp_path / "scaled.pt"))
     ticks = 2.0 * CONTROL_HZ
     assert np.isfinite(tuned["raw"]).sum() > 0.75 * ticks
     assert not np.array_equal(shipped["raw"], tuned["raw"], equal_nan=True)
@@ -116,8 +120,8 @@ def test_a_drive_with_other_weights_scores_that_checkpoints_detections():
 @pytest.mark.slow
 def test_a_drive_in_traffic_records_the_occlusion_of_every_tick():
     r = drive(Cell("urban-straight", "day", 9010), "neural", duration=3.0, traffic=6)
-    assert r["consequence"] == "reach_destination" and r["traffic"] == 6 and r["weights"] == TRAFFIC_WEIGHTS
-    assert f"Detector: neural ({TRAFFIC_WEIGHTS})." in markdown_table([r])
+    assert r["consequence"] == "reach_destination" and r["traffic"] == 6 and r["weights"] is None
+    assert "Detector: neural (its default weights)." in markdown_table([r])
     seen = r["occluded"][np.isfinite(r["occluded"])]
     ticks = 3.0 * CONTROL_HZ
     assert len(seen) > 0.93 * ticks and (seen > 0.0).all()  # the lead car 8 m ahead hides the far lines throughout
