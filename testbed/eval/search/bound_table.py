@@ -28,7 +28,7 @@ from testbed.presets import build_track, vehicle
 
 RESIDUAL_STD: dict[str, tuple[float, float]] = {
     "oracle": (0.033, 0.0029),
-    "neural": (0.087, 0.0044),
+    "neural": (0.041, 0.0032),
 }
 """(lateral m, heading rad) root mean square of LD3's benign residuals D_MSF − D_LD and ψ_MSF − ψ_lines per
 detection (their bias included), per lane detector, the larger of local and highway (docs/decisions.md, "The
