@@ -95,7 +95,7 @@ class LoopRun:
 
     def step(self) -> TickRecord:
         """One tick, its hooks and the end conditions."""
-        if self.ended_by is not None:
+        if self.done:
             raise RuntimeError("the run is over")
         rec = self.loop.tick()
         self.rows.append(rec)

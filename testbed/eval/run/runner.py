@@ -215,13 +215,9 @@ class SimRun:
     def run(self, progress: bool = False) -> RunResult:
         """Step to the end and return the result."""
         bar = tqdm(total=self.n_ticks, desc=f"{self.sc.name}", unit="tick", disable=not progress, leave=False)
-        run_loop, clock = self.run_loop, time.perf_counter
-        while run_loop.ended_by is None:  # `step` without its per-tick checks, the bar drawn only when shown
-            wall0 = clock()
-            run_loop.step()
-            self.wall_time += clock() - wall0
-            if progress:
-                bar.update(1)
+        while not self.done:
+            self.step()
+            bar.update(1)
         bar.close()
         return self.result()
 
