@@ -2,7 +2,8 @@
 
 `gnss` spoofs GNSS fixes before the MSF fuses them; `msf-output` tampers with the MSF's pose; `ld-output`
 tampers with the lane detector's output; `road-paint` paints the road the camera sees. LD3's own threat
-model is {gnss} or {msf-output}; an attack that also needs `ld-output` or `road-paint` is outside it.
+model is {gnss} or {msf-output} (paper §3); the paper also claims resilience to an attacker of the lane detector
+alone, the MSF benign ({ld-output} or {road-paint}, §6.2). An attacker of both sources together is outside both.
 """
 
 from __future__ import annotations
@@ -23,8 +24,10 @@ class ThreatCapability(StrEnum):
 
 
 LD3_THREAT_MODELS: tuple[frozenset[ThreatCapability], ...] = (
-    frozenset({ThreatCapability.GNSS}), frozenset({ThreatCapability.MSF_OUTPUT}))
-"""The threat models LD3 is designed against (paper §3): the attacker controls the localization only."""
+    frozenset({ThreatCapability.GNSS}), frozenset({ThreatCapability.MSF_OUTPUT}),
+    frozenset({ThreatCapability.LD_OUTPUT}), frozenset({ThreatCapability.ROAD_PAINT}))
+"""The threat models LD3 claims: the attacker controls the localization only (paper §3) or the lane detector
+only (§6.2, the LD-side adaptive attack)."""
 
 
 def parse_threat(text: str | Iterable[str]) -> frozenset[ThreatCapability]:
@@ -50,6 +53,11 @@ def threat_label(caps: Iterable[ThreatCapability]) -> str:
 
 
 def within_ld3_threat_model(caps: Iterable[ThreatCapability]) -> bool:
-    """True when an attacker with `caps` is one LD3 claims to defend against (it controls no LD-side input)."""
+    """True when an attacker with `caps` is one LD3 claims to defend against (it controls one source only)."""
     have = frozenset(caps)
     return not have or any(have <= model for model in LD3_THREAT_MODELS)
+
+
+def reaches_lines(caps: Iterable[ThreatCapability]) -> bool:
+    """True when an attacker with `caps` acts on the lane detector's output or the road it sees."""
+    return bool(frozenset(caps) & {ThreatCapability.LD_OUTPUT, ThreatCapability.ROAD_PAINT})

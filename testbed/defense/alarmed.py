@@ -46,7 +46,7 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               fail_closed=config.fail_closed,
                                               heading=Cusum(config.heading_b, config.heading_tau),
                                               along=Cusum(config.along_b, config.along_tau),
-                                              along_gain=config.along_gain, lever=lever)
+                                              along_gain=config.along_gain, line_rate=config.line_rate, lever=lever)
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""

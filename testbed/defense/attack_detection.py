@@ -12,9 +12,10 @@ lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carrie
 towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
-MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is anchored on
-them at its own station: an attacker who holds the residual just above b cannot leave odometry to drift until
-the response takes it for the car's place. D_MSF is
+MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
+them at its own station, by no more than `line_rate` allows since its last anchor: an attacker who holds the
+residual just above b cannot leave odometry to drift until the response takes it for the car's place, and an
+attacker of the lines who ramps them away from a true MSF cannot drag odometry along. D_MSF is
 measured against the lane of the dead-reckoned pose, so an MSF pose moved by a lane width does not agree with
 the lines. Every skipped or degraded update is a fault. A second CUSUM (`heading`) checks the MSF's heading
 relative to the lane against the lines' (against the dead-reckoned yaw where lines are absent): an MSF yaw
@@ -99,6 +100,12 @@ class Ld3Detector:
         self.cusum.reset()
 
 
+def step_toward(d_from: float, d_to: float, max_step: float) -> float:
+    """`d_to`, or the deviation `max_step` from `d_from` towards it (m): one source alone moves a reference across
+    the lane no faster than odometry could drift, so an attacker of that source cannot drag it."""
+    return d_from + max(-max_step, min(max_step, d_to - d_from))
+
+
 ANCHOR_YAW_GAIN = 0.1
 """Share of the gap between the dead-reckoned yaw and the lines' heading closed per agreeing detection: the
 detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
@@ -115,13 +122,16 @@ class LaneConsistencyMonitor:
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
-                 along_gain: float = 1.0, lever: float = 0.0) -> None:
+                 along_gain: float = 1.0, line_rate: float = math.inf, lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
         self.along = along if along is not None else Cusum(0.0, math.inf)
         """The fail-closed along-lane check's CUSUM on |s_MSF − s_odometry| (m); never alarms when not given."""
         self.along_gain = along_gain
+        self.line_rate = line_rate
+        """How fast the lines alone (the MSF disagreeing) may move the dead-reckoned pose across the lane (m/s)."""
+        self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -213,11 +223,15 @@ class LaneConsistencyMonitor:
         self.d_ld = self.fresh_d_ld = d_ld
         if reckoned is not None and self._check_along(pose, reckoned, smap, lane):
             return True
-        if abs(d_msf - d_ld) <= self.detector.cusum.b:
+        b_lat = self.detector.cusum.b
+        if abs(d_msf - d_ld) <= b_lat:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld)
-        elif reckoned is not None and abs(float(smap.lane_dev(reckoned, lane)) - d_ld) <= self.detector.cusum.b:
-            self._anchor(ld, reckoned, smap, lane, d_ld)  # the lines agree with odometry: its own station kept
+        elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
+            # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
+            since = t - self._anchor_time if self._anchor_time is not None else 0.0
+            limit = self.line_rate * since if since > 0.0 else 0.0
+            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, limit))
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True
@@ -247,6 +261,7 @@ class LaneConsistencyMonitor:
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         yaw = pose.yaw if psi is None else heading + psi
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
+        self._anchor_time = ld.timestamp
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
         """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""

@@ -40,7 +40,7 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "response_gate", "corner_radius"})
+                              "line_rate", "response_gate", "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
@@ -91,6 +91,10 @@ class DefenseConfig(Params):
     along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")
     along_gain: float = Field(0.05, gt=0.0, le=1.0, description="fail-closed: share of the way to the MSF pose's "
                               "station the dead-reckoned pose takes at each anchor (1 = all of it)")
+    line_rate: float = Field(0.05, ge=0.0, description="fail-closed: how fast the lines alone (the MSF "
+                             "disagreeing) may move the dead-reckoned pose and the response's reference across the "
+                             "lane (m/s; about what odometry can drift): an attacker of the lines cannot drag the "
+                             "reference the sources are judged by")
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")

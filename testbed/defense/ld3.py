@@ -15,9 +15,9 @@ Fail-closed mode (the default): the fused pose is the monitor's dead-reckoned po
 between detections and, on each detection with a valid line, placed across the ego lane at the fused
 deviation (lane point at its own station, its own yaw), Alg. 2's state first moved to where odometry carried it;
 the heading option reads that yaw where the paper reads the MSF's. Each source is checked against a reference,
-the dead-reckoned pose at the alarm re-anchored only at lines that pass the check: lines farther than
-`response_gate` are left out of that detection, the MSF out of the rest of the response (as is an MSF pose the
-map cannot place); Alg. 2 then runs on D_LD alone. A detection without a valid line leaves the pose to
+the dead-reckoned pose at the alarm moved only towards lines that pass the check, no faster than `line_rate`:
+lines farther than `response_gate` are left out of that detection, the MSF out of the rest of the response (as is
+an MSF pose the map cannot place); Alg. 2 then runs on D_LD alone. A detection without a valid line leaves the pose to
 odometry. The MSF pose is handed to control in response only when there is no pose to carry (never anchored,
 the MSF unplaceable at the alarm), as a fault.
 """
@@ -25,10 +25,12 @@ the MSF unplaceable at the alarm), as a fault.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from testbed.defense.alarmed import Ld3AlarmedDefense
+from testbed.defense.attack_detection import step_toward
 from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
 from testbed.defense.fused_heading import FusedHeading
@@ -62,8 +64,10 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._fused_offset: tuple[float, float] | None = None
         self._msf_disowned = False
         self._reference = DeadReckoning(lever)
-        """The response's reference: the dead-reckoned pose at the alarm, carried by odometry and re-anchored only at
-        the lines' D_LD that passed the gate; the MSF never moves it."""
+        """The response's reference: the dead-reckoned pose at the alarm, carried by odometry and moved towards the
+        lines' D_LD that passed the gate no faster than `line_rate`; the MSF never moves it."""
+        self._reference_time = -math.inf
+        """When the reference was last anchored or moved (s)."""
 
     @property
     def response_decel(self) -> float:
@@ -127,7 +131,10 @@ class Ld3Defense(Ld3AlarmedDefense):
         if d_ld is not None:
             d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_ref, width), d_ref)
         if d_ld is not None:
-            self._reference.anchor(pose_on_lane(ref_point, ref_heading, d_ld, reference.yaw))
+            limit = self.config.line_rate * (t - self._reference_time) if t > self._reference_time else 0.0
+            self._reference.anchor(pose_on_lane(ref_point, ref_heading, step_toward(d_ref, d_ld, limit),
+                                                reference.yaw))
+            self._reference_time = t
             self.fusion.carry(float(smap.lane_dev(pose, lane)))
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
@@ -140,11 +147,13 @@ class Ld3Defense(Ld3AlarmedDefense):
         a fault, when the map cannot place it) with its lane point and lane heading."""
         if alarm or self._reference.pose is None:
             self._reference.anchor(pose)
+            self._reference_time = t
         try:
             point, heading = smap.lane_point(self._reference.pose, lane)
         except OffMapError as err:
             self.faults.report("odometry-off-map", t, f"response reference: {err}; restarted at the fused pose")
             self._reference.anchor(pose)
+            self._reference_time = t
             point, heading = smap.lane_point(pose, lane)
         return self._reference.pose, point, heading
 

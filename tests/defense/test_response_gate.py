@@ -26,11 +26,12 @@ def lines(t: float, dev: float) -> LaneDetection:
 
 
 def respond(msf_offset, seconds: float = 3.0, dev=lambda t: 0.0, gate: float | None = None,
-            jump: float = 1.5, ld_shift=lambda t: 0.0) -> Ld3Defense:
+            jump: float = 1.5, ld_shift=lambda t: 0.0, **config) -> Ld3Defense:
     """A car on lane 0 at `dev(t)`; the MSF pose `msf_offset(t)` m off it, and `jump` m more from 1.0 to 1.2 s
-    (the attacker forcing the alarm); the lines seen `ld_shift(t)` m off. Returns the defense after `seconds`."""
+    (the attacker forcing the alarm); the lines seen `ld_shift(t)` m off; `config` overrides `DefenseConfig`.
+    Returns the defense after `seconds`."""
     smap = FakeStraightMap(lanes=3)
-    d = Ld3Defense(DefenseConfig() if gate is None else DefenseConfig(response_gate=gate))
+    d = Ld3Defense(DefenseConfig(**config) if gate is None else DefenseConfig(response_gate=gate, **config))
     for k in range(round(seconds * 40)):
         t = k / 40.0
         y = dev(t)
@@ -62,6 +63,26 @@ def test_lines_moved_by_a_road_patch_are_gated_and_the_pose_left_to_odometry():
     kinds = {r.kind for r in d.fault_records()}
     assert d.mode == "ar" and "msf-disowned" not in kinds and "ld-gated" in kinds
     assert abs(d.monitor.reckoned.y) < 0.05  # the car on the centre line, where odometry carried it
+
+
+def drp_ramp(t: float) -> float:
+    """Lines ramped away from a true MSF at 0.7 m/s from 1.0 s to 0.9 m, in steps under b per detection."""
+    return min(0.9, 0.7 * max(0.0, t - 1.0))
+
+
+def test_lines_ramped_away_from_a_true_msf_cannot_drag_the_reference_the_sources_are_judged_by():
+    d = respond(lambda t: 0.0, jump=0.0, seconds=4.0, ld_shift=drp_ramp)
+    kinds = {r.kind for r in d.fault_records()}
+    assert d.mode == "ar" and "msf-disowned" not in kinds and "ld-gated" in kinds
+    # pre-alarm the lines move odometry by b (agreeing with the MSF) and line_rate after; no further in the response
+    assert abs(d._reference.pose.y) <= d.config.b + d.config.line_rate * 3.0
+    assert abs(d.status().fused_dev) < 0.05  # the car believed on the centre line, where it is
+
+
+def test_without_the_rate_limit_the_ramped_lines_drag_the_reference_and_the_true_msf_is_disowned():
+    d = respond(lambda t: 0.0, jump=0.0, seconds=4.0, ld_shift=drp_ramp, line_rate=1e9)
+    assert "msf-disowned" in {r.kind for r in d.fault_records()}
+    assert d.status().fused_dev == pytest.approx(0.9, abs=0.05)  # the car believed where the attacker drew it
 
 
 def test_an_msf_alone_never_moves_the_response_and_the_reference_is_the_alarm_s_odometry():

@@ -3,8 +3,8 @@ threat model, and the table of what the best attacker found against each defense
 
 Each cell is one `AttackSearch` into `OUT/<road>/<defense>/<threat>/` (resumable); when it completes its
 `summary.json` records the worst deviation found before detection, the worst at all, the consequence and the
-replay command. Threat models that give the attacker lane-detection inputs are outside LD3's threat model and
-are marked as such in the table, never hidden.
+replay command. Threat models that give the attacker both the localization and lane-detection inputs are outside
+LD3's threat model and are marked as such in the table, never hidden.
 """
 
 from __future__ import annotations

@@ -454,7 +454,8 @@ def csv_cell(value: Any) -> str:
 def in_threat_model_note(threat: frozenset[ThreatCapability]) -> str:
     """One line saying whether the threat model is one LD3 claims to defend against."""
     if within_ld3_threat_model(threat):
-        return f"threat model {threat_label(threat)}: within LD3's (the attacker controls the localization only)"
-    return (f"threat model {threat_label(threat)}: outside LD3's threat model (the attacker also controls "
-            f"lane-detection inputs); reported, not counted against LD3's design")
+        return (f"threat model {threat_label(threat)}: within LD3's claims (the attacker controls one source: the "
+                f"localization, paper §3, or the lane detector, §6.2)")
+    return (f"threat model {threat_label(threat)}: outside LD3's threat model (the attacker controls both the "
+            f"localization and lane-detection inputs); reported, not counted against LD3's design")
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from testbed.attacks.threat import threat_label, within_ld3_threat_model
+from testbed.attacks.threat import reaches_lines, threat_label
 from testbed.errors import UserError
 from testbed.eval.run.scenario import Scenario
 from testbed.eval.search.attack_search import AttackSearch, TrialOutcome, attack_spec, in_threat_model_note
@@ -68,8 +68,8 @@ def bound_section(search: AttackSearch, outcomes: Sequence[TrialOutcome], row: B
     lines.append(f"Largest |D| before the alarm at {victim.speed:g} m/s (`ld3 bound`): {bound}; one-signed attacks "
                  f"{_f(row.one_signed_m)} m; lane straddle deviation {row.straddle_m:.3f} m. Worst |D| before "
                  f"detection found here: {_f(worst)} m"
-                 + ("" if within_ld3_threat_model(search.spec.threat) else
-                    " (the bound covers the localization only; this threat model also reaches the lines)") + ".")
+                 + ("" if not reaches_lines(search.spec.threat) else
+                    " (the bound covers the localization only; this threat model reaches the lines)") + ".")
     return [*lines, ""]
 
 
