@@ -8,7 +8,13 @@ import pytest
 from testbed.attacks.base import Attack, AttackerView
 from testbed.attacks.compose import AttackChain, threat_model_of
 from testbed.attacks.spec import attack_tables, build_attack, specs_to_value
-from testbed.attacks.threat import ThreatCapability, parse_threat, threat_label, within_ld3_threat_model
+from testbed.attacks.threat import (
+    ThreatCapability,
+    parse_threat,
+    reaches_lines,
+    threat_label,
+    within_ld3_threat_model,
+)
 from testbed.errors import UserError
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -69,6 +75,15 @@ def test_threat_model_is_the_union_of_the_members():
     assert not within_ld3_threat_model(threat_model_of(chain))
     assert within_ld3_threat_model(threat_model_of(build_attack({"kind": "fusionripper"})))
     assert threat_model_of(None) == frozenset()
+
+
+def test_an_attacker_of_one_source_is_within_ld3_s_claims_and_of_both_outside():
+    drp = threat_model_of(build_attack({"kind": "drp-trace"}))
+    assert drp == {ThreatCapability.LD_OUTPUT}
+    assert within_ld3_threat_model(drp) and reaches_lines(drp)  # paper §6.2: the LD side alone, the MSF benign
+    assert within_ld3_threat_model({ThreatCapability.ROAD_PAINT})
+    assert not within_ld3_threat_model({ThreatCapability.GNSS, ThreatCapability.ROAD_PAINT})
+    assert not reaches_lines({ThreatCapability.GNSS, ThreatCapability.MSF_OUTPUT})
 
 
 def test_attack_values_and_specs():

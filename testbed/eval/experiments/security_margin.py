@@ -4,8 +4,10 @@ the losses, the worst |D| at all, the worst |D| before detection and LD3's devia
 
 Each cell is one `AttackSearch` in `OUT/<road>/<defense>/<threat>/seed<N>/search` (it resumes itself); a cell
 that completed its budget records its figures in `summary.json` beside it and is not run again. The threat
-models within LD3's (`gnss`, `msf-output`) make the table; `msf-output,ld-output` (the attacker also controls
-the lane detector's output) is reported beside it, outside the threat model.
+models of LD3's localization attacker (`gnss`, `msf-output`) make the table; `msf-output,ld-output` (the attacker
+also controls the lane detector's output) is reported beside it, outside the threat model. The lane detector's
+attacker alone (`ld-output`, within LD3's claims) is not in the table: `ld3 search --threat ld-output` and the
+`adaptive` campaign measure it.
 """
 
 from __future__ import annotations
