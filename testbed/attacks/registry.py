@@ -131,7 +131,8 @@ ATTACKS.add(_component(
                       FloatDim("duration", 1.0, 20.0))))
 ATTACKS.add(_component(
     DrpBend, "an LD deviation trace that also rotates the detected lines", lambda p, rng, defense: DrpBend(**p),
-    needs=_LD))
+    needs=_LD, space=(START, FloatDim("shift", -2.0, 2.0), FloatDim("bend", -0.3, 0.3),
+                      FloatDim("ramp", 0.0, 3.0), FloatDim("duration", 1.0, 20.0))))
 ATTACKS.add(_component(
     DrpPatch, "a dark patch painted on the road the camera sees", lambda p, rng, defense: DrpPatch(**p),
     needs=frozenset({Capability.CAMERA_IMAGE})))

@@ -7,8 +7,9 @@ detection update (the one Alg. 1 and the heading check just compared with the li
 lines are absent), carried to the current tick by odometry. An MSF pose between detections never reaches the
 controller, whatever the control and camera rates and however late or irregular the frames. An MSF pose the
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
-The checked pose's yaw is kept within `steer_yaw_tol` of the heading the lines give (of the dead-reckoned yaw
-where no line is valid): a yaw bias the heading check lets through cannot steer the car by more than that.
+The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
+turns no faster than `line_yaw_rate`; of the lines' heading before odometry has one): a yaw bias the heading check
+lets through cannot steer the car by more than that, nor can lines rotated by a road patch.
 The paper mode steers on every MSF pose.
 
 Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range
@@ -46,7 +47,8 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               fail_closed=config.fail_closed,
                                               heading=Cusum(config.heading_b, config.heading_tau),
                                               along=Cusum(config.along_b, config.along_tau),
-                                              along_gain=config.along_gain, line_rate=config.line_rate, lever=lever)
+                                              along_gain=config.along_gain, line_rate=config.line_rate,
+                                              line_yaw_rate=config.line_yaw_rate, lever=lever)
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""
@@ -106,9 +108,12 @@ class Ld3AlarmedDefense(LatchingDefense):
             self.faults.report("unchecked-msf", ld.timestamp, f"MSF pose {pose} cannot be placed; the last checked "
                                                               f"pose carried on by odometry")
             return
-        psi = station_relative_heading(ld, self.config.existence_threshold, smap, pose, lane)
         reckoned = self.monitor.reckoned
-        ref = heading + psi if psi is not None else reckoned.yaw if reckoned is not None else None
+        if reckoned is not None:
+            ref: float | None = reckoned.yaw
+        else:
+            psi = station_relative_heading(ld, self.config.existence_threshold, smap, pose, lane)
+            ref = heading + psi if psi is not None else None
         if ref is not None:
             tol = self.config.steer_yaw_tol
             pose = Pose(pose.x, pose.y, ref + min(max(wrap_angle(pose.yaw - ref), -tol), tol))

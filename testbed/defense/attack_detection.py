@@ -43,7 +43,7 @@ from testbed.defense.odometry import DeadReckoning
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
-from tracks.pose import Pose
+from tracks.pose import Pose, wrap_angle
 
 
 class Cusum:
@@ -122,7 +122,8 @@ class LaneConsistencyMonitor:
 
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
-                 along_gain: float = 1.0, line_rate: float = math.inf, lever: float = 0.0) -> None:
+                 along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
+                 lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -131,6 +132,8 @@ class LaneConsistencyMonitor:
         self.along_gain = along_gain
         self.line_rate = line_rate
         """How fast the lines alone (the MSF disagreeing) may move the dead-reckoned pose across the lane (m/s)."""
+        self.line_yaw_rate = line_yaw_rate
+        """How fast the lines' heading may turn the dead-reckoned yaw (rad/s)."""
         self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
@@ -251,16 +254,24 @@ class LaneConsistencyMonitor:
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
-        towards the lane heading plus the lines' relative heading (the MSF yaw only for a first anchor without
-        one)."""
+        towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most (the MSF yaw only for a
+        first anchor without one)."""
         reckoned = self.reckoned
         if reckoned is not None and self.along_gain < 1.0:
             g = self.along_gain
             pose = Pose(reckoned.x + g * (pose.x - reckoned.x), reckoned.y + g * (pose.y - reckoned.y), pose.yaw)
         point, heading = smap.lane_point(pose, lane)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
-        yaw = pose.yaw if psi is None else heading + psi
-        self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), 0.0 if psi is None else ANCHOR_YAW_GAIN)
+        carried = self.odometry.pose
+        if psi is None:
+            yaw, gain = pose.yaw, 0.0
+        elif carried is None or self._anchor_time is None:
+            yaw, gain = heading + psi, ANCHOR_YAW_GAIN
+        else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
+            turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
+            limit = self.line_yaw_rate * max(0.0, ld.timestamp - self._anchor_time)
+            yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
+        self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)
         self._anchor_time = ld.timestamp
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:

@@ -40,7 +40,8 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "line_rate", "response_gate", "corner_radius"})
+                              "line_rate", "line_yaw_rate", "response_gate",
+                              "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
@@ -95,6 +96,9 @@ class DefenseConfig(Params):
                              "disagreeing) may move the dead-reckoned pose and the response's reference across the "
                              "lane (m/s; about what odometry can drift): an attacker of the lines cannot drag the "
                              "reference the sources are judged by")
+    line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
+                                 "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
+                                 "about what a gyro drifts): lines rotated by a road patch cannot swing it")
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")

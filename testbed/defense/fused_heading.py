@@ -12,7 +12,10 @@
 
 In fail-closed mode the LD3 response passes the dead-reckoned yaw where "MSF yaw" is written here (`own_yaw`): a
 yaw no attacker moves, so when the fusion leaves the MSF out "fused" follows that yaw, not the lines' clamped
-slope (which would hide a large heading error from the controller).
+slope (which would hide a large heading error from the controller); so does "ld"/"fused" before any line the
+response kept. With the own yaw, "ld" and "fused" turn it by the lines' disagreement with it (the lines' ψ less
+the own yaw relative to the lane), bounded by `clamp` and by `turn_rate` times the time since the response's
+first detection: the lines correct the gyro's slow drift, and lines rotated by a road patch steer no faster.
 """
 
 from __future__ import annotations
@@ -75,23 +78,40 @@ def station_relative_heading(ld: LaneDetection, existence_threshold: float, smap
 class FusedHeading:
     """The fused pose's yaw for one heading source; `relative` is its last heading relative to the lane."""
 
-    def __init__(self, source: str, clamp: float, existence_threshold: float, own_yaw: bool = False) -> None:
+    def __init__(self, source: str, clamp: float, existence_threshold: float, own_yaw: bool = False,
+                 turn_rate: float = math.inf) -> None:
         self.source = source
         self.own_yaw = own_yaw
         self.clamp = clamp
+        self.turn_rate = turn_rate
+        """Own yaw: how fast the lines may turn the heading away from it since the first detection (rad/s)."""
+        self._start: float | None = None
         self.existence_threshold = existence_threshold
         self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then
         self._ld_weight = 1.0
         self.relative: float | None = None
 
+    def own_yaw_is_msf(self) -> None:
+        """The yaw handed in is the MSF's after all (no odometry carried one): read the lines as without an own
+        yaw from now on."""
+        self.own_yaw = False
+        self._ld_ref = None
+
     def on_detection(self, ld: LaneDetection, msf_yaw: float, lane_heading: float,
-                     uncertainties: tuple[float, float] | None = None) -> None:
-        """Read ψ off a new detection ("ld", "fused"); a detection without a valid line keeps the last ψ.
-        `uncertainties` = (R_MSF, R_LD) of the fusion step, which "fused" weighs the headings by."""
+                     uncertainties: tuple[float, float] | None = None, lines_kept: bool = True) -> None:
+        """Read ψ off a new detection ("ld", "fused"); a detection without a valid line, or whose lines the
+        response left out (`lines_kept` false), keeps the last ψ. `uncertainties` = (R_MSF, R_LD) of the fusion
+        step, which "fused" weighs the headings by."""
         if self.source not in ("ld", "fused"):
             return
-        psi = line_relative_heading(ld, self.existence_threshold)
-        if psi is not None:
+        if self._start is None:
+            self._start = ld.timestamp
+        psi = line_relative_heading(ld, self.existence_threshold) if lines_kept else None
+        if psi is not None and self.own_yaw:
+            bound = min(self.clamp, self.turn_rate * (ld.timestamp - self._start))
+            own = wrap_angle(msf_yaw - lane_heading)
+            self._ld_ref = (min(max(psi - own, -bound), bound), own)
+        elif psi is not None:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
         if self.source == "fused" and uncertainties is not None:
             r_msf, r_ld = uncertainties
@@ -102,10 +122,12 @@ class FusedHeading:
 
     def yaw(self, msf_yaw: float, lane_heading: float) -> float:
         """The fused pose's yaw at the current MSF yaw and lane heading."""
-        if self.source == "msf":
+        if self.source == "msf" or (self.own_yaw and self.source != "lane" and self._ld_ref is None):
             yaw = msf_yaw
         elif self.source == "lane" or self._ld_ref is None:
             yaw = lane_heading
+        elif self.own_yaw:  # the own yaw, turned by the lines' bounded disagreement with it at their last reading
+            yaw = msf_yaw + self._ld_weight * self._ld_ref[0]
         else:
             psi_ld, msf_rel_then = self._ld_ref
             msf_rel = wrap_angle(msf_yaw - lane_heading)

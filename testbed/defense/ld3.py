@@ -58,7 +58,8 @@ class Ld3Defense(Ld3AlarmedDefense):
         super().__init__(config, lever)
         self.fusion = SafetyDrivenFusion(config.window, config.lam, config.kf_q, config.kf_p0, config.r_power)
         self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold,
-                                    own_yaw=config.fail_closed)
+                                    own_yaw=config.fail_closed,
+                                    turn_rate=config.line_yaw_rate if config.fail_closed else math.inf)
         self._p_ld = config.p_ld
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
@@ -139,7 +140,8 @@ class Ld3Defense(Ld3AlarmedDefense):
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
-        self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None)
+        self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None,
+                                  lines_kept=d_ld is not None)
 
     def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int,
                            alarm: bool) -> tuple[Pose, np.ndarray, float]:
@@ -194,6 +196,7 @@ class Ld3Defense(Ld3AlarmedDefense):
             self.faults.report("no-fused-pose", t, f"no dead-reckoned pose and MSF pose: {err}")
             return None
         self.faults.report("no-fused-pose", t, "no dead-reckoned pose: started at the MSF pose's station")
+        self.heading.own_yaw_is_msf()
         step = self.fusion.last
         self.monitor.odometry.anchor(pose_on_lane(point, heading, step.d if step else 0.0, msf.pose.yaw))
         return self.monitor.odometry.pose

@@ -150,3 +150,39 @@ def test_a_drift_below_the_along_check_s_rate_stays_undetected_and_the_station_l
 def test_the_paper_mode_runs_no_along_check():
     with pytest.raises(ValueError, match="along_b"):
         DefenseConfig(fail_closed=False, along_b=1.0)
+
+
+def rotated_lines(t: float, psi: float) -> LaneDetection:
+    """Lines of a centred car that the detector reads rotated by `psi` (rad, + left): slope c1 = −tan ψ."""
+    c1 = -np.tan(psi)
+    return LaneDetection(t, np.array([HALF, c1, 0, 0.0]), np.array([-HALF, c1, 0, 0.0]), 0.9, 0.9, (0.0, 40.0))
+
+
+def steer_on_rotated_lines(**config) -> list[float]:
+    """A centred car with a true MSF pose (yaw 0); from 1 s the lines are read turned left at 0.1 rad/s (a road
+    patch's bend, under the heading check's weight for 0.3 s); the yaws of the control poses while normal."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(**config))
+    yaws = []
+    for k in range(3 * 40):
+        t = k / 40.0
+        d.on_odometry(t, SPEED, 0.0)
+        est = LocalizationEstimate(t, Pose(50.0 + SPEED * t, 0.0, 0.0), np.eye(3) * 0.01)
+        if k % 2 == 0:
+            d.on_lane_detection(rotated_lines(t, 0.1 * max(0.0, t - 1.0)), est, smap)
+        pose = d.pose_for_control(est, smap)
+        if d.mode != "ar":
+            yaws.append(pose.yaw)
+    return yaws
+
+
+def test_lines_rotated_by_a_road_patch_turn_the_steered_yaw_no_faster_than_the_gyro_drifts():
+    yaws = steer_on_rotated_lines()
+    config = DefenseConfig()
+    assert len(yaws) > 60  # normal for at least 1.5 s
+    assert max(abs(y) for y in yaws) <= config.steer_yaw_tol + config.line_yaw_rate * 2.0 + 1e-9
+
+
+def test_without_the_rate_the_steered_yaw_follows_the_rotated_lines():
+    yaws = steer_on_rotated_lines(line_yaw_rate=1e9)
+    assert max(yaws) > 0.03  # the lines' heading less steer_yaw_tol: the car would be steered by the patch

@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import numpy as np
@@ -106,3 +107,31 @@ def test_with_the_msf_left_out_fused_follows_its_own_yaw_in_fail_closed_mode_and
     paper = FusedHeading("fused", 0.02, 0.5)  # the yaw passed is the attacked MSF's
     paper.on_detection(ld, msf_yaw=0.3, lane_heading=0.0, uncertainties=(math.inf, 0.2))
     assert paper.yaw(0.3, 0.0) == pytest.approx(0.02)
+
+
+def at(t: float, ld: LaneDetection) -> LaneDetection:
+    return dataclasses.replace(ld, timestamp=t)
+
+
+def test_with_the_own_yaw_the_lines_turn_it_no_faster_than_the_turn_rate():
+    # the car aligned with the lane (odometry says so); a road patch reads the lines 0.1 rad left of it
+    h = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002)
+    bent = lines(math.tan(-0.1), math.tan(-0.1))
+    for k in range(61):
+        t = 0.05 * k
+        h.on_detection(at(t, bent), msf_yaw=0.0, lane_heading=0.0)
+        assert 0.0 <= h.yaw(0.0, 0.0) <= 0.002 * t + 1e-12
+    assert h.yaw(0.0, 0.0) == pytest.approx(0.006)
+    # the car's own turn since the last reading passes whole: the lines' disagreement is carried, not their ψ
+    assert h.yaw(0.05, 0.0) == pytest.approx(0.056)
+
+
+def test_with_the_own_yaw_honest_lines_correct_its_drift_within_the_clamp():
+    h = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002)
+    straight = lines(0.0, 0.0)  # the lines say the car is aligned; odometry's yaw drifted 0.004 rad left
+    for k in range(61):
+        h.on_detection(at(0.05 * k, straight), msf_yaw=0.004, lane_heading=0.0)
+    assert h.yaw(0.004, 0.0) == pytest.approx(0.0)
+    moved = FusedHeading("ld", 0.02, 0.5, own_yaw=True)  # without a rate the lines' ψ is taken at once
+    moved.on_detection(at(0.0, lines(math.tan(-0.1), math.tan(-0.1))), msf_yaw=0.0, lane_heading=0.0)
+    assert moved.yaw(0.0, 0.0) == pytest.approx(0.02)
