@@ -92,7 +92,7 @@ class DefenseConfig(Params):
     along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")
     along_gain: float = Field(0.05, gt=0.0, le=1.0, description="fail-closed: share of the way to the MSF pose's "
                               "station the dead-reckoned pose takes at each anchor (1 = all of it)")
-    line_rate: float = Field(0.05, ge=0.0, description="fail-closed: how fast the lines alone (the MSF "
+    line_rate: float = Field(0.02, ge=0.0, description="fail-closed: how fast the lines alone (the MSF "
                              "disagreeing) may move the dead-reckoned pose and the response's reference across the "
                              "lane (m/s; about what odometry can drift): an attacker of the lines cannot drag the "
                              "reference the sources are judged by")
