@@ -67,7 +67,9 @@ class DefenseConfig(Params):
     heading: Heading = Field("fused", description="heading of the fused pose in attack response; the paper "
                                                   "mode's is msf")
     heading_clamp: float = Field(0.02, gt=0.0, le=0.5, description="largest |heading relative to the lane| the "
-                                 "ld and fused headings take from the detected lines (rad)")
+                                 "ld and fused headings take from the detected lines (rad); fail-closed: largest turn "
+                                 "of odometry's yaw they take from the lines, and never more than line_yaw_rate × the "
+                                 "time since the alarm (the smaller binds: at the defaults, the clamp after 10 s)")
     kf_q: float = Field(0.05, ge=0.0, description="process noise of the 1-D fusion Kalman filter per predict (m²)")
     kf_p0: float = Field(1.0, gt=0.0, description="initial variance of the 1-D fusion Kalman filter at AR onset "
                                                  "(m²); its state starts at d = 0")
