@@ -22,6 +22,7 @@ from testbed.attacks.threat import parse_threat, within_ld3_threat_model
 from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
 from testbed.eval.campaign.driver import CampaignRun, load_summary
+from testbed.eval.run.outputs import provenance
 from testbed.eval.run.scenario import load_scenario
 from testbed.eval.search.attack_search import AttackSearch, SearchSpec, attack_spec
 from testbed.eval.search.report import write_search_report
@@ -92,7 +93,7 @@ def run_cells(runs: Sequence[CampaignRun], out: Path, *, workers: int | None, ba
 def _search_cell(run: CampaignRun, folder: Path, **options: Any) -> dict[str, Any]:
     threat = parse_threat(run.tags["threat"])
     base = {"road": run.tags["road"], "victim": run.tags["victim"], "threat": run.tags["threat"],
-            "in_ld3_threat_model": within_ld3_threat_model(threat)}
+            "in_ld3_threat_model": within_ld3_threat_model(threat), "git_commit": provenance()["git_commit"]}
     try:
         search = AttackSearch(SearchSpec(run.scenario, threat, run.tags["trials"]), folder / "search", **options)
     except UserError as exc:

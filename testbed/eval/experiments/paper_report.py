@@ -387,7 +387,7 @@ SECTIONS: tuple[Section, ...] = (sim_section, chassis_section, fr_section, grid_
 
 
 def _commit(summary: RunSummary | dict[str, Any]) -> str | None:
-    """The git commit a run's summary records; a search cell's summary (a dict, not a run) records none."""
+    """The git commit a run's summary (or a search cell's, a dict) records; None when it records none."""
     return summary.git_commit if isinstance(summary, RunSummary) else summary.get("git_commit")
 
 
@@ -412,8 +412,8 @@ def write_paper_report(out: Path, results: dict[str, CampaignResult], *, quick: 
             "| campaign | runs done | source (git commit: runs) | command |", "|---|---|---|---|"]
     head += [f"| {r.name} | {len(r.done)}/{len(r.planned)} | {_sources(r.done)} | `{r.command}` |"
              for r in results.values()]
-    commits = {_commit(s) for r in results.values() for _, s in r.done}
-    if len(commits) > 1:
+    commits = {c for r in results.values() for _, s in r.done if (c := _commit(s)) is not None}
+    if len(commits) > 1:  # a summary that records no commit ("unknown" above) is no evidence of another tree
         head += ["", f"**The runs come from {len(commits)} source trees**: a rerun after a code change resumes "
                      "with the new code, so these results mix versions; start from an empty folder to compare one."]
     body = [section(results, values, out) for section in SECTIONS]
