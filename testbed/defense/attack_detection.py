@@ -39,7 +39,7 @@ from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.defense.odometry import DeadReckoning
+from testbed.defense.odometry import DeadReckoning, drift_allowance, step_toward
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -98,12 +98,6 @@ class Ld3Detector:
 
     def reset(self) -> None:
         self.cusum.reset()
-
-
-def step_toward(d_from: float, d_to: float, max_step: float) -> float:
-    """`d_to`, or the deviation `max_step` from `d_from` towards it (m): one source alone moves a reference across
-    the lane no faster than odometry could drift, so an attacker of that source cannot drag it."""
-    return d_from + max(-max_step, min(max_step, d_to - d_from))
 
 
 ANCHOR_YAW_GAIN = 0.1
@@ -233,8 +227,7 @@ class LaneConsistencyMonitor:
         elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
             # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
             since = t - self._anchor_time if self._anchor_time is not None else 0.0
-            limit = self.line_rate * since if since > 0.0 else 0.0
-            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, limit))
+            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)))
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True
@@ -269,7 +262,7 @@ class LaneConsistencyMonitor:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
         else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
             turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
-            limit = self.line_yaw_rate * max(0.0, ld.timestamp - self._anchor_time)
+            limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)
         self._anchor_time = ld.timestamp

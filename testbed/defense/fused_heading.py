@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 from testbed.defense.ld_deviation import line_distance
+from testbed.defense.odometry import drift_allowance
 from testbed.lane_detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose, wrap_angle
@@ -108,7 +109,7 @@ class FusedHeading:
             self._start = ld.timestamp
         psi = line_relative_heading(ld, self.existence_threshold) if lines_kept else None
         if psi is not None and self.own_yaw:
-            bound = min(self.clamp, self.turn_rate * (ld.timestamp - self._start))
+            bound = min(self.clamp, drift_allowance(self.turn_rate, ld.timestamp - self._start))
             own = wrap_angle(msf_yaw - lane_heading)
             self._ld_ref = (min(max(psi - own, -bound), bound), own)
         elif psi is not None:
@@ -122,10 +123,12 @@ class FusedHeading:
 
     def yaw(self, msf_yaw: float, lane_heading: float) -> float:
         """The fused pose's yaw at the current MSF yaw and lane heading."""
-        if self.source == "msf" or (self.own_yaw and self.source != "lane" and self._ld_ref is None):
+        if self.source == "msf":
             yaw = msf_yaw
-        elif self.source == "lane" or self._ld_ref is None:
+        elif self.source == "lane":
             yaw = lane_heading
+        elif self._ld_ref is None:  # no line read yet: the own yaw, or (the MSF's being the attacker's) the lane's
+            yaw = msf_yaw if self.own_yaw else lane_heading
         elif self.own_yaw:  # the own yaw, turned by the lines' bounded disagreement with it at their last reading
             yaw = msf_yaw + self._ld_weight * self._ld_ref[0]
         else:

@@ -30,12 +30,11 @@ import math
 import numpy as np
 
 from testbed.defense.alarmed import Ld3AlarmedDefense
-from testbed.defense.attack_detection import step_toward
 from testbed.defense.base import DefenseStatus
 from testbed.defense.config import DefenseConfig
 from testbed.defense.fused_heading import FusedHeading
 from testbed.defense.fusion import FusionStep, SafetyDrivenFusion, pose_on_lane
-from testbed.defense.odometry import DeadReckoning
+from testbed.defense.odometry import DeadReckoning, drift_allowance, step_toward
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -132,7 +131,7 @@ class Ld3Defense(Ld3AlarmedDefense):
         if d_ld is not None:
             d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_ref, width), d_ref)
         if d_ld is not None:
-            limit = self.config.line_rate * (t - self._reference_time) if t > self._reference_time else 0.0
+            limit = drift_allowance(self.config.line_rate, t - self._reference_time)
             self._reference.anchor(pose_on_lane(ref_point, ref_heading, step_toward(d_ref, d_ld, limit),
                                                 reference.yaw))
             self._reference_time = t

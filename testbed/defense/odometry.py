@@ -33,6 +33,20 @@ def advance(pose: Pose, dt: float, speed: float, yaw_rate: float, lever: float =
                 pose.y - radius * (math.cos(yaw) - math.cos(pose.yaw)) + ly, wrap_angle(yaw))
 
 
+def drift_allowance(rate: float, elapsed: float) -> float:
+    """How far one source alone may move an odometry-carried reference in `elapsed` s at `rate` (per s): without
+    limit for an infinite rate, nothing when no time has passed or the rate is 0 (never NaN)."""
+    if math.isinf(rate):
+        return math.inf
+    return rate * elapsed if elapsed > 0.0 and rate > 0.0 else 0.0
+
+
+def step_toward(d_from: float, d_to: float, max_step: float) -> float:
+    """`d_to`, or the value `max_step` from `d_from` towards it: one source alone moves a reference no faster than
+    odometry could drift, so an attacker of that source cannot drag it."""
+    return d_from + max(-max_step, min(max_step, d_to - d_from))
+
+
 class DeadReckoning:
     """A pose carried by odometry from its last anchor; `lever` is its reference point ahead of the rear axle (m)."""
 

@@ -16,7 +16,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
-from testbed.defense.odometry import DeadReckoning, advance
+from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, step_toward
 from testbed.eval.run.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -346,3 +346,14 @@ def test_fail_closed_is_a_key_ld3_and_naive_ar_read_and_others_refuse():
         assert sc.defense_params == {"fail_closed": False}
     with pytest.raises(ValueError, match="fail_closed"):
         load_scenario("local").with_overrides(defense="savior", defense_params={"fail_closed": False})
+
+
+def test_a_single_source_moves_a_reference_by_its_drift_allowance_at_most():
+    assert drift_allowance(0.02, 2.0) == pytest.approx(0.04)
+    assert drift_allowance(0.02, 0.0) == 0.0 and drift_allowance(0.02, -1.0) == 0.0  # no time, no move
+    assert drift_allowance(0.0, math.inf) == 0.0  # a zero rate never moves it, however long ago the last anchor
+    assert drift_allowance(math.inf, 0.0) == math.inf  # no limit at all, never NaN
+    assert step_toward(0.1, 0.9, 0.04) == pytest.approx(0.14)
+    assert step_toward(0.1, -0.9, 0.04) == pytest.approx(0.06)
+    assert step_toward(0.1, 0.12, 0.04) == pytest.approx(0.12)
+    assert step_toward(0.1, 0.9, math.inf) == pytest.approx(0.9)
