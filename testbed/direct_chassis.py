@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from testbed.chassis import ChassisCommand, ChassisPort, ChassisState
+from testbed.chassis import ChassisCommand, ChassisModel, ChassisPort, ChassisState, bicycle_yaw_rate
 from testbed.world import PhysicsWorld
 
 
@@ -14,12 +14,17 @@ class DirectChassis(ChassisPort):
     With `hold_s` > 0 commands are applied sample-and-hold the way the CAN chassis applies them: at the
     start of advance(), the latest command is applied only when t >= the next due instant, which then
     moves to the next multiple of `hold_s` after t. So a direct run and a CAN run see the same timing.
+    `model` is what the chassis reports (`ChassisModel`: its yaw rate, its steering sensor's offset).
     """
 
-    def __init__(self, world: PhysicsWorld, hold_s: float = 0.0) -> None:
+    def __init__(self, world: PhysicsWorld, hold_s: float = 0.0, model: ChassisModel | None = None) -> None:
+        model = model if model is not None else ChassisModel()
         self.world = world
         self.vehicle = world.vehicle
         self.hold_s = hold_s
+        self.steer_offset = math.radians(model.steer_offset_deg)
+        self.wheelbase = world.vehicle.params.wheelbase if model.yaw_rate == "steering" else None
+        """The wheelbase the yaw rate is derived with (m); None: the body's yaw rate is reported."""
         self._next_due = 0.0
         self._steps = 0
         self._t_target = 0.0
@@ -39,6 +44,11 @@ class DirectChassis(ChassisPort):
             pose, speed, yaw_rate = v.kinematics()
             sensed = (pose, speed, yaw_rate, v.steer_angle())
         pose, speed, yaw_rate, steer = sensed
+        if self.steer_offset:
+            steer += self.steer_offset
+        if self.wheelbase is not None:
+            return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose,
+                                yaw_rate=bicycle_yaw_rate(speed, steer, self.wheelbase), true_yaw_rate=yaw_rate)
         return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose, yaw_rate=yaw_rate)
 
     def send(self, cmd: ChassisCommand) -> None:
@@ -53,7 +63,7 @@ class DirectChassis(ChassisPort):
                 return
             self._next_due = (math.floor(t / self.hold_s + 1e-9) + 1) * self.hold_s
         self._applied = self._pending
-        self.vehicle.apply(self._applied.steer, self._applied.accel)
+        self.vehicle.apply(self._applied.steer - self.steer_offset, self._applied.accel)
 
     def advance(self, dt: float) -> None:
         """Hand the applied command to the vehicle once, step physics to the next control instant, sense."""

@@ -1,6 +1,7 @@
 """The one detection/response/control loop (docs/architecture.md), shared by simulation and the CAN bridge.
 
-Per control tick: read the chassis and hand its odometry to the defense, step localization (the attacker
+Per control tick: read the chassis and hand its odometry to the defense (the lane tracker and the lateral
+controller then read its yaw rate less the bias the defense estimates), step localization (the attacker
 may spoof GNSS or the MSF output), on camera ticks run the lane detector and feed the defense, take the pose
 the defense wants control to use, plan (lane follow, or the in-lane stop once the defense responds),
 control (the acceleration capped behind a car ahead where the run follows cars), command the chassis.
@@ -149,6 +150,7 @@ class ControlLoop:
         self.last_state = state
         t = state.t
         self.defense.on_odometry(t, state.speed, state.yaw_rate)
+        yaw_rate = self.defense.odometry_yaw_rate(state.speed, state.yaw_rate)
         view = self._attacker_view(state) if self.attack is not None else None
         spoof = (lambda fix: self.attack.spoof_gnss(fix, view)) if view is not None else None
         localization = self.sensors.localization
@@ -161,7 +163,7 @@ class ControlLoop:
             self.defense.on_gnss(gnss.t, gnss.xy, gnss.cov)
         fresh = self.perception.detector is not None and self.ticks % self.rates.camera_every == 0
         if fresh:
-            self._on_camera_tick(t, state, est, view)
+            self._on_camera_tick(t, state, yaw_rate, est, view)
         pose = self.defense.pose_for_control(est, self.smap)
         self.last_control_pose = pose
         decel = self.defense.stop_decel
@@ -172,7 +174,7 @@ class ControlLoop:
             self.stopping = True
             driving.planner.start_stop(t, state.speed, decel)
         plan = driving.planner.plan(pose, state.speed, t)
-        steer = driving.lateral.update(plan, state.speed, yaw_rate=state.yaw_rate)
+        steer = driving.lateral.update(plan, state.speed, yaw_rate=yaw_rate)
         accel = driving.longitudinal.update(plan, state.speed, self.dt)
         cap = driving.follow(state) if driving.follow is not None else None
         if cap is not None and cap < accel:
@@ -183,14 +185,15 @@ class ControlLoop:
         self.ticks += 1
         return self._record(state, est.pose, steer, accel, fresh)
 
-    def _on_camera_tick(self, t: float, state: ChassisState, est, view: AttackerView | None) -> None:
+    def _on_camera_tick(self, t: float, state: ChassisState, yaw_rate: float, est,
+                        view: AttackerView | None) -> None:
         camera = self.sensors.camera
         frame = camera(t, state.true_pose) if camera is not None else CameraFrame(t, None, state.true_pose)
         ld = self.perception.detector.detect(frame)
         if view is not None:
             ld = self.attack.tamper_ld(ld, view)
         if self.perception.tracker is not None:
-            ld = self.perception.tracker.update(ld, state.speed, state.yaw_rate)
+            ld = self.perception.tracker.update(ld, state.speed, yaw_rate)
         width = self._lane_width(est.pose)
         if width is not None:
             self.last_ld_dev = self.ld_dev.update(ld, width)

@@ -26,6 +26,10 @@ class Params(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid", strict=True, allow_inf_nan=False)
 
+    def explicit(self) -> dict[str, Any]:
+        """The table as TOML would hold it, defaults left out."""
+        return self.model_dump(exclude_defaults=True)
+
 
 P = TypeVar("P", bound=BaseModel)
 

@@ -186,3 +186,32 @@ def test_a_gnss_fix_is_spoofed_inside_the_localization_step_and_reaches_the_defe
     calls = _ticks(loop, log, 1)[0]
     assert calls[:7] == ["chassis.read", "defense.on_odometry", "localization.step", "attack.spoof_gnss",
                          "attack.tamper_msf", "defense.on_gnss", "camera"]
+
+
+def test_the_tracker_and_the_lateral_controller_read_the_defense_s_corrected_yaw_rate(traced_loop):
+    """A defense that estimates the chassis yaw rate's bias hands the loop the corrected rate: the lane tracker
+    predicts with it and the lateral controller damps with it; the defense itself gets the rate as reported."""
+    loop, _, _, plant = traced_loop
+    tracked, damped = [], []
+    loop.defense.odometry_yaw_rate = lambda speed, yaw_rate: yaw_rate + 0.25
+    assert loop.perception.tracker is None  # the fixture runs none: a spy takes its place
+    object.__setattr__(loop.perception, "tracker", Traced(_Spy(tracked), "tracker", [], ("update",)))
+    lateral = loop.driving.lateral
+    update = lateral.update
+    lateral.update = lambda plan, speed, yaw_rate: damped.append(yaw_rate) or update(plan, speed, yaw_rate=yaw_rate)
+    expected = []
+    for _ in range(6):
+        expected.append(plant.read().yaw_rate + 0.25)
+        loop.tick()
+    assert damped == pytest.approx(expected) and tracked == pytest.approx([expected[0], expected[5]])
+
+
+class _Spy:
+    """A lane tracker that passes the detection through and keeps the yaw rate it was given."""
+
+    def __init__(self, seen: list[float]) -> None:
+        self.seen = seen
+
+    def update(self, ld, speed, yaw_rate):
+        self.seen.append(yaw_rate)
+        return ld

@@ -194,6 +194,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     replaced only with `force`, and only once this run is written (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
+    if sc.chassis.yaw_rate != "sensed":
+        raise UserError(f"[chassis] yaw_rate = {sc.chassis.yaw_rate!r} is the simulated chassis's; over CAN the "
+                        f"profile says where the yaw rate comes from (the summary's yaw_rate_source)")
+    if sc.chassis.steer_offset_deg and not (config.interface == "virtual" or config.spawns_ecu):
+        raise UserError(f"[chassis] steer_offset_deg miscalibrates the emulated chassis; the chassis on "
+                        f"{config.interface} has its own")
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind

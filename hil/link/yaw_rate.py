@@ -6,12 +6,11 @@ angle δ, wheelbase L). `source` names which, for the summary."""
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Protocol
 
 from hil.link.profile import ChassisProfile
 from hil.link.wheels import WheelGeometry
-from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState
+from testbed.chassis import ChassisCommand, ChassisFault, ChassisPort, ChassisState, bicycle_yaw_rate
 from vehicles.params import VehicleParams
 
 REPORTED = "chassis"
@@ -53,7 +52,7 @@ class YawRateChassis(ChassisPort):
             left, right = (port.reported(q) for q in WHEEL_RPM)
             yaw_rate = self.wheels.yaw_rate(left, right) if left is not None and right is not None else 0.0
             return dataclasses.replace(state, yaw_rate=yaw_rate)
-        return dataclasses.replace(state, yaw_rate=state.speed * math.tan(state.steer) / self.wheelbase)
+        return dataclasses.replace(state, yaw_rate=bicycle_yaw_rate(state.speed, state.steer, self.wheelbase))
 
     def send(self, cmd: ChassisCommand) -> None:
         self.port.send(cmd)

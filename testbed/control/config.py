@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from pydantic import Field
 
 from testbed.params import Params
@@ -24,7 +22,3 @@ class ControlConfig(Params):
     steer_lat_accel: float = Field(10.0, gt=0, description="largest lateral acceleration a steering command may ask "
                                    "for beyond the road's own curvature (m/s²): about a dry road's grip, so a step in "
                                    "the pose cannot command the car into a skid")
-
-    def explicit(self) -> dict[str, Any]:
-        """The table as TOML would hold it, defaults left out."""
-        return self.model_dump(exclude_defaults=True)

@@ -9,7 +9,8 @@ controller, whatever the control and camera rates and however late or irregular 
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
 The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
 turns no faster than `line_yaw_rate`; of the lines' heading before odometry has one): a yaw bias the heading check
-lets through cannot steer the car by more than that, nor can lines rotated by a road patch.
+lets through cannot steer the car by more than that, nor can lines rotated by a road patch. Every odometry-carried
+pose moves on the yaw rate less the bias the monitor learns where MSF and lines agree (`odometry_bias_span`).
 The paper mode steers on every MSF pose.
 
 Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range
@@ -48,7 +49,9 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               heading=Cusum(config.heading_b, config.heading_tau),
                                               along=Cusum(config.along_b, config.along_tau),
                                               along_gain=config.along_gain, line_rate=config.line_rate,
-                                              line_yaw_rate=config.line_yaw_rate, lever=lever)
+                                              line_yaw_rate=config.line_yaw_rate,
+                                              yaw_agreement=(config.heading_b, config.steer_yaw_tol),
+                                              bias_span=config.odometry_bias_span, lever=lever)
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""
@@ -60,7 +63,15 @@ class Ld3AlarmedDefense(LatchingDefense):
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
         self.monitor.on_odometry(t, speed, yaw_rate)
         if self.config.fail_closed:
-            self.checked.on_odometry(t, speed, yaw_rate)
+            self._carry(t, speed, self.odometry_yaw_rate(speed, yaw_rate))
+
+    def odometry_yaw_rate(self, speed: float, yaw_rate: float) -> float:
+        return self.monitor.yaw_bias.corrected(speed, yaw_rate)
+
+    def _carry(self, t: float, speed: float, yaw_rate: float) -> None:
+        """Carry the odometry-carried poses the defense keeps besides the monitor's (fail-closed mode) on the
+        bias-corrected yaw rate."""
+        self.checked.on_odometry(t, speed, yaw_rate)
 
     def fault_records(self) -> list[FaultRecord]:
         return self.faults.records()

@@ -39,7 +39,7 @@ from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.defense.odometry import DeadReckoning, drift_allowance, step_toward
+from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, step_toward
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -117,6 +117,7 @@ class LaneConsistencyMonitor:
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
+                 yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
                  lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
@@ -134,6 +135,14 @@ class LaneConsistencyMonitor:
         self.fail_closed = fail_closed
         self.odometry = DeadReckoning(lever)
         """The dead-reckoned pose (`lever`: the pose's reference point ahead of the rear axle, m)."""
+        self.yaw_agreement = yaw_agreement
+        """How closely the MSF's and the lines' headings relative to the lane must agree (rad), D_MSF and D_LD within
+        b, for the MSF's yaw to teach `yaw_bias`: before its first estimate (the lines tracked on the biased yaw
+        rate until then) and after."""
+        self.yaw_bias = CurvatureBias(bias_span, 0.5 * line_yaw_rate if math.isfinite(line_yaw_rate) else 0.0)
+        """Odometry's yaw-rate error per metre, learnt from the MSF's yaw where MSF and lines fully agree; the
+        dead-reckoned pose is carried on the corrected yaw rate (what is under half `line_yaw_rate` left to the
+        lines' turn of the yaw). Frozen at the alarm."""
         self.d_msf: float | None = None
         self.d_ld: float | None = None
         self.fresh_d_ld: float | None = None
@@ -144,8 +153,13 @@ class LaneConsistencyMonitor:
         self._width: float | None = None
 
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
-        """Carry the dead-reckoned pose to `t` (fail-closed mode); a bad sample is a fault."""
-        if self.fail_closed and not self.odometry.on_odometry(t, speed, yaw_rate):
+        """Carry the dead-reckoned pose to `t` on the bias-corrected yaw rate (fail-closed mode); a bad sample is a
+        fault."""
+        if not self.fail_closed:
+            return
+        if self.odometry.on_odometry(t, speed, self.yaw_bias.corrected(speed, yaw_rate)):
+            self.yaw_bias.on_odometry(t, speed, yaw_rate)
+        else:
             self.faults.report("bad-odometry", t, f"speed={speed}, yaw rate={yaw_rate}; sample skipped")
 
     @property
@@ -223,7 +237,7 @@ class LaneConsistencyMonitor:
         b_lat = self.detector.cusum.b
         if abs(d_msf - d_ld) <= b_lat:
             self._agreed_lane = lane
-            self._anchor(ld, pose, smap, lane, d_ld)
+            self._anchor(ld, pose, smap, lane, d_ld, agreed=True)
         elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
             # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
             since = t - self._anchor_time if self._anchor_time is not None else 0.0
@@ -244,17 +258,23 @@ class LaneConsistencyMonitor:
         gap = (pose.x - reckoned.x) * math.cos(heading) + (pose.y - reckoned.y) * math.sin(heading)
         return self.along.update(gap) and self._latch(lane)
 
-    def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float) -> None:
+    def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float,
+                agreed: bool = False) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
         towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most (the MSF yaw only for a
-        first anchor without one)."""
+        first anchor without one). `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also
+        agrees with the lines' within `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an
+        attacker of the lines alone then teaches nothing)."""
         reckoned = self.reckoned
         if reckoned is not None and self.along_gain < 1.0:
             g = self.along_gain
             pose = Pose(reckoned.x + g * (pose.x - reckoned.x), reckoned.y + g * (pose.y - reckoned.y), pose.yaw)
         point, heading = smap.lane_point(pose, lane)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
+        gate = self.yaw_agreement[self.yaw_bias.estimated]
+        if agreed and psi is not None and abs(math.remainder(pose.yaw - heading - psi, math.tau)) <= gate:
+            self.odometry.turn(self.yaw_bias.observe(pose.yaw))
         carried = self.odometry.pose
         if psi is None:
             yaw, gain = pose.yaw, 0.0

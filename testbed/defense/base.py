@@ -67,6 +67,11 @@ class Defense(ABC):
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:  # noqa: B027 - optional hook
         """Chassis odometry at the start of every control tick: speed (m/s), yaw rate (rad/s, + left)."""
 
+    def odometry_yaw_rate(self, speed: float, yaw_rate: float) -> float:
+        """The chassis yaw rate with the defense's estimate of its bias taken out (rad/s; as reported for a defense
+        that keeps none): what the loop's lane tracker and lateral controller read."""
+        return yaw_rate
+
     @abstractmethod
     def pose_for_control(self, msf: LocalizationEstimate, smap: SemanticMap) -> Pose:
         """The pose the controller tracks with: MSF normally, the defense's own estimate in AR."""

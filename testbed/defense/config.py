@@ -40,7 +40,7 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "line_rate", "line_yaw_rate", "response_gate",
+                              "line_rate", "line_yaw_rate", "odometry_bias_span", "response_gate",
                               "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
@@ -84,11 +84,13 @@ class DefenseConfig(Params):
                               "response the fused pose moves by odometry, never by the MSF. False: the paper "
                               "mode's skipped updates, S reset after intersections, fused pose carried by MSF")
     heading_b: float = Field(0.03, ge=0.0, description="fail-closed heading check: CUSUM weight on the MSF's heading "
-                             "against the lines' (against odometry where lines are absent), rad")
+                             "against the lines' (against odometry where lines are absent), rad; within it of the "
+                             "lines' the MSF's yaw teaches odometry's bias until its first estimate")
     heading_tau: float = Field(0.3, ge=0.0, description="fail-closed heading check: CUSUM threshold (rad)")
     steer_yaw_tol: float = Field(0.01, gt=0.0, le=0.5, description="fail-closed: the pose the controller steers on "
-                                 "keeps its yaw within this of the lines' heading (of odometry's where no line is "
-                                 "valid), rad")
+                                 "keeps its yaw within this of the dead-reckoned yaw (of the lines' heading before "
+                                 "odometry has one), rad; within it of the lines' the MSF's yaw teaches odometry's "
+                                 "bias once estimated")
     along_b: float = Field(0.5, ge=0.0, description="fail-closed along-lane check: CUSUM weight on the MSF pose's "
                            "distance along the lane from the dead-reckoned pose (m)")
     along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")
@@ -101,6 +103,10 @@ class DefenseConfig(Params):
     line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
                                  "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
                                  "about what a gyro drifts): lines rotated by a road patch cannot swing it")
+    odometry_bias_span: float = Field(100.0, ge=0.0, description="fail-closed: distance (m) over which odometry's "
+                                      "yaw-rate error per metre travelled (a steering-angle offset in a yaw rate "
+                                      "derived from the steering) is fitted to the MSF's yaw where MSF and lines "
+                                      "agree; every odometry-carried pose moves on the corrected yaw rate. 0: none")
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")

@@ -73,10 +73,9 @@ class Ld3Defense(Ld3AlarmedDefense):
     def response_decel(self) -> float:
         return self.config.ar_decel
 
-    def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:
-        super().on_odometry(t, speed, yaw_rate)
-        if self.config.fail_closed:
-            self._reference.on_odometry(t, speed, yaw_rate)
+    def _carry(self, t: float, speed: float, yaw_rate: float) -> None:
+        super()._carry(t, speed, yaw_rate)
+        self._reference.on_odometry(t, speed, yaw_rate)
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:
         if self.config.fail_closed:

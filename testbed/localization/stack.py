@@ -153,9 +153,10 @@ class LocalizationStack:
             )
         pose = truth.true_pose
         if self._imu_step is not None:
-            self._imu_step.step(t, truth.accel, truth.yaw_rate)
+            self._imu_step.step(t, truth.accel, truth.body_yaw_rate)
         else:
-            for sample in self.imu.samples(t, truth.accel, truth.yaw_rate):  # the tick's motion held since the last
+            # the tick's motion held since the last
+            for sample in self.imu.samples(t, truth.accel, truth.body_yaw_rate):
                 self.msf.predict(sample)
         self.last_gnss = None
         if self.gnss.due(t):

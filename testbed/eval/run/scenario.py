@@ -15,6 +15,7 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from testbed.attacks.registry import ATTACKS
 from testbed.attacks.spec import AttackValue, attack_settings, attack_spec_to_dict, attack_tables, attack_value
+from testbed.chassis import ChassisModel
 from testbed.control.config import ControlConfig
 from testbed.defense.registry import DEFENSES, defense_settings
 from testbed.errors import UserError
@@ -73,6 +74,9 @@ class Scenario(BaseModel):
                                                                               "on IDM, their lanes, gaps and speeds")
     control: ControlConfig = Field(default_factory=ControlConfig, description="[control]: the lateral "
                                                                               "controller's design")
+    chassis: ChassisModel = Field(default_factory=ChassisModel, description="[chassis]: what the simulated car's "
+                                  "chassis reports: its yaw rate or one derived from its steering, and a "
+                                  "steering-sensor offset")
 
     @model_validator(mode="after")
     def _components(self) -> Scenario:
@@ -174,7 +178,8 @@ logger = logging.getLogger(__name__)
 LD_SIDE = frozenset({"ld-output", "road-paint"})
 """Attack capabilities that act on the lane detection (`testbed.attacks.threat.ThreatCapability` values)."""
 _TOP_KEYS = set(Scenario.model_fields) - {"defense_params", "detector_params"}
-_SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig, "control": ControlConfig}
+_SECTIONS: dict[str, type[BaseModel]] = {"rates": Rates, "traffic": TrafficConfig, "control": ControlConfig,
+                                         "chassis": ChassisModel}
 """The scenario's typed tables, by name."""
 
 
@@ -215,8 +220,8 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     """`KEY=VALUE` overrides as the TOML would give them: `defense.b=0.45` (the [defense] table, `kind` its
     name), `detector.weights=path.pt` (the [detector] table), `attack.start=12` (the [attack] table),
     `rates.control_hz=40` or `rates.localization.gnss_hz=5` (the [rates] table), `traffic.vehicles=6` (the
-    [traffic] table), `control.steer_rate_weight=0.1` (the [control] table), or a top-level key such as
-    `speed=10`."""
+    [traffic] table), `control.steer_rate_weight=0.1` (the [control] table), `chassis.yaw_rate="steering"` (the
+    [chassis] table), or a top-level key such as `speed=10`."""
     top: dict[str, Any] = {}
     defense, params = sc.defense, dict(sc.defense_params)
     detector, detector_params = sc.detector, dict(sc.detector_params)
@@ -224,6 +229,7 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
     rates = sc.rates.model_dump()
     traffic = sc.traffic.explicit()
     control = sc.control.explicit()
+    chassis = sc.chassis.explicit()
     for item in settings:
         key, eq, raw = item.partition("=")
         key = key.strip()
@@ -262,11 +268,14 @@ def apply_settings(sc: Scenario, settings: list[str]) -> Scenario:
             traffic[name] = value
         elif section == "control":
             control[name] = value
+        elif section == "chassis":
+            chassis[name] = value
         else:
             raise ScenarioError(f"--set {item!r}: unknown section {section!r}; use defense.KEY, detector.KEY, "
-                                f"attack.KEY, rates.KEY, traffic.KEY, control.KEY or KEY")
+                                f"attack.KEY, rates.KEY, traffic.KEY, control.KEY, chassis.KEY or KEY")
     return sc.replace(defense=defense, defense_params=params, detector=detector, detector_params=detector_params,
-                      attack=attack_value(attacks), rates=rates, traffic=traffic, control=control, **top)
+                      attack=attack_value(attacks), rates=rates, traffic=traffic, control=control, chassis=chassis,
+                      **top)
 
 
 def _set_nested(table: dict[str, Any], path: list[str], value: Any, item: str) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from testbed.attacks.registry import ATTACKS
+from testbed.chassis import ChassisModel
 from testbed.control.config import ControlConfig
 from testbed.defense.config import ALWAYS_READ, DefenseConfig
 from testbed.defense.registry import DEFENSES, defense_keys
@@ -38,8 +39,8 @@ def _table(rows: list[tuple[str, str, str, str]], extra: list[str] | None = None
 
 
 def reference_markdown() -> str:
-    """Every scenario key: the top level, [rates], [traffic], [control], [defense] (and which defenses read each key),
-    [detector] and [attack] per kind."""
+    """Every scenario key: the top level, [rates], [traffic], [control], [chassis], [defense] (and which defenses
+    read each key), [detector] and [attack] per kind."""
     out = ["## Scenario keys", "", "Top level of the scenario TOML:", ""]
     rows = []
     for key, typ, default, meaning in reference_rows(Scenario):
@@ -48,7 +49,7 @@ def reference_markdown() -> str:
         if key in _CHOICES:
             meaning += f"; one of {_choices(_CHOICES[key])}"
         default = {"name": "the file's stem", "track": "required", "rates": "see [rates]",
-                   "traffic": "see [traffic]", "control": "see [control]"}.get(key, default)
+                   "traffic": "see [traffic]", "control": "see [control]", "chassis": "see [chassis]"}.get(key, default)
         typ = "table | list of tables | None" if key == "attack" else typ
         rows.append((key, typ, default, meaning))
     out += _table(rows)
@@ -56,6 +57,8 @@ def reference_markdown() -> str:
     out += ["", "`[traffic]` (same-direction cars; a table that places none, or names a lane the track lacks, is "
                 "refused):", "", *_table(reference_rows(TrafficConfig))]
     out += ["", "`[control]`:", "", *_table(reference_rows(ControlConfig))]
+    out += ["", "`[chassis]` (the simulated chassis; over CAN the profile says what the chassis reports):", "",
+            *_table(reference_rows(ChassisModel))]
     readers = [", ".join(f"`{d.name}`" for d in DEFENSES
                          if (d.params is DefenseConfig and key in defense_keys(d)) or key in ALWAYS_READ) or "–"
                for key in DefenseConfig.model_fields]

@@ -28,6 +28,8 @@ def scenario_document(sc: Scenario) -> dict[str, Any]:
         doc["traffic"] = sc.traffic.explicit()
     if sc.control.explicit():
         doc["control"] = sc.control.explicit()
+    if sc.chassis.explicit():
+        doc["chassis"] = sc.chassis.explicit()
     doc["detector"] = {"kind": sc.detector, **sc.detector_params}
     doc["defense"] = {"kind": sc.defense, **explicit_table(sc.defense, sc.defense_params)}
     if sc.attack:

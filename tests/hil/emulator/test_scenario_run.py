@@ -9,6 +9,7 @@ import pytest
 
 from hil.emulator.plants import plant_args_for, pybullet_plant, scenario_plant
 from hil.emulator.scenario_run import LinkConfig, run_hil_scenario
+from testbed.errors import UserError
 from testbed.eval.run.runner import SimRun
 from testbed.eval.run.scenario import load_scenario
 from testbed.rates import PHYSICS_HZ
@@ -77,6 +78,27 @@ def test_ecu_process_plant_arguments_rebuild_the_scenario_plant():
     finally:
         here.world.close()
         there.world.close()
+
+
+def test_the_emulated_chassis_carries_the_scenario_s_steering_offset_into_an_ecu_process():
+    sc = load_scenario("parking-lot").replace(chassis={"steer_offset_deg": 1.0})
+    args = plant_args_for(sc)
+    assert args["steer_offset_deg"] == "1.0" and "steer_offset_deg" not in plant_args_for(load_scenario("parking-lot"))
+    here, there = scenario_plant(sc), pybullet_plant(**args)
+    try:
+        assert here.steer_offset == there.steer_offset == pytest.approx(math.radians(1.0))
+        assert here.wheelbase is None  # over CAN the profile, not [chassis], says what is reported
+    finally:
+        here.world.close()
+        there.world.close()
+
+
+def test_chassis_settings_a_run_over_can_cannot_honour_are_refused():
+    sc = load_scenario("parking-lot")
+    with pytest.raises(UserError, match="profile says where the yaw rate comes from"):
+        run_hil_scenario(sc.replace(chassis={"yaw_rate": "steering"}), None, LinkConfig("virtual"))
+    with pytest.raises(UserError, match="miscalibrates the emulated chassis"):
+        run_hil_scenario(sc.replace(chassis={"steer_offset_deg": 1.0}), None, LinkConfig("socketcan", "can0"))
 
 
 def test_link_config_rejects_unknown_interfaces_and_socketcan_without_a_channel():

@@ -1,0 +1,70 @@
+"""`[chassis]`: a simulated chassis that reports no yaw rate of its own (ψ̇ = v tan δ / L from its steering angle,
+as a CAN chassis without a yaw-rate report is read) and a miscalibrated steering sensor. The simulated IMU keeps
+measuring the body; closed loop on a 1° offset LD3 keeps the car in its lane only with odometry's bias learnt."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from testbed import api
+from testbed.chassis import ChassisCommand, ChassisModel, ChassisState, bicycle_yaw_rate
+from testbed.direct_chassis import DirectChassis
+from testbed.eval.run.scenario import ScenarioError, apply_settings, load_scenario
+from testbed.eval.run.scenario_toml import scenario_document
+from testbed.presets import build_track, vehicle
+from testbed.world import PhysicsWorld
+
+
+def test_the_table_is_set_written_and_refused_like_the_others():
+    sc = apply_settings(load_scenario("parking-lot"), ["chassis.yaw_rate=\"steering\"", "chassis.steer_offset_deg=0.5"])
+    assert sc.chassis == ChassisModel(yaw_rate="steering", steer_offset_deg=0.5)
+    assert scenario_document(sc)["chassis"] == {"yaw_rate": "steering", "steer_offset_deg": 0.5}
+    assert "chassis" not in scenario_document(load_scenario("parking-lot"))
+    with pytest.raises(ScenarioError, match="steer_offset_deg"):
+        apply_settings(sc, ["chassis.steer_offset_deg=20"])
+    with pytest.raises(ScenarioError, match="yaw_rate"):
+        apply_settings(sc, ["chassis.yaw_rate=\"gyro\""])
+
+
+def turning_chassis(model: ChassisModel) -> DirectChassis:
+    """The sedan on parking-lot after 2 s at 0.1 rad of steering command and a gentle throttle."""
+    track, params = build_track("parking-lot"), vehicle("sedan")
+    chassis = DirectChassis(PhysicsWorld(track, params, track.start_pose(track.ego_lane, 20.0)), model=model)
+    for _ in range(80):
+        chassis.send(ChassisCommand(0.1, 1.0))
+        chassis.advance(0.025)
+    return chassis
+
+
+def test_the_offset_sensor_reads_more_than_the_wheels_and_the_derived_yaw_rate_follows_it():
+    offset = math.radians(1.0)
+    plain, derived = turning_chassis(ChassisModel()), turning_chassis(ChassisModel(yaw_rate="steering",
+                                                                                  steer_offset_deg=1.0))
+    try:
+        a, b = plain.read(), derived.read()
+        assert a.true_yaw_rate is None and a.body_yaw_rate == a.yaw_rate
+        assert b.steer == pytest.approx(0.1, abs=2e-3)  # the servo closes its loop on the offset sensor
+        assert derived.vehicle.steer_angle() == pytest.approx(0.1 - offset, abs=2e-3)  # the wheels: 1° short
+        assert b.yaw_rate == bicycle_yaw_rate(b.speed, b.steer, derived.vehicle.params.wheelbase)
+        assert b.body_yaw_rate == b.true_yaw_rate and b.true_yaw_rate < b.yaw_rate - 0.5 * b.speed * offset / 2.8
+    finally:
+        plain.world.close()
+        derived.world.close()
+
+
+def test_a_chassis_state_without_a_true_yaw_rate_gives_the_imu_the_reported_one():
+    assert ChassisState(0.0, 5.0, 0.0, 0.0, yaw_rate=0.2).body_yaw_rate == 0.2
+    assert ChassisState(0.0, 5.0, 0.0, 0.0, yaw_rate=0.2, true_yaw_rate=0.1).body_yaw_rate == 0.1
+
+
+@pytest.mark.parametrize("offset", [1.0, -1.0])
+def test_a_steering_offset_with_a_derived_yaw_rate_keeps_the_lane_only_with_odometry_s_bias_learnt(offset):
+    sc = api.scenario("urban-curvy", duration=20.0, speed=4.0, localization="msf", defense="ld3", seed=3,
+                      chassis={"yaw_rate": "steering", "steer_offset_deg": offset})
+    learnt = api.run(sc).summary
+    assert learnt["consequence"] == "reach_destination" and not learnt["detected"]
+    assert learnt["max_abs_dev_m"] < 0.3
+    unlearnt = api.run(sc.replace(defense_params={"odometry_bias_span": 0.0})).summary
+    assert unlearnt["consequence"] in ("hit_curb", "hit_lane_divider", "out_of_lane") and not unlearnt["detected"]
