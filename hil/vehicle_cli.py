@@ -5,6 +5,7 @@ failed."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -14,6 +15,7 @@ from hil.link.profile import DEFAULT_PROFILE
 from hil.link.scheduling import RT_PRIORITY
 from hil.vehicle.geodetic import DEFAULT_ORIGIN, parse_origin
 from testbed.eval.run.folder import claimed_out_dir
+from vehicles.params import get_vehicle
 
 EXIT_FAULT, EXIT_LINK = 3, 4
 
@@ -85,6 +87,11 @@ def cmd_vehicle(args: argparse.Namespace, bus_from_args) -> int:
     print(f"vehicle on {config.map}: consequence {summary['consequence']}, {summary['sim_time_s']:.1f} s, "
           f"detected {summary['detected']}; {summary['nmea_fixes']} GNSS fixes, {summary['camera_frames']} frames; "
           f"outputs in {args.out}")
+    bias = summary["odometry_bias_rad_per_m"]
+    if bias is not None:
+        offset = math.degrees(math.atan(bias * get_vehicle(config.vehicle).wheelbase))
+        print(f"odometry: yaw rate {bias:+.5f} rad/m off, a steering-angle offset of {offset:+.2f}° if the chassis "
+              f"derives it from its steering")
     if summary["faults"]:
         first = summary["faults"][0]
         print(f"ld3: chassis fault: {first['kind']} at {first['time']:.2f} s ({first['detail']}); outputs in "

@@ -313,6 +313,7 @@ class VehicleRun:
             "nmea_no_fix": self.gnss.counts.no_fix,
             "nmea_refused": dict(self.gnss.counts.refused), "gnss_fixes_refused": self.localization.fixes_refused,
             "camera_frames": self.camera.frames if self.camera else 0,
+            "odometry_bias_rad_per_m": defense.odometry_bias(),
         })
 
     def close(self) -> None:

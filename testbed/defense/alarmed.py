@@ -65,6 +65,10 @@ class Ld3AlarmedDefense(LatchingDefense):
         if self.config.fail_closed:
             self._carry(t, speed, self.odometry_yaw_rate(speed, yaw_rate))
 
+    def odometry_bias(self) -> float | None:
+        bias = self.monitor.yaw_bias
+        return bias.curvature if self.config.fail_closed and bias.estimated else None
+
     def odometry_yaw_rate(self, speed: float, yaw_rate: float) -> float:
         return self.monitor.yaw_bias.corrected(speed, yaw_rate)
 

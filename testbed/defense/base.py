@@ -67,6 +67,11 @@ class Defense(ABC):
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:  # noqa: B027 - optional hook
         """Chassis odometry at the start of every control tick: speed (m/s), yaw rate (rad/s, + left)."""
 
+    def odometry_bias(self) -> float | None:
+        """Odometry's yaw-rate error per metre travelled as the defense estimated it (rad/m); None where it keeps no
+        estimate."""
+        return None
+
     def odometry_yaw_rate(self, speed: float, yaw_rate: float) -> float:
         """The chassis yaw rate with the defense's estimate of its bias taken out (rad/s; as reported for a defense
         that keeps none): what the loop's lane tracker and lateral controller read."""

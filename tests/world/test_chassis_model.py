@@ -66,5 +66,8 @@ def test_a_steering_offset_with_a_derived_yaw_rate_keeps_the_lane_only_with_odom
     learnt = api.run(sc).summary
     assert learnt["consequence"] == "reach_destination" and not learnt["detected"]
     assert learnt["max_abs_dev_m"] < 0.3
+    wheelbase = vehicle("sedan").wheelbase
+    assert learnt["odometry_bias_rad_per_m"] == pytest.approx(math.tan(math.radians(offset)) / wheelbase, rel=0.05)
     unlearnt = api.run(sc.replace(defense_params={"odometry_bias_span": 0.0})).summary
     assert unlearnt["consequence"] in ("hit_curb", "hit_lane_divider", "out_of_lane") and not unlearnt["detected"]
+    assert unlearnt["odometry_bias_rad_per_m"] is None

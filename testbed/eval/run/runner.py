@@ -263,7 +263,7 @@ class SimRun:
             "stop_time_s": stop_t,
             "attack_state": self.parts.attack.state() if self.parts.attack is not None else None,
             "traffic_vehicles": len(self.parts.traffic.cars) if self.parts.traffic is not None else None,
-            "hit_vehicle": self.hit,
+            "hit_vehicle": self.hit, "odometry_bias_rad_per_m": self.parts.defense.odometry_bias(),
         })
 
     def write_outputs(self, out_dir: Path, result: RunResult, title_suffix: str = "", figures: bool = True) -> None:

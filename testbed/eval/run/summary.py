@@ -78,6 +78,9 @@ class RunSummary(BaseModel):
     """Traffic cars on the road (None: an empty road)."""
     hit_vehicle: HitVehicle | None = None
     """The traffic car the ego hit (consequence `hit_vehicle`), else None."""
+    odometry_bias_rad_per_m: float | None = None
+    """Odometry's yaw-rate error per metre travelled as the defense estimated it at the end (rad/m; fail-closed
+    LD3): tan δ₀ / L for a steering sensor δ₀ off in a yaw rate derived from it. None: no estimate."""
 
     @field_serializer("faults")
     def _faults(self, faults: list[FaultRecord]) -> list[dict[str, Any]]:

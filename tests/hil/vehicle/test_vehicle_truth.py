@@ -99,3 +99,21 @@ def test_a_recorded_spoofed_drive_replays_to_the_same_detection_time(slow_profil
     capsys.readouterr()
     assert main(["replay", str(tmp_path / "run"), "--out", str(tmp_path / "replay")]) == 0
     assert f"ld3 detects at {summary['detection_time_s']:.2f} s" in capsys.readouterr().out
+
+
+def test_an_ld3_drive_reports_the_steering_offset_odometry_s_fit_reads(slow_profile, tmp_path, capsys):
+    """The bench's kinematic chassis steers exactly as it reports: LD3's fit of the derived yaw rate reads no offset."""
+    video = tmp_path / "lane.avi"
+    lane_video(video, 20.0)
+    bench = TruthBench(slow_profile, "parking-lot", 5.0)
+    try:
+        code = main(["vehicle", "--map", "parking-lot", "--gnss", f"nmea:{bench.path}", "--interface", "virtual",
+                     "--channel", bench.channel, "--profile", slow_profile, "--camera", f"video:{video}",
+                     "--detector", "classical", "--speed", "2", "--duration", "12", "--out", str(tmp_path / "run")])
+    finally:
+        bench.close()
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert abs(summary["odometry_bias_rad_per_m"]) < 1e-4 and not summary["detected"]
+    line = next(li for li in capsys.readouterr().out.splitlines() if li.startswith("odometry:"))
+    assert re.search(r"a steering-angle offset of [+-]0\.0[0-9]°", line)
