@@ -66,8 +66,8 @@ class Ld3AlarmedDefense(LatchingDefense):
             self._carry(t, speed, self.odometry_yaw_rate(speed, yaw_rate))
 
     def odometry_bias(self) -> float | None:
-        bias = self.monitor.yaw_bias
-        return bias.curvature if self.config.fail_closed and bias.estimated else None
+        bias = self.monitor.yaw_bias  # the paper mode carries no odometry, so it never estimates
+        return bias.curvature if bias.estimated else None
 
     def odometry_yaw_rate(self, speed: float, yaw_rate: float) -> float:
         return self.monitor.yaw_bias.corrected(speed, yaw_rate)

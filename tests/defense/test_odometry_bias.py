@@ -144,8 +144,9 @@ def test_the_defense_hands_the_loop_the_corrected_yaw_rate_and_the_paper_mode_th
     d, _, _ = drive_straight(20.0, 4.0, OFFSET_1DEG)
     deadband = 0.5 * DefenseConfig().line_yaw_rate  # left to the lines' turn of the yaw
     assert d.odometry_yaw_rate(4.0, 0.3) == pytest.approx(0.3 - (4.0 * OFFSET_1DEG - deadband), abs=4e-4)
-    paper = Ld3Defense(DefenseConfig(fail_closed=False))
-    assert paper.odometry_yaw_rate(4.0, 0.3) == 0.3
+    assert d.odometry_bias() == pytest.approx(OFFSET_1DEG, abs=1e-4)
+    paper, _, _ = drive_straight(20.0, 4.0, OFFSET_1DEG, fail_closed=False)
+    assert paper.odometry_yaw_rate(4.0, 0.3) == 0.3 and paper.odometry_bias() is None
 
 
 def test_a_bias_under_the_deadband_is_left_to_the_lines_and_the_rest_taken_out():
