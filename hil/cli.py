@@ -21,8 +21,9 @@ import math
 import signal
 import sys
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import can
 
@@ -210,6 +211,22 @@ def replay_main(log_path: Path, bus_config: BusConfig, *, ids: str | None = None
 
 
 # ---------------------------------------------------------------------- hil
+BASIS_WORDS = {"plant": "the emulated plant's pose", "odometry": "the bridge's odometry"}
+
+
+def result_line(summary: Mapping[str, Any]) -> str:
+    """The consequence and max |D| of a run over CAN, naming the pose they are judged on, and odometry's own max
+    |D| beside them where that is another pose."""
+    def metres(value: float | None) -> str:
+        return "n/a" if value is None else f"{value:.3f} m"
+
+    line = (f"on {BASIS_WORDS[summary['consequence_basis']]}: consequence {summary['consequence']}, "
+            f"max |D| {metres(summary['max_abs_dev_m'])}")
+    if summary["consequence_basis"] != "odometry":
+        line += f" (odometry's max |D| {metres(summary['odometry_max_abs_dev_m'])})"
+    return line
+
+
 def cmd_hil(args: argparse.Namespace) -> int:
     """`ld3 hil SCENARIO ...` runs the scenario over CAN; `ld3 hil replay LOG ...` replays a log."""
     if args.scenario == REPLAY:
@@ -247,9 +264,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
         print(link_error_line(exc), file=sys.stderr)
         return EXIT_LINK
     s = result.summary
-    print(f"{sc.name} over {s['interface']} ({s['clock']}): consequence {s['consequence']}, "
-          f"max |D| {s['max_abs_dev_m']:.3f} m, detected {s['detected']}, {s['sim_time_s']:.1f} s simulated "
-          f"at {s['real_time_factor']:.1f}x real time")
+    print(f"{sc.name} over {s['interface']} ({s['clock']}): {result_line(s)}, detected {s['detected']}, "
+          f"{s['sim_time_s']:.1f} s simulated at {s['real_time_factor']:.1f}x real time")
     print(f"CAN: {s['can_frames_tx']} frames sent, {s['can_frames_rx']} received, "
           f"{s['can_frames_rejected']} rejected; log {out / s['can_log']}")
     print(f"outputs: {out}/summary.json, trajectory.csv, birdseye.png" + (", run.mcap" if args.record else ""))

@@ -5,6 +5,9 @@ Where the vehicle sits, by interface: `virtual` -> an ECU emulator in this proce
 virtual channel, its plant the PyBullet world the run also checks for curb and barrier contacts; `slcan`
 without a channel -> the ECU emulator as a separate process speaking SLCAN on a pty (lockstep); any other
 interface, or `slcan` with a channel -> an external VCU (realtime by default unless the bus is a pty).
+The consequence and the deviation figures are judged on one pose, which the summary's `consequence_basis` names
+(`hil.emulator.consequence_basis`): the emulated plant's where the run's emulator gives it, else the odometry's;
+odometry's own figures stay beside them (`odometry_max_abs_dev_m`, `odometry_final_dev_m`).
 The chassis profile (`LinkConfig.profile`) sets the protocol of bridge and emulator (a secured profile's key:
 `hil.link.secoc_key.link_key`, resolved before any bus opens); the bridge's pose is its odometry from the scenario's
 start pose and the vehicle's geometry. A run that latches a fault brakes to standstill in lane and ends as
@@ -23,7 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import can
+import numpy as np
 
+from hil.emulator.consequence_basis import ConsequenceBasis, consequence_basis
 from hil.emulator.ecu import EcuEmulator, EcuLimits
 from hil.emulator.plants import plant_args_for, scenario_plant
 from hil.emulator.sensor_io import SENSOR_MODES, SensorIo
@@ -43,9 +48,10 @@ from hil.link.wheels import WheelGeometry
 from hil.link.yaw_rate import YawRateChassis, yaw_rate_source
 from testbed.errors import UserError
 from testbed.eval.run.folder import claimed_out_dir
-from testbed.eval.run.runner import RunResult, SimRun
+from testbed.eval.run.runner import RunResult, SimRun, max_abs_dev
 from testbed.eval.run.scenario import Scenario
 from testbed.eval.run.summary import HilSummary
+from testbed.loop import TickRecord
 from testbed.presets import build_track, vehicle
 from testbed.world import PhysicsWorld
 
@@ -138,6 +144,14 @@ class HilLink:
         """The in-process ECU emulator (virtual interface), else None."""
         return self._ecu
 
+    @property
+    def consequence_basis(self) -> ConsequenceBasis:
+        """The pose the run is judged on: the in-process plant's, the truth frames of the ECU process this link
+        started where it publishes them, else the odometry's."""
+        truth_on = self.config.truth if self.config.truth is not None else self.profile.simulation.truth
+        truth = self.bridge.follower.truth_pose if self._process is not None and truth_on else None
+        return consequence_basis(self._ecu.plant if self._ecu is not None else None, truth)
+
     def engage(self, timeout: float = 5.0) -> None:
         self.bridge.engage(timeout=timeout)
 
@@ -171,6 +185,13 @@ def _drive(sim: SimRun, bridge: CanChassisBridge, progress: bool) -> RunResult:
     return sim.result()
 
 
+def _odometry_figures(rows: list[TickRecord]) -> dict[str, float | None]:
+    """max |D| and final D of the bridge's odometry pose (the pose the loop's chassis port reports)."""
+    devs = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
+    return {"odometry_max_abs_dev_m": max_abs_dev(devs),
+            "odometry_final_dev_m": float(devs[-1]) if len(devs) else None}
+
+
 def _log_name(log_path: Path | None, out_dir: Path | None) -> str | None:
     """The CAN log as the summary names it: relative to the run folder when it lies inside it (the folder may be
     written under a temporary name and renamed into place), else the path given."""
@@ -187,11 +208,12 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                      record: bool = False, sensors: str = "sim", force: bool = False) -> RunResult:
     """Run `sc` over the CAN link; with `out_dir` write the `ld3 run` outputs plus the CAN log
     (`log_path`, default OUT/can.asc), and with `record` run.mcap with the CAN frames decoded by the profile's
-    DBC. The summary gains interface, channel, clock, profile, frame counts and the odometry's largest and
-    final distance from the emulator's truth (where truth frames are on). `prepare` is called with the link
-    before engaging (fault drills install their injections there). `sensors` "io" routes GNSS and camera
-    through the real readers (`hil.emulator.sensor_io`; the link's `sensor_io` then). A finished run in `out_dir` is
-    replaced only with `force`, and only once this run is written (`claimed_out_dir`)."""
+    DBC. The summary is judged on `HilLink.consequence_basis` and gains it, interface, channel, clock, profile,
+    frame counts, odometry's own deviation figures and its largest and final distance from the emulator's truth
+    (where truth frames are on). `prepare` is called with the link before engaging (fault drills install their
+    injections there). `sensors` "io" routes GNSS and camera through the real readers (`hil.emulator.sensor_io`; the
+    link's `sensor_io` then). A finished run in `out_dir` is replaced only with `force`, and only once this run is
+    written (`claimed_out_dir`)."""
     if sensors not in SENSOR_MODES:
         raise UserError(f"sensors must be one of {', '.join(SENSOR_MODES)}, got {sensors!r}")
     if sc.chassis.yaw_rate != "sensed":
@@ -203,6 +225,7 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
     if log_path is not None and log_path.suffix not in LOG_SUFFIXES:
         raise UserError(f"CAN log must end in {' or '.join(LOG_SUFFIXES)}: {log_path}")
     link = HilLink(sc, config, reply_timeout=reply_timeout)  # first: a refused link leaves no folder or log behind
+    basis = link.consequence_basis
     if out_dir is not None:
         log_path = log_path or out_dir / RUN_LOG
     with contextlib.ExitStack() as claim:
@@ -220,7 +243,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
                 prepare(link)
             chassis = YawRateChassis(link.bridge, link.profile, vehicle(sc.vehicle))
             sim = SimRun(sc, chassis=chassis, world=link.world, record=record,
-                         sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None)
+                         sensor_ports=link.sensor_io.wrap if link.sensor_io is not None else None,
+                         plant_pose=basis.pose)
             if sim.parts.recording is not None:
                 link.bridge.add_listener(CanToRecording(sim.parts.recording, link.profile.db, link.bridge.time))
             with interruptible(link.bridge.interrupt):
@@ -239,7 +263,8 @@ def run_hil_scenario(sc: Scenario, out_dir: Path | None, config: LinkConfig = Li
         bridge = link.bridge
         result = dataclasses.replace(result, record=HilSummary(**result.summary, **{
             "interface": config.interface, "channel": link.channel, "clock": config.clock_mode.value,
-            "profile": link.profile.name, "pose_source": "odometry",
+            "profile": link.profile.name, "pose_source": "odometry", "consequence_basis": basis.name,
+            **_odometry_figures(result.rows),
             "yaw_rate_source": yaw_rate_source(link.profile), "odometry_error_max_m": bridge.odometry_error_max_m,
             "odometry_error_final_m": bridge.odometry_error_last_m,
             "can_log": _log_name(log_path, out_dir),

@@ -6,7 +6,7 @@ import time
 import can
 import pytest
 
-from hil.cli import ecu_main, resolve_plant
+from hil.cli import ecu_main, resolve_plant, result_line
 from hil.emulator.plants import pybullet_plant
 from testbed.cli import main
 
@@ -17,7 +17,7 @@ def test_ld3_hil_writes_the_outputs_and_its_log_replays_onto_a_bus(tmp_path, cap
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["seed"] == 2 and summary["interface"] == "virtual"
-    assert "over virtual (lockstep)" in capsys.readouterr().out
+    assert "over virtual (lockstep): on the emulated plant's pose: consequence" in capsys.readouterr().out
 
     with can.LogReader(str(out / "can.asc")) as reader:
         logged = list(reader)
@@ -61,6 +61,14 @@ def test_user_errors_are_one_line_and_exit_2(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("ld3: error:") and message in err and "\n" not in err
+
+
+def test_the_result_line_names_the_pose_it_judges_on_and_odometry_s_own_beside_a_plant_s():
+    summary = {"consequence": "hit_curb", "max_abs_dev_m": 0.615, "odometry_max_abs_dev_m": 0.02}
+    assert result_line({**summary, "consequence_basis": "plant"}) == (
+        "on the emulated plant's pose: consequence hit_curb, max |D| 0.615 m (odometry's max |D| 0.020 m)")
+    assert result_line({**summary, "consequence_basis": "odometry", "max_abs_dev_m": None}) == (
+        "on the bridge's odometry: consequence hit_curb, max |D| n/a")
 
 
 def test_pybullet_plant_is_named_by_its_short_name_and_ecu_runs_a_scenario_plant():

@@ -29,7 +29,7 @@ from testbed.eval.run.scenario import END_MARGIN_M, Scenario, ScenarioError
 from testbed.eval.run.summary import RunSummary
 from testbed.eval.run.video import FrameSignals
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.loop import SensorPorts, TickRecord
+from testbed.loop import SensorPorts, TickRecord, safe_dev
 from testbed.traffic.fleet import EgoOnRoad
 from testbed.traffic.record import RECORD_HZ, HitVehicle, TrafficLog, vehicle_hit
 from testbed.world import PhysicsWorld
@@ -56,7 +56,7 @@ class RunResult:
         self.summary = self.record.as_dict()
 
 
-def _max_abs(values: np.ndarray) -> float | None:
+def max_abs_dev(values: np.ndarray) -> float | None:
     """The largest |value| among the finite ones (a car off the map has no deviation), None when there is none."""
     finite = values[np.isfinite(values)]
     return float(np.max(np.abs(finite))) if len(finite) else None
@@ -65,14 +65,19 @@ def _max_abs(values: np.ndarray) -> float | None:
 class SimRun:
     """Steps one simulated run to its end and returns its typed result: `parts` is what `build_run` built from
     the scenario (the loop run, the world, the track, ...); this adds the simulator's hooks (contacts, traffic,
-    video and recording) and end conditions (a consequence before standstill, the end of the road after it)."""
+    video and recording) and end conditions (a consequence before standstill, the end of the road after it).
+
+    The consequence, the end of the road and the summary's deviations are judged on the chassis's true pose, or
+    with `plant_pose` on the pose it reads after each tick (as the contacts are): the car behind a chassis port
+    whose pose is not that car's (the CAN bridge's odometry before an emulated plant)."""
 
     def __init__(self, sc: Scenario, *, render: bool | None = None, video: bool = False, record: bool = False,
                  chassis: ChassisPort | None = None, world: PhysicsWorld | None = None, ground: str = "canvas",
                  defense: Defense | None = None, detector: LaneDetector | None = None,
                  attack: Attack | list[Attack] | None = None, tracking: bool | None = None,
-                 sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None) -> None:
-        """The keyword options are those of `RunOptions`."""
+                 sensor_ports: Callable[[SensorPorts], SensorPorts] | None = None,
+                 plant_pose: Callable[[], Pose | None] | None = None) -> None:
+        """The keyword options are those of `RunOptions`, and `plant_pose` (None: not known at that tick)."""
         self.sc = sc
         self._frames: list[tuple[CameraFrame, LaneDetection]] = []
         options = RunOptions(render, video, record, chassis, world, ground, defense, detector, attack, tracking,
@@ -98,6 +103,9 @@ class SimRun:
                                    + parts.traffic.length)
         self._contacts: set[str] = set()
         self._edge: str | None = None
+        self._plant_pose = plant_pose
+        self._plant: Pose | None = None
+        self._plant_devs: list[float | None] = []
         self.run_loop.add_hook(self._observe)
         self.run_loop.add_end(self._consequence, before_standstill=True)
         self.run_loop.add_end(self._road_end)
@@ -113,6 +121,18 @@ class SimRun:
     @property
     def ended_by(self) -> str | None:
         return self.run_loop.ended_by
+
+    @property
+    def judged_devs(self) -> list[float | None]:
+        """D per tick of the pose the run is judged on (None: off the map, no pose that tick, or a tick cut short
+        by a second interruption before its hooks ran)."""
+        if self._plant_pose is None:
+            return [r.phys_dev for r in self.rows]
+        return self._plant_devs + [None] * (len(self.rows) - len(self._plant_devs))
+
+    def _judged_pose(self) -> Pose | None:
+        """The pose the run is judged on as of the last tick: the plant's, else the chassis's true pose."""
+        return self.loop.last_state.true_pose if self._plant_pose is None else self._plant
 
     @property
     def done(self) -> bool:
@@ -168,24 +188,31 @@ class SimRun:
         if parts.video is not None or parts.recording is not None:
             self._record_tick(rec)
         state = loop.last_state
-        pose = state.true_pose
+        if self._plant_pose is not None:
+            self._plant = self._plant_pose()
+            self._plant_devs.append(safe_dev(parts.smap, self._plant, parts.lane) if self._plant is not None
+                                    else None)
+        judged = self._judged_pose()
         world = parts.world
         self._contacts = world.contact_kinds() if world is not None else set()
         if "vehicle" in self._contacts and self.hit is None:
-            self.hit = vehicle_hit(parts.traffic, world.traffic_touching()[0], rec.t, state.speed, pose.yaw)
-        self._edge = self._edge_beyond(pose)
+            self.hit = vehicle_hit(parts.traffic, world.traffic_touching()[0], rec.t, state.speed, judged.yaw)
+        self._edge = self._edge_beyond(judged) if judged is not None else None
         if parts.traffic is not None:
-            self._advance_traffic(rec, pose)
+            self._advance_traffic(rec, state.true_pose)
 
     def _consequence(self, rec: TickRecord) -> str | None:
-        if self.monitor.observe(rec.phys_dev, self._contacts, self._edge is not None, self._edge == "drop_off"):
+        dev = rec.phys_dev if self._plant_pose is None else self._plant_devs[-1]
+        if self.monitor.observe(dev, self._contacts, self._edge is not None, self._edge == "drop_off"):
             return "consequence"
         return None
 
     def _road_end(self, rec: TickRecord) -> str | None:
-        parts = self.parts
+        parts, pose = self.parts, self._judged_pose()
+        if pose is None:
+            return None
         try:
-            s = parts.smap.project(self.loop.last_state.true_pose, parts.lane).s
+            s = parts.smap.project(pose, parts.lane).s
         except OffMapError:  # a car off the map is at no road's end; the consequence monitor judges where it went
             return None
         return "road_end" if s > parts.track.length - END_MARGIN_M else None
@@ -229,7 +256,7 @@ class SimRun:
         sc, rows, wall, stop_t = self.sc, self.rows, self.wall_time, self.stop_t
         status = self.parts.defense.status()
         det_t = status.detection_time
-        phys = np.array([np.nan if r.phys_dev is None else r.phys_dev for r in rows])
+        phys = np.array([np.nan if d is None else d for d in self.judged_devs])
         t = np.array([r.t for r in rows])
         final_dev = float(phys[-1]) if len(phys) else math.nan
         before = phys[t <= det_t] if det_t is not None else phys
@@ -251,14 +278,14 @@ class SimRun:
             "localization": sc.localization, "target_speed_mps": sc.speed,
             "sim_time_s": sim_time, "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
             "lane_width_m": self.parts.lane_width, "lane_straddle_dev_m": self.monitor.straddle_dev,
-            "max_abs_dev_m": _max_abs(phys),
+            "max_abs_dev_m": max_abs_dev(phys),
             "final_dev_m": final_dev, "consequence": consequence, "ended_by": self.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults]
             + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
                 "count": f.count} for f in self.parts.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
-            "detection_dev_m": _max_abs(before) if det_t is not None else None,
-            "ar_max_dev_m": _max_abs(during),
+            "detection_dev_m": max_abs_dev(before) if det_t is not None else None,
+            "ar_max_dev_m": max_abs_dev(during),
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,
             "attack_state": self.parts.attack.state() if self.parts.attack is not None else None,

@@ -15,7 +15,7 @@ from testbed.errors import UserError
 from testbed.eval.run.consequence import Consequence
 from testbed.traffic.record import HitVehicle
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 """Version of summary.json's layout; raised when a key is added, changes meaning or goes away."""
 
 
@@ -108,11 +108,19 @@ class CanLinkFields(BaseModel):
 
 
 class HilSummary(RunSummary, CanLinkFields):
-    """A simulated run with the CAN bridge as its chassis (`ld3 hil`)."""
+    """A simulated run with the CAN bridge as its chassis (`ld3 hil`): the consequence and every deviation figure
+    of `RunSummary` are judged on the pose `consequence_basis` names; odometry's own figures are kept beside."""
 
     channel: str | None
     clock: str
     pose_source: str
+    consequence_basis: Literal["plant", "odometry"]
+    """The pose the consequence and the deviation figures are judged on: the emulated plant's own (its truth, where
+    the run's emulator gives it), else the bridge's odometry (the pose the loop's simulated sensors read)."""
+    odometry_max_abs_dev_m: float | None
+    """max |D| of the bridge's odometry pose, whatever the basis."""
+    odometry_final_dev_m: float | None
+    """Final D of the bridge's odometry pose, whatever the basis."""
     odometry_error_max_m: float | None
     odometry_error_final_m: float | None
     can_frames_rejected: int
@@ -180,7 +188,8 @@ def summary_from(data: dict[str, Any], source: Path) -> RunSummary:
     """`data` (a summary.json's object) as its typed summary: a `VehicleSummary` for a drive on a vehicle, a
     `HilSummary` for a run over CAN, else a `RunSummary`; a field missing, unknown or of the wrong type is a
     one-line UserError naming `source` and the field."""
-    kind = VehicleSummary if "consequence_basis" in data else HilSummary if "interface" in data else RunSummary
+    kind = (VehicleSummary if data.get("consequence_basis") == "estimated" else HilSummary if "interface" in data
+            else RunSummary)
     try:
         return kind.model_validate(data)
     except ValidationError as exc:

@@ -25,6 +25,7 @@ def fake_summary(**fields: Any) -> RunSummary:
 HIL_FIELDS: dict[str, Any] = {
     "interface": "virtual", "profile": "ld3-dev", "can_log": None, "can_frames_tx": 0, "can_frames_rx": 0,
     "yaw_rate_source": "chassis", "channel": None, "clock": "lockstep", "pose_source": "sim",
+    "consequence_basis": "plant", "odometry_max_abs_dev_m": 0.1, "odometry_final_dev_m": 0.0,
     "odometry_error_max_m": None, "odometry_error_final_m": None, "can_frames_rejected": 0, "can_frames_logged": 0,
     "sensors": "sim"}
 

@@ -41,6 +41,7 @@ def test_a_summary_reads_back_typed_as_it_was_written(tmp_path):
     assert read.model_dump(exclude={"max_abs_dev_m"}) == written.model_dump(exclude={"max_abs_dev_m"})
     fake_hil_summary(can_frames_tx=7).write(tmp_path / "hil.json")
     assert isinstance(hil := read_summary(tmp_path / "hil.json"), HilSummary) and hil.can_frames_tx == 7
+    assert hil.consequence_basis == "plant"  # a basis other than a vehicle's "estimated" is a run over CAN
 
 
 @pytest.mark.parametrize(("change", "named"), [
