@@ -12,6 +12,7 @@ from typing import Any
 
 import cv2
 import torch
+from threadpoolctl import threadpool_limits
 
 from testbed.errors import UserError
 
@@ -47,9 +48,11 @@ class SectionTimer:
 
 
 def one_core() -> None:
-    """Keep torch and OpenCV on the calling thread, as the benchmarks' "one core" requires."""
+    """Keep torch, OpenCV and the BLAS and OpenMP pools (numpy's OpenBLAS spreads even a 7 × 7 `dot` over two
+    threads) on the calling thread, as the benchmarks' "one core" requires."""
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
+    threadpool_limits(limits=1)
 
 
 LOOP_SECTIONS = ("physics", "vehicle actuation", "localization", "map", "control", "defense", "attack",

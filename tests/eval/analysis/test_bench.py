@@ -3,6 +3,8 @@
 import importlib.util
 import json
 
+from threadpoolctl import threadpool_info, threadpool_limits
+
 from testbed.cli import EXIT_USAGE, main
 from testbed.eval.analysis.bench import (
     LOOP_SECTIONS,
@@ -10,6 +12,7 @@ from testbed.eval.analysis.bench import (
     StepSimulationClock,
     bench_boxes,
     bench_lane_detectors,
+    one_core,
 )
 from testbed.rates import PHYSICS_HZ
 from testbed.tiny_boxes import kernel
@@ -25,6 +28,16 @@ def test_lane_detector_bench_reports_latency_of_both_detectors_on_one_thread():
         r = result[name]
         assert 0.0 < r["ms_median"] <= r["ms_p99"]
         assert 0.0 < r["cpu_ms_median"] <= r["cpu_ms_p99"]
+
+
+def test_one_core_leaves_the_blas_pools_one_thread():
+    before = {pool["prefix"]: pool["num_threads"] for pool in threadpool_info()}
+    try:
+        one_core()
+        blas = [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+        assert blas and set(blas) == {1}
+    finally:
+        threadpool_limits(limits=before)
 
 
 def test_loop_bench_without_camera_reports_both_real_time_factors_and_a_complete_split(capsys):
