@@ -9,7 +9,9 @@ query, or no D_LD yet is skipped and logged.
 Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
-towards the lane heading plus the lines' relative heading, never towards the MSF yaw), stands in for the lines
+towards the lane heading plus the lines' relative heading, never towards the MSF yaw, and only where the lines'
+heading is within the heading check's b of the MSF's: lines a road patch bends do not turn the yaw the response will
+steer on), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
@@ -262,10 +264,11 @@ class LaneConsistencyMonitor:
                 agreed: bool = False) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
-        towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most (the MSF yaw only for a
-        first anchor without one). `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also
-        agrees with the lines' within `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an
-        attacker of the lines alone then teaches nothing)."""
+        towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most, and only where that
+        heading is within the heading check's b of `pose`'s (the MSF yaw only for a first anchor without one).
+        `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
+        `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
+        teaches nothing)."""
         reckoned = self.reckoned
         if reckoned is not None and self.along_gain < 1.0:
             g = self.along_gain
@@ -280,6 +283,8 @@ class LaneConsistencyMonitor:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
+        elif abs(math.remainder(pose.yaw - heading - psi, math.tau)) > self.heading.b:
+            yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading turn nothing
         else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
             turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)

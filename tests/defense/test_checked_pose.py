@@ -4,6 +4,8 @@ with late, dropped or irregular frames; the paper mode steers on every MSF pose 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -158,9 +160,9 @@ def rotated_lines(t: float, psi: float) -> LaneDetection:
     return LaneDetection(t, np.array([HALF, c1, 0, 0.0]), np.array([-HALF, c1, 0, 0.0]), 0.9, 0.9, (0.0, 40.0))
 
 
-def steer_on_rotated_lines(**config) -> list[float]:
-    """A centred car with a true MSF pose (yaw 0); from 1 s the lines are read turned left at 0.1 rad/s (a road
-    patch's bend, under the heading check's weight for 0.3 s); the yaws of the control poses while normal."""
+def steer_on_rotated_lines(cap: float = math.inf, **config) -> list[float]:
+    """A centred car with a true MSF pose (yaw 0); from 1 s the lines are read turned left at 0.1 rad/s up to `cap`
+    (a road patch's bend, under the heading check's weight for 0.3 s); the yaws of the control poses while normal."""
     smap = FakeStraightMap()
     d = Ld3Defense(DefenseConfig(**config))
     yaws = []
@@ -169,7 +171,7 @@ def steer_on_rotated_lines(**config) -> list[float]:
         d.on_odometry(t, SPEED, 0.0)
         est = LocalizationEstimate(t, Pose(50.0 + SPEED * t, 0.0, 0.0), np.eye(3) * 0.01)
         if k % 2 == 0:
-            d.on_lane_detection(rotated_lines(t, 0.1 * max(0.0, t - 1.0)), est, smap)
+            d.on_lane_detection(rotated_lines(t, min(cap, 0.1 * max(0.0, t - 1.0))), est, smap)
         pose = d.pose_for_control(est, smap)
         if d.mode != "ar":
             yaws.append(pose.yaw)
@@ -183,6 +185,14 @@ def test_lines_rotated_by_a_road_patch_turn_the_steered_yaw_no_faster_than_the_g
     assert max(abs(y) for y in yaws) <= config.steer_yaw_tol + config.line_yaw_rate * 2.0 + 1e-9
 
 
-def test_without_the_rate_the_steered_yaw_follows_the_rotated_lines():
+def test_without_the_rate_the_steered_yaw_follows_lines_rotated_within_the_heading_check():
+    yaws = steer_on_rotated_lines(cap=0.025, line_yaw_rate=1e9)
+    # the dead-reckoned yaw follows the lines' 0.025 rad, and the steered yaw leaves the true MSF's 0 by more than
+    # steer_yaw_tol: the car would be steered by the patch
+    assert max(yaws) > DefenseConfig().steer_yaw_tol
+
+
+def test_lines_rotated_past_the_heading_check_turn_the_steered_yaw_no_further_even_without_the_rate():
     yaws = steer_on_rotated_lines(line_yaw_rate=1e9)
-    assert max(yaws) > 0.03  # the lines' heading less steer_yaw_tol: the car would be steered by the patch
+    config = DefenseConfig()
+    assert max(abs(y) for y in yaws) <= config.heading_b + config.steer_yaw_tol + 1e-9

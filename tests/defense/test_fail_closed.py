@@ -29,9 +29,10 @@ ZONE = (100.0, 130.0)  # an intersection along x
 PAPER = {"fail_closed": False}
 
 
-def lines(t: float, dev: float) -> LaneDetection:
-    """Ideal lines for a car `dev` m left of the lane-0 centre, parallel to the lane."""
-    return LaneDetection(t, np.array([HALF - dev, 0, 0, 0.0]), np.array([-HALF - dev, 0, 0, 0.0]), 0.9, 0.9,
+def lines(t: float, dev: float, slope: float = 0.0) -> LaneDetection:
+    """Ideal lines for a car `dev` m left of the lane-0 centre, parallel to the lane, or turned by `slope` (their
+    offset at the car kept: lines a road patch bends)."""
+    return LaneDetection(t, np.array([HALF - dev, slope, 0, 0.0]), np.array([-HALF - dev, slope, 0, 0.0]), 0.9, 0.9,
                          (0.0, 40.0))
 
 
@@ -58,14 +59,14 @@ class Drive:
         return self.x0 + self.speed * self.t
 
     def run(self, seconds: float, msf: Callable[[float, float], float] = lambda t, x: 0.0,
-            yaw: Callable[[float, float], float] = lambda t, x: 0.0) -> Drive:
+            yaw: Callable[[float, float], float] = lambda t, x: 0.0, slope: float = 0.0) -> Drive:
         for _ in range(round(seconds * 100)):
             self.defense.on_odometry(self.t, self.speed, self.gyro_bias)
             est = LocalizationEstimate(self.t, Pose(self.x, self.dev + msf(self.t, self.x), yaw(self.t, self.x)),
                                        np.eye(3) * 0.01)
             if self.ticks % 5 == 0:
                 inside = any(lo <= self.x <= hi for lo, hi in self.smap.intersections)
-                ld = LaneDetection.empty(self.t) if inside else lines(self.t, self.dev)
+                ld = LaneDetection.empty(self.t) if inside else lines(self.t, self.dev, slope)
                 self.defense.on_lane_detection(ld, est, self.smap)
                 if self.alarm_x is None and self.defense.mode == "ar":
                     self.alarm_x, self.alarm_tick = self.x, self.ticks
@@ -189,6 +190,20 @@ def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
     assert quiet.mode == "normal"
     with pytest.raises(ValueError, match="fail_closed = false"):
         DefenseConfig(**PAPER, heading_b=0.05)
+
+
+def test_lines_turned_off_the_msf_heading_do_not_turn_the_dead_reckoned_yaw():
+    """Lines bent 0.08 rad, their offset at the car true, beside a true MSF (the heading check, which catches the bend
+    itself, switched off): the dead-reckoned yaw the response would steer on stays the gyro's. Bent 0.02 rad, inside
+    heading_b, they turn it at line_yaw_rate as a gyro's drift is corrected."""
+    smap = FakeStraightMap()
+    bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    Drive(bent, smap).run(1.0).run(3.0, slope=0.08)
+    assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
+    slight = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    Drive(slight, smap).run(1.0).run(3.0, slope=0.02)
+    assert 0.5 * 3.0 * slight.config.line_yaw_rate < abs(slight.monitor.odometry.pose.yaw) <= (
+        3.0 * slight.config.line_yaw_rate + 1e-9)
 
 
 def test_naive_ar_shares_the_fail_closed_detection():
