@@ -105,6 +105,10 @@ class Ld3Detector:
 ANCHOR_YAW_GAIN = 0.1
 """Share of the gap between the dead-reckoned yaw and the lines' heading closed per agreeing detection: the
 detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
+TRUSTED_SHARE = 0.5
+"""Share of b within which D_MSF and D_LD agree for `LaneConsistencyMonitor.trusted` to take the dead-reckoned pose:
+lines that ramp away from a true MSF pull the dead-reckoned pose up to b before the CUSUM sees them, the trusted
+pose half that."""
 UNPLACED_RESIDUAL_M = 3.5
 """Residual fed for an MSF pose the map cannot place while the map has given no lane width yet (m): a lane."""
 
@@ -137,6 +141,9 @@ class LaneConsistencyMonitor:
         self.fail_closed = fail_closed
         self.odometry = DeadReckoning(lever)
         """The dead-reckoned pose (`lever`: the pose's reference point ahead of the rear axle, m)."""
+        self.trusted = DeadReckoning(lever)
+        """The dead-reckoned pose as of the last detection where D_MSF and D_LD agreed within `TRUSTED_SHARE` of b,
+        carried by odometry since: where the response's reference starts (`Ld3Defense`)."""
         self.yaw_agreement = yaw_agreement
         """How closely the MSF's and the lines' headings relative to the lane must agree (rad), D_MSF and D_LD within
         b, for the MSF's yaw to teach `yaw_bias`: before its first estimate (the lines tracked on the biased yaw
@@ -159,7 +166,9 @@ class LaneConsistencyMonitor:
         fault."""
         if not self.fail_closed:
             return
-        if self.odometry.on_odometry(t, speed, self.yaw_bias.corrected(speed, yaw_rate)):
+        corrected = self.yaw_bias.corrected(speed, yaw_rate)
+        if self.odometry.on_odometry(t, speed, corrected):
+            self.trusted.on_odometry(t, speed, corrected)
             self.yaw_bias.on_odometry(t, speed, yaw_rate)
         else:
             self.faults.report("bad-odometry", t, f"speed={speed}, yaw rate={yaw_rate}; sample skipped")
@@ -240,6 +249,8 @@ class LaneConsistencyMonitor:
         if abs(d_msf - d_ld) <= b_lat:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld, agreed=True)
+            if abs(d_msf - d_ld) <= TRUSTED_SHARE * b_lat:
+                self.trusted.anchor(self.odometry.pose)
         elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
             # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
             since = t - self._anchor_time if self._anchor_time is not None else 0.0

@@ -15,7 +15,9 @@ Fail-closed mode (the default): the fused pose is the monitor's dead-reckoned po
 between detections and, on each detection with a valid line, placed across the ego lane at the fused
 deviation (lane point at its own station, its own yaw), Alg. 2's state first moved to where odometry carried it;
 the heading option reads that yaw where the paper reads the MSF's. Each source is checked against a reference,
-the dead-reckoned pose at the alarm moved only towards lines that pass the check, no faster than `line_rate`:
+the dead-reckoned pose as of the last detection where MSF and lines agreed within half b (lines that ramp away from a
+true MSF pull the dead-reckoned pose up to b before the alarm), carried by odometry to the alarm and from there
+moved only towards lines that pass the check, no faster than `line_rate`:
 lines farther than `response_gate` are left out of that detection, the MSF out of the rest of the response (as is
 an MSF pose the map cannot place); Alg. 2 then runs on D_LD alone. A detection without a valid line leaves the pose to
 odometry. The MSF pose is handed to control in response only when there is no pose to carry (never anchored,
@@ -64,8 +66,9 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._fused_offset: tuple[float, float] | None = None
         self._msf_disowned = False
         self._reference = DeadReckoning(lever)
-        """The response's reference: the dead-reckoned pose at the alarm, carried by odometry and moved towards the
-        lines' D_LD that passed the gate no faster than `line_rate`; the MSF never moves it."""
+        """The response's reference: the monitor's trusted pose at the alarm (`LaneConsistencyMonitor.trusted`), carried
+        by odometry and moved towards the lines' D_LD that passed the gate no faster than `line_rate`; the MSF never
+        moves it."""
         self._reference_time = -math.inf
         """When the reference was last anchored or moved (s)."""
 
@@ -143,10 +146,11 @@ class Ld3Defense(Ld3AlarmedDefense):
 
     def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int,
                            alarm: bool) -> tuple[Pose, np.ndarray, float]:
-        """The gate's reference (the dead-reckoned pose at the alarm, carried since; restarted at the fused pose,
-        a fault, when the map cannot place it) with its lane point and lane heading."""
+        """The gate's reference (at the alarm the monitor's trusted pose, else the dead-reckoned pose, carried since;
+        restarted at the fused pose, a fault, when the map cannot place it) with its lane point and lane heading."""
         if alarm or self._reference.pose is None:
-            self._reference.anchor(pose)
+            trusted = self.monitor.trusted.pose
+            self._reference.anchor(trusted if alarm and trusted is not None else pose)
             self._reference_time = t
         try:
             point, heading = smap.lane_point(self._reference.pose, lane)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from testbed.defense.attack_detection import TRUSTED_SHARE
 from testbed.defense.config import DefenseConfig
 from testbed.defense.ld3 import Ld3Defense, nearest_lane_image
 from testbed.lane_detection import LaneDetection
@@ -74,15 +75,24 @@ def test_lines_ramped_away_from_a_true_msf_cannot_drag_the_reference_the_sources
     d = respond(lambda t: 0.0, jump=0.0, seconds=4.0, ld_shift=drp_ramp)
     kinds = {r.kind for r in d.fault_records()}
     assert d.mode == "ar" and "msf-disowned" not in kinds and "ld-gated" in kinds
-    # pre-alarm the lines move odometry by b (agreeing with the MSF) and line_rate after; no further in the response
-    assert abs(d._reference.pose.y) <= d.config.b + d.config.line_rate * 3.0
+    # pre-alarm the lines move odometry by b (agreeing with the MSF), but the reference starts where they agreed within
+    # half b, and moves by line_rate at most after that
+    assert abs(d._reference.pose.y) <= TRUSTED_SHARE * d.config.b + d.config.line_rate * 3.0
     assert abs(d.status().fused_dev) < 0.05  # the car believed on the centre line, where it is
 
 
-def test_without_the_rate_limit_the_ramped_lines_drag_the_reference_and_the_true_msf_is_disowned():
-    d = respond(lambda t: 0.0, jump=0.0, seconds=4.0, ld_shift=drp_ramp, line_rate=1e9)
+def slow_ramp(t: float) -> float:
+    """Lines ramped away from a true MSF at 0.2 m/s from 1.0 s to 0.9 m: within the gate of the reference at the
+    alarm."""
+    return min(0.9, 0.2 * max(0.0, t - 1.0))
+
+
+def test_without_the_rate_limit_lines_ramped_within_the_gate_drag_the_reference_and_the_true_msf_is_disowned():
+    d = respond(lambda t: 0.0, jump=0.0, seconds=6.0, ld_shift=slow_ramp, line_rate=1e9)
     assert "msf-disowned" in {r.kind for r in d.fault_records()}
     assert d.status().fused_dev == pytest.approx(0.9, abs=0.05)  # the car believed where the attacker drew it
+    held = respond(lambda t: 0.0, jump=0.0, seconds=6.0, ld_shift=slow_ramp)
+    assert "msf-disowned" not in {r.kind for r in held.fault_records()} and abs(held.status().fused_dev) < 0.05
 
 
 def test_an_msf_alone_never_moves_the_response_and_the_reference_is_the_alarm_s_odometry():
