@@ -38,13 +38,18 @@ def test_sigterm_leaves_no_temporary_folder_and_keeps_the_earlier_run(tmp_path):
     out = tmp_path / "run"
     make_files(out, {"summary.json": '{"scenario": "earlier"}', "trajectory.csv": "t\n0.0\n"})
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "testbed.cli", "run", "slr", "--duration", "60", "--out", str(out),
-                             "--force"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+    # a slow car on a long drive (about 5 s of loop), signalled once its folder is claimed and the modules the run
+    # imports while it builds (matplotlib's compiled parts among them) are in: the signal lands in the loop, not in
+    # an import or after the run is done
+    proc = subprocess.Popen([sys.executable, "-m", "testbed.cli", "run", "slr", "--duration", "600", "--speed", "2",
+                             "--out", str(out), "--force"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not list(tmp_path.glob(".run.tmp-*")) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.2)
     assert list(tmp_path.glob(".run.tmp-*")), "the run never started writing"
+    time.sleep(1.5)
+    assert proc.poll() is None, "the run ended before it was signalled"
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
