@@ -286,15 +286,16 @@ class LaneConsistencyMonitor:
             pose = Pose(reckoned.x + g * (pose.x - reckoned.x), reckoned.y + g * (pose.y - reckoned.y), pose.yaw)
         point, heading = smap.lane_point(pose, lane)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
-        gate = self.yaw_agreement[self.yaw_bias.estimated]
-        if agreed and psi is not None and abs(math.remainder(pose.yaw - heading - psi, math.tau)) <= gate:
+        # how far the pose's heading relative to the lane is from the lines' (rad)
+        off = math.inf if psi is None else abs(math.remainder(pose.yaw - heading - psi, math.tau))
+        if agreed and off <= self.yaw_agreement[self.yaw_bias.estimated]:
             self.odometry.turn(self.yaw_bias.observe(pose.yaw))
         carried = self.odometry.pose
         if psi is None:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
-        elif abs(math.remainder(pose.yaw - heading - psi, math.tau)) > self.heading.b:
+        elif off > self.heading.b:
             yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading turn nothing
         else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
             turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
