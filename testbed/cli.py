@@ -553,7 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                     "preset, highway@101, urban-curvy@101)")
     p.add_argument("--defenses", metavar="LIST", help="comma list of ld3, ld3-paper, naive-ar, savior (default all)")
     p.add_argument("--threats", metavar="LIST", help="semicolon list of threat models (default "
-                                                     "gnss;msf-output;msf-output,ld-output)")
+                                                     "gnss;msf-output;ld-output;msf-output,ld-output)")
     p.add_argument("--workers", type=int, help="parallel runs per search (as `ld3 campaign --workers`)")
     p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
     p.add_argument("--address", help="ray: the cluster to connect to")
