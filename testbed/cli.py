@@ -663,14 +663,21 @@ def _user_message(exc: BaseException) -> str:
     return one_line(str(exc))
 
 
+_TERMINATED = threading.Event()
+"""Set by SIGTERM: an interrupt that surfaces as another exception (raised inside a compiled module's initialisation,
+which reports it as ImportError) is still reported as the interrupt."""
+
+
 def _terminate_as_interrupt(signum: int, frame: object) -> None:
     """SIGTERM ends a command as Ctrl-C does: the output being written is removed, an earlier one kept."""
+    _TERMINATED.set()
     raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
+    _TERMINATED.clear()
     previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
     try:
         return _main(argv)
@@ -693,6 +700,9 @@ def _main(argv: list[str] | None) -> int:
         print("ld3: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
+        if _TERMINATED.is_set():
+            print(f"ld3: interrupted ({type(exc).__name__} while it ended)", file=sys.stderr)
+            return 130
         print(f"ld3: internal error (a bug, not your input): {type(exc).__name__}: {one_line(str(exc))}; rerun "
               f"with --debug for the traceback", file=sys.stderr)
         return EXIT_INTERNAL
