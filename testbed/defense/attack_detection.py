@@ -10,8 +10,8 @@ Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
 towards the lane heading plus the lines' relative heading, never towards the MSF yaw, and only where the lines'
-heading is within the heading check's b of the MSF's: lines a road patch bends do not turn the yaw the response will
-steer on), stands in for the lines
+heading is within `line_yaw_tol` of the MSF's: lines a road patch bends, slowly or not, turn the yaw the response will
+steer on by no more than that), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
@@ -108,7 +108,9 @@ detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
 TRUSTED_SHARE = 0.5
 """Share of b within which D_MSF and D_LD agree for `LaneConsistencyMonitor.trusted` to take the dead-reckoned pose:
 lines that ramp away from a true MSF pull the dead-reckoned pose up to b before the CUSUM sees them, the trusted
-pose half that."""
+pose half that. Between those detections the trusted pose is kept within the same share of b of the interval between
+D_MSF and D_LD: against one attacked source the car is at the other, so the trusted pose comes no farther from it
+than the two sources are apart, however long the attacker holds them apart."""
 UNPLACED_RESIDUAL_M = 3.5
 """Residual fed for an MSF pose the map cannot place while the map has given no lane width yet (m): a lane."""
 
@@ -123,8 +125,8 @@ class LaneConsistencyMonitor:
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
-                 yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
-                 lever: float = 0.0) -> None:
+                 line_yaw_tol: float | None = None, yaw_agreement: tuple[float, float] = (0.0, 0.0),
+                 bias_span: float = 0.0, lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -135,6 +137,9 @@ class LaneConsistencyMonitor:
         """How fast the lines alone (the MSF disagreeing) may move the dead-reckoned pose across the lane (m/s)."""
         self.line_yaw_rate = line_yaw_rate
         """How fast the lines' heading may turn the dead-reckoned yaw (rad/s)."""
+        self.line_yaw_tol = line_yaw_tol if line_yaw_tol is not None else self.heading.b
+        """How closely the lines' heading must agree with the MSF's for it to turn the dead-reckoned yaw (rad; the
+        heading check's b when not given)."""
         self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
@@ -143,7 +148,8 @@ class LaneConsistencyMonitor:
         """The dead-reckoned pose (`lever`: the pose's reference point ahead of the rear axle, m)."""
         self.trusted = DeadReckoning(lever)
         """The dead-reckoned pose as of the last detection where D_MSF and D_LD agreed within `TRUSTED_SHARE` of b,
-        carried by odometry since: where the response's reference starts (`Ld3Defense`)."""
+        carried by odometry since and kept near the interval between D_MSF and D_LD (`TRUSTED_SHARE`): where the
+        response's reference starts (`Ld3Defense`)."""
         self.yaw_agreement = yaw_agreement
         """How closely the MSF's and the lines' headings relative to the lane must agree (rad), D_MSF and D_LD within
         b, for the MSF's yaw to teach `yaw_bias`: before its first estimate (the lines tracked on the biased yaw
@@ -246,6 +252,7 @@ class LaneConsistencyMonitor:
         if reckoned is not None and self._check_along(pose, reckoned, smap, lane):
             return True
         b_lat = self.detector.cusum.b
+        self._hold_trusted(d_msf, d_ld, TRUSTED_SHARE * b_lat, smap, lane)
         if abs(d_msf - d_ld) <= b_lat:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld, agreed=True)
@@ -276,7 +283,7 @@ class LaneConsistencyMonitor:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
         towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most, and only where that
-        heading is within the heading check's b of `pose`'s (the MSF yaw only for a first anchor without one).
+        heading is within `line_yaw_tol` of `pose`'s (the MSF yaw only for a first anchor without one).
         `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
         `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
         teaches nothing)."""
@@ -295,7 +302,7 @@ class LaneConsistencyMonitor:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
-        elif off > self.heading.b:
+        elif off > self.line_yaw_tol:
             yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading turn nothing
         else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
             turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
@@ -303,6 +310,22 @@ class LaneConsistencyMonitor:
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)
         self._anchor_time = ld.timestamp
+
+    def _hold_trusted(self, d_msf: float, d_ld: float, margin: float, smap: SemanticMap, lane: int) -> None:
+        """Move the trusted pose across `lane`, at its own station and yaw, into [min(D_MSF, D_LD) − margin,
+        max(D_MSF, D_LD) + margin] where it is outside (a pose the map cannot place is left as it is)."""
+        pose = self.trusted.pose
+        if pose is None:
+            return
+        try:
+            d = float(smap.lane_dev(pose, lane))
+            if min(d_msf, d_ld) - margin <= d <= max(d_msf, d_ld) + margin:
+                return
+            point, heading = smap.lane_point(pose, lane)
+        except OffMapError:
+            return
+        held = min(max(d, min(d_msf, d_ld) - margin), max(d_msf, d_ld) + margin)
+        self.trusted.anchor(pose_on_lane(point, heading, held, pose.yaw))
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
         """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""

@@ -195,15 +195,31 @@ def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
 def test_lines_turned_off_the_msf_heading_do_not_turn_the_dead_reckoned_yaw():
     """Lines bent 0.08 rad, their offset at the car true, beside a true MSF (the heading check, which catches the bend
     itself, switched off): the dead-reckoned yaw the response would steer on stays the gyro's. Bent 0.02 rad, inside
-    heading_b, they turn it at line_yaw_rate as a gyro's drift is corrected."""
+    heading_b but past line_yaw_tol, the same. Bent 0.004 rad, within line_yaw_tol, they turn it at line_yaw_rate as a
+    gyro's drift is corrected."""
     smap = FakeStraightMap()
-    bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
-    Drive(bent, smap).run(1.0).run(3.0, slope=0.08)
-    assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
+    for slope in (0.08, 0.02):
+        bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
+        Drive(bent, smap).run(1.0).run(3.0, slope=slope)
+        assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
     slight = Ld3Defense(DefenseConfig(heading_tau=1e9))
-    Drive(slight, smap).run(1.0).run(3.0, slope=0.02)
+    Drive(slight, smap).run(1.0).run(3.0, slope=0.004)
     assert 0.5 * 3.0 * slight.config.line_yaw_rate < abs(slight.monitor.odometry.pose.yaw) <= (
         3.0 * slight.config.line_yaw_rate + 1e-9)
+
+
+def test_the_trusted_pose_stays_between_the_sources_however_long_they_are_held_apart():
+    """An MSF held 0.15 m off the true lines (between half b and b: no anchor of the trusted pose, no alarm) for 20 s,
+    odometry's yaw rate 0.002 rad/s off and no bias learnt: carried alone the trusted pose would drift metres; it
+    stays within half b of the interval between D_MSF and D_LD."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(odometry_bias_span=0.0))
+    drive = Drive(d, smap, gyro_bias=0.002).run(1.0)
+    for _ in range(20):
+        drive.run(1.0, lambda t, x: 0.15)
+        pose = d.monitor.trusted.pose
+        carried = drive.speed * 0.05 * abs(math.sin(pose.yaw))  # odometry since the last detection, 50 ms ago at most
+        assert d.mode == "normal" and -0.1 - carried <= float(smap.lane_dev(pose, 0)) <= 0.25 + carried
 
 
 def test_naive_ar_shares_the_fail_closed_detection():
