@@ -141,6 +141,10 @@ class LaneConsistencyMonitor:
         """How closely the lines' heading must agree with the MSF's for it to turn the dead-reckoned yaw (rad; the
         heading check's b when not given)."""
         self._anchor_time: float | None = None
+        self._yaw_gap = 0.0
+        """The MSF's heading less the lines', relative to the lane, averaged over the agreeing detections by
+        `ANCHOR_YAW_GAIN` (rad): the lines turn the yaw only while it is within `line_yaw_tol`, so the MSF's noise
+        cannot let lines bent past it ratchet the yaw towards their heading."""
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -283,7 +287,8 @@ class LaneConsistencyMonitor:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
         towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most, and only where that
-        heading is within `line_yaw_tol` of `pose`'s (the MSF yaw only for a first anchor without one).
+        heading is within `line_yaw_tol` of `pose`'s and, on `agreed` anchors, of the MSF's on average (`_yaw_gap`)
+        (the MSF yaw only for a first anchor without one).
         `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
         `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
         teaches nothing)."""
@@ -297,13 +302,15 @@ class LaneConsistencyMonitor:
         off = math.inf if psi is None else abs(math.remainder(pose.yaw - heading - psi, math.tau))
         if agreed and off <= self.yaw_agreement[self.yaw_bias.estimated]:
             self.odometry.turn(self.yaw_bias.observe(pose.yaw))
+        if agreed and psi is not None:
+            self._yaw_gap += ANCHOR_YAW_GAIN * (math.remainder(pose.yaw - heading - psi, math.tau) - self._yaw_gap)
         carried = self.odometry.pose
         if psi is None:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
-        elif off > self.line_yaw_tol:
-            yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading turn nothing
+        elif off > self.line_yaw_tol or (agreed and abs(self._yaw_gap) > self.line_yaw_tol):
+            yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading, or the MSF's on average, turn nothing
         else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
             turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)

@@ -103,7 +103,7 @@ class DefenseConfig(Params):
     line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
                                  "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
                                  "about what a gyro drifts): lines rotated by a road patch cannot swing it")
-    line_yaw_tol: float = Field(0.005, gt=0.0, description="fail-closed: the lines' heading turns the dead-reckoned "
+    line_yaw_tol: float = Field(0.003, gt=0.0, description="fail-closed: the lines' heading turns the dead-reckoned "
                                 "yaw only where it agrees with the MSF's within this (rad; the benign residual's RMS "
                                 "is about 0.003): lines bent slowly under the heading check cannot bias the yaw the "
                                 "response's reference is carried on by more")

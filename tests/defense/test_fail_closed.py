@@ -195,17 +195,20 @@ def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
 def test_lines_turned_off_the_msf_heading_do_not_turn_the_dead_reckoned_yaw():
     """Lines bent 0.08 rad, their offset at the car true, beside a true MSF (the heading check, which catches the bend
     itself, switched off): the dead-reckoned yaw the response would steer on stays the gyro's. Bent 0.02 rad, inside
-    heading_b but past line_yaw_tol, the same. Bent 0.004 rad, within line_yaw_tol, they turn it at line_yaw_rate as a
-    gyro's drift is corrected."""
+    heading_b but past line_yaw_tol, the same. Bent 0.002 rad, within line_yaw_tol, they turn it towards their heading
+    at line_yaw_rate at most, as a gyro's drift is corrected."""
     smap = FakeStraightMap()
     for slope in (0.08, 0.02):
         bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
         Drive(bent, smap).run(1.0).run(3.0, slope=slope)
         assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
     slight = Ld3Defense(DefenseConfig(heading_tau=1e9))
-    Drive(slight, smap).run(1.0).run(3.0, slope=0.004)
-    assert 0.5 * 3.0 * slight.config.line_yaw_rate < abs(slight.monitor.odometry.pose.yaw) <= (
-        3.0 * slight.config.line_yaw_rate + 1e-9)
+    drive = Drive(slight, smap).run(1.0).run(0.5, slope=0.002)
+    assert 0.5 * 0.5 * slight.config.line_yaw_rate < abs(slight.monitor.odometry.pose.yaw) <= (
+        0.5 * slight.config.line_yaw_rate + 1e-9)
+    drive.run(2.5, slope=0.002)
+    assert 0.5 * 0.002 < abs(slight.monitor.odometry.pose.yaw) <= 0.002 + 1e-9
+    assert not slight.faults.counts.get("bad-odometry")
 
 
 def test_the_trusted_pose_stays_between_the_sources_however_long_they_are_held_apart():
