@@ -9,9 +9,9 @@ query, or no D_LD yet is skipped and logged.
 Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
-towards the lane heading plus the lines' relative heading, never towards the MSF yaw, and only where the lines'
-heading is within `line_yaw_tol` of the MSF's: lines a road patch bends, slowly or not, turn the yaw the response will
-steer on by no more than that), stands in for the lines
+into the interval between the MSF's and the lines' headings relative to the lane: the car heads as the source not
+attacked does, so lines a road patch bends, slowly or not, do not turn the yaw the response will steer on out of
+it), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
@@ -125,8 +125,8 @@ class LaneConsistencyMonitor:
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
-                 line_yaw_tol: float | None = None, yaw_agreement: tuple[float, float] = (0.0, 0.0),
-                 bias_span: float = 0.0, lever: float = 0.0) -> None:
+                 yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
+                 lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -137,14 +137,7 @@ class LaneConsistencyMonitor:
         """How fast the lines alone (the MSF disagreeing) may move the dead-reckoned pose across the lane (m/s)."""
         self.line_yaw_rate = line_yaw_rate
         """How fast the lines' heading may turn the dead-reckoned yaw (rad/s)."""
-        self.line_yaw_tol = line_yaw_tol if line_yaw_tol is not None else self.heading.b
-        """How closely the lines' heading must agree with the MSF's for it to turn the dead-reckoned yaw (rad; the
-        heading check's b when not given)."""
         self._anchor_time: float | None = None
-        self._yaw_gap = 0.0
-        """The MSF's heading less the lines', relative to the lane, averaged over the agreeing detections by
-        `ANCHOR_YAW_GAIN` (rad): the lines turn the yaw only while it is within `line_yaw_tol`, so the MSF's noise
-        cannot let lines bent past it ratchet the yaw towards their heading."""
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
         self.fail_closed = fail_closed
@@ -265,7 +258,8 @@ class LaneConsistencyMonitor:
         elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
             # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
             since = t - self._anchor_time if self._anchor_time is not None else 0.0
-            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)))
+            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)),
+                         msf_yaw=pose.yaw)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True
@@ -283,12 +277,13 @@ class LaneConsistencyMonitor:
         return self.along.update(gap) and self._latch(lane)
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float,
-                agreed: bool = False) -> None:
+                agreed: bool = False, msf_yaw: float | None = None) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
-        towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most, and only where that
-        heading is within `line_yaw_tol` of `pose`'s and, on `agreed` anchors, of the MSF's on average (`_yaw_gap`)
-        (the MSF yaw only for a first anchor without one).
+        into the interval between the MSF's heading (`msf_yaw`, else `pose`'s) and the lines', relative to the lane,
+        at `line_yaw_rate` at most (the lane heading plus the lines' relative heading for a first anchor, the MSF yaw
+        without lines): against one attacked source the car heads as the other does, so a yaw in that interval
+        stays where the gyro carried it and neither source alone can turn it out of it, however slowly.
         `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
         `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
         teaches nothing)."""
@@ -302,17 +297,15 @@ class LaneConsistencyMonitor:
         off = math.inf if psi is None else abs(math.remainder(pose.yaw - heading - psi, math.tau))
         if agreed and off <= self.yaw_agreement[self.yaw_bias.estimated]:
             self.odometry.turn(self.yaw_bias.observe(pose.yaw))
-        if agreed and psi is not None:
-            self._yaw_gap += ANCHOR_YAW_GAIN * (math.remainder(pose.yaw - heading - psi, math.tau) - self._yaw_gap)
         carried = self.odometry.pose
         if psi is None:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
-        elif off > self.line_yaw_tol or (agreed and abs(self._yaw_gap) > self.line_yaw_tol):
-            yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading, or the MSF's on average, turn nothing
-        else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
-            turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
+        else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
+            msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
+            own = wrap_angle(carried.yaw - heading)
+            turn = ANCHOR_YAW_GAIN * (min(max(own, min(msf_rel, psi)), max(msf_rel, psi)) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)

@@ -40,7 +40,7 @@ PSource = Literal["constant", "reported"]
 
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
-                              "line_rate", "line_yaw_rate", "line_yaw_tol", "odometry_bias_span", "response_gate",
+                              "line_rate", "line_yaw_rate", "odometry_bias_span", "response_gate",
                               "corner_radius"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
@@ -103,10 +103,6 @@ class DefenseConfig(Params):
     line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
                                  "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
                                  "about what a gyro drifts): lines rotated by a road patch cannot swing it")
-    line_yaw_tol: float = Field(0.003, gt=0.0, description="fail-closed: the lines' heading turns the dead-reckoned "
-                                "yaw only where it agrees with the MSF's within this (rad; the benign residual's RMS "
-                                "is about 0.003): lines bent slowly under the heading check cannot bias the yaw the "
-                                "response's reference is carried on by more")
     odometry_bias_span: float = Field(100.0, ge=0.0, description="fail-closed: distance (m) over which odometry's "
                                       "yaw-rate error per metre travelled (a steering-angle offset in a yaw rate "
                                       "derived from the steering) is fitted to the MSF's yaw where MSF and lines "

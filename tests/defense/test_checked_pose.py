@@ -185,18 +185,11 @@ def test_lines_rotated_by_a_road_patch_turn_the_steered_yaw_no_faster_than_the_g
     assert max(abs(y) for y in yaws) <= config.steer_yaw_tol + config.line_yaw_rate * 2.0 + 1e-9
 
 
-def test_without_the_rate_the_steered_yaw_follows_lines_rotated_within_the_tolerance():
-    yaws = steer_on_rotated_lines(cap=0.025, line_yaw_rate=1e9, line_yaw_tol=DefenseConfig().heading_b)
-    # the dead-reckoned yaw follows the lines' 0.025 rad, and the steered yaw leaves the true MSF's 0 by more than
-    # steer_yaw_tol: the car would be steered by the patch
-    assert max(yaws) > DefenseConfig().steer_yaw_tol
-
-
-def test_without_the_rate_lines_rotated_past_the_tolerance_turn_the_yaw_by_the_tolerance_at_most():
+def test_even_without_the_rate_lines_rotated_within_the_heading_check_leave_the_steered_yaw_to_the_gyro():
+    # lines bent slowly under the heading check (0.025 of its 0.03 rad) beside a true MSF: the dead-reckoned yaw, on
+    # the true 0 inside the interval between the MSF's heading and the lines', is not turned at any rate
     yaws = steer_on_rotated_lines(cap=0.025, line_yaw_rate=1e9)
-    # lines bent slowly under the heading check (0.025 of its 0.03 rad) turn the dead-reckoned yaw only while they
-    # agree with the true MSF's within line_yaw_tol
-    assert max(abs(y) for y in yaws) <= DefenseConfig().line_yaw_tol + 1e-9
+    assert max(abs(y) for y in yaws) <= 1e-9
 
 
 def test_lines_rotated_past_the_heading_check_turn_the_steered_yaw_no_further_even_without_the_rate():
