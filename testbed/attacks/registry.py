@@ -136,7 +136,7 @@ ATTACKS.add(_component(
 ATTACKS.add(_component(
     DrpCreep, "an LD deviation trace and rotation of the detected lines ramped over many seconds",
     lambda p, rng, defense: DrpCreep(**p),
-    needs=_LD, space=(START, FloatDim("shift", -0.6, 0.6), FloatDim("bend", -0.04, 0.04),
+    needs=_LD, space=(START, FloatDim("shift", -1.5, 1.5), FloatDim("bend", -0.04, 0.04),
                       FloatDim("ramp", 3.0, 25.0), FloatDim("duration", 5.0, 35.0))))
 ATTACKS.add(_component(
     DrpPatch, "a dark patch painted on the road the camera sees", lambda p, rng, defense: DrpPatch(**p),
