@@ -41,7 +41,7 @@ from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, step_toward
+from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, into_span, step_toward
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -305,7 +305,7 @@ class LaneConsistencyMonitor:
         else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
             msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
             own = wrap_angle(carried.yaw - heading)
-            turn = ANCHOR_YAW_GAIN * (min(max(own, min(msf_rel, psi)), max(msf_rel, psi)) - own)
+            turn = ANCHOR_YAW_GAIN * (into_span(own, msf_rel, psi) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)
@@ -319,13 +319,12 @@ class LaneConsistencyMonitor:
             return
         try:
             d = float(smap.lane_dev(pose, lane))
-            if min(d_msf, d_ld) - margin <= d <= max(d_msf, d_ld) + margin:
-                return
-            point, heading = smap.lane_point(pose, lane)
+            held = into_span(d, d_msf, d_ld, margin)
+            if held != d:
+                point, heading = smap.lane_point(pose, lane)
+                self.trusted.anchor(pose_on_lane(point, heading, held, pose.yaw))
         except OffMapError:
             return
-        held = min(max(d, min(d_msf, d_ld) - margin), max(d_msf, d_ld) + margin)
-        self.trusted.anchor(pose_on_lane(point, heading, held, pose.yaw))
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
         """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""

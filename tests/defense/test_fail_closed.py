@@ -16,7 +16,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
-from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, step_toward
+from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, into_span, step_toward
 from testbed.eval.run.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -394,3 +394,9 @@ def test_a_single_source_moves_a_reference_by_its_drift_allowance_at_most():
     assert step_toward(0.1, -0.9, 0.04) == pytest.approx(0.06)
     assert step_toward(0.1, 0.12, 0.04) == pytest.approx(0.12)
     assert step_toward(0.1, 0.9, math.inf) == pytest.approx(0.9)
+
+
+def test_a_value_moved_into_the_span_of_two_readings():
+    assert into_span(0.5, -0.1, 0.2) == 0.2 and into_span(-0.5, 0.2, -0.1) == -0.1  # either order
+    assert into_span(0.05, -0.1, 0.2) == 0.05  # inside: left where it is
+    assert into_span(0.5, -0.1, 0.2, margin=0.1) == pytest.approx(0.3)
