@@ -46,8 +46,9 @@ class ChassisCommand:
 
 @dataclass(frozen=True)
 class ChassisState:
-    """What the chassis reports: time, speed, steering angle, acceleration; simulation adds the true pose, and
-    the body's true yaw rate where the reported one is not it (what a simulated IMU measures)."""
+    """What the chassis reports: time, speed, steering angle (NaN from a port without the sensor), acceleration;
+    simulation adds the true pose, and the body's true yaw rate where the reported one is not it (what a simulated
+    IMU measures)."""
 
     t: float
     speed: float

@@ -14,11 +14,17 @@ class DirectChassis(ChassisPort):
     With `hold_s` > 0 commands are applied sample-and-hold the way the CAN chassis applies them: at the
     start of advance(), the latest command is applied only when t >= the next due instant, which then
     moves to the next multiple of `hold_s` after t. So a direct run and a CAN run see the same timing.
-    `model` is what the chassis reports (`ChassisModel`: its yaw rate, its steering sensor's offset).
+    `model` is what the chassis reports (`ChassisModel`: its yaw rate, its steering sensor's offset). Without
+    `steer_sensor` the port reads no road-wheel angle and its states report it as NaN (a PyBullet state read less
+    a tick, for a loop that uses none; a yaw rate derived from the steering needs the sensor).
     """
 
-    def __init__(self, world: PhysicsWorld, hold_s: float = 0.0, model: ChassisModel | None = None) -> None:
+    def __init__(self, world: PhysicsWorld, hold_s: float = 0.0, model: ChassisModel | None = None,
+                 steer_sensor: bool = True) -> None:
         model = model if model is not None else ChassisModel()
+        if model.yaw_rate == "steering" and not steer_sensor:
+            raise ValueError("a yaw rate derived from the steering angle needs the steering sensor")
+        self.steer_sensor = steer_sensor
         self.world = world
         self.vehicle = world.vehicle
         self.hold_s = hold_s
@@ -42,7 +48,7 @@ class DirectChassis(ChassisPort):
         sensed = v.sensed
         if sensed is None:
             pose, speed, yaw_rate = v.kinematics()
-            sensed = (pose, speed, yaw_rate, v.steer_angle())
+            sensed = (pose, speed, yaw_rate, v.steer_angle() if self.steer_sensor else math.nan)
         pose, speed, yaw_rate, steer = sensed
         if self.steer_offset:
             steer += self.steer_offset
@@ -77,4 +83,4 @@ class DirectChassis(ChassisPort):
         for _ in range(steps):
             self.world.step()
         self._steps += steps
-        self.vehicle.sense(interval)
+        self.vehicle.sense(interval, self.steer_sensor)

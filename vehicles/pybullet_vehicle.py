@@ -144,14 +144,15 @@ class PyBulletVehicle:
         p.applyExternalForce(self.body_id, -1, (-self._load, 0.0, 0.0), _ORIGIN, p.LINK_FRAME,
                              physicsClientId=self._cid)
 
-    def sense(self, dt: float) -> None:
+    def sense(self, dt: float, steer: bool = True) -> None:
         """Measure the state after `dt` s of physics since the last `sense` (kept in `sensed` until the next
-        physics step) and update the filtered accel from its speed."""
+        physics step) and update the filtered accel from its speed; without `steer` the road-wheel angle is not
+        read (NaN in `sensed`: one PyBullet state read less, for a port whose state reports none)."""
         if self._motion is not None:
-            self._motion.sense(dt)
+            self._motion.sense(dt, steer)
             return
         pose, v, yaw_rate = self.kinematics()
-        self.sensed = (pose, v, yaw_rate, self.steer_angle())
+        self.sensed = (pose, v, yaw_rate, self.steer_angle() if steer else math.nan)
         alpha = dt / (_ACCEL_FILTER_TAU + dt)
         self._accel += alpha * ((v - self._speed) / dt - self._accel)
         self._speed = v

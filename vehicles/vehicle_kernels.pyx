@@ -11,7 +11,7 @@ Python's `math` calls it), so every command sent and every state sensed is the s
 acceleration, road load, sent steer, the actuator's angle and rate) is read and written back on every call.
 """
 
-from libc.math cimport atan, atan2, cos, fabs, sin, tan
+from libc.math cimport NAN, atan, atan2, cos, fabs, sin, tan
 from tracks.float_order cimport py_max, py_min
 
 from vehicles import road_load
@@ -99,10 +99,10 @@ cdef class VehicleMotion:
                                     physicsClientId=self.cid)
         self.vehicle._sent_steer = delta
 
-    def sense(self, double dt):
+    def sense(self, double dt, bint steer=True):
         """`PyBulletVehicle.sense`."""
         vehicle, p = self.vehicle, self.pb
-        cdef double px, py, x, y, z, w, yaw, ref_x, ref_y, lx, ly, yaw_rate, v, tl, tr, steer, alpha, speed, acc
+        cdef double px, py, x, y, z, w, yaw, ref_x, ref_y, lx, ly, yaw_rate, v, tl, tr, angle, alpha, speed, acc
         pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
         lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
         px, py = pos[0], pos[1]
@@ -112,10 +112,13 @@ cdef class VehicleMotion:
         yaw = atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
         lx, ly, yaw_rate = lin[0], lin[1], ang[2]
         v = lx * cos(yaw) + ly * sin(yaw)
-        left, right = p.getJointStates(self.body, self.steer_ids, physicsClientId=self.cid)
-        tl, tr = tan(<double>left[0]), tan(<double>right[0])
-        steer = 0.0 if tl + tr == 0.0 else atan(2.0 * tl * tr / (tl + tr))
-        vehicle.sensed = (self.pose_type(ref_x, ref_y, yaw), v, yaw_rate, steer)
+        if steer:
+            left, right = p.getJointStates(self.body, self.steer_ids, physicsClientId=self.cid)
+            tl, tr = tan(<double>left[0]), tan(<double>right[0])
+            angle = 0.0 if tl + tr == 0.0 else atan(2.0 * tl * tr / (tl + tr))
+        else:
+            angle = NAN
+        vehicle.sensed = (self.pose_type(ref_x, ref_y, yaw), v, yaw_rate, angle)
         speed, acc = vehicle._speed, vehicle._accel
         alpha = dt / (self.filter_tau + dt)
         vehicle._accel = acc + alpha * ((v - speed) / dt - acc)

@@ -66,7 +66,7 @@ def test_the_compiled_vehicle_commands_and_senses_as_the_python_one(params, monk
                     car.apply_road_load()
                     p.stepSimulation(physicsClientId=w)
             for car in (fast, slow):
-                car.sense(interval)
+                car.sense(interval, k % 3 != 0)  # every third interval without the road-wheel angle
             assert state(fast) == state(slow), k
             assert sent[worlds[0]] == sent[worlds[1]], k
         assert len(sent[worlds[0]]) > 1200  # every interval's command (the steering in it when it moved) and the resets

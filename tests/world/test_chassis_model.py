@@ -4,6 +4,7 @@ measuring the body; closed loop on a 1° offset LD3 keeps the car in its lane on
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -52,6 +53,36 @@ def test_the_offset_sensor_reads_more_than_the_wheels_and_the_derived_yaw_rate_f
     finally:
         plain.world.close()
         derived.world.close()
+
+
+def driven_states(steer_sensor: bool) -> list[ChassisState]:
+    """The sedan on parking-lot steered left, then right, throttled, then braked: its state read every tick, by a
+    chassis with or without the steering sensor."""
+    track, params = build_track("parking-lot"), vehicle("sedan")
+    chassis = DirectChassis(PhysicsWorld(track, params, track.start_pose(track.ego_lane, 20.0)),
+                            steer_sensor=steer_sensor)
+    try:
+        states = [chassis.read()]
+        for k in range(120):
+            chassis.send(ChassisCommand(0.1 if k < 60 else -0.05, 1.0 if k < 90 else -3.0))
+            chassis.advance(0.025)
+            states.append(chassis.read())
+        return states
+    finally:
+        chassis.world.close()
+
+
+def test_a_chassis_without_the_steering_sensor_reports_nan_and_drives_to_the_same_bits():
+    sensed, unsensed = driven_states(True), driven_states(False)
+    assert all(math.isnan(s.steer) for s in unsensed) and sensed[-1].steer == pytest.approx(-0.05, abs=5e-3)
+    assert [dataclasses.replace(s, steer=0.0) for s in sensed] == [dataclasses.replace(s, steer=0.0) for s in unsensed]
+    track, params = build_track("parking-lot"), vehicle("sedan")
+    world = PhysicsWorld(track, params, track.start_pose(track.ego_lane, 20.0))
+    try:
+        with pytest.raises(ValueError, match="steering sensor"):
+            DirectChassis(world, model=ChassisModel(yaw_rate="steering"), steer_sensor=False)
+    finally:
+        world.close()
 
 
 def test_a_chassis_state_without_a_true_yaw_rate_gives_the_imu_the_reported_one():

@@ -167,7 +167,8 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     world, chassis = o.world, o.chassis
     if chassis is None:
         world = physics_world_for(sc, track, params, start)
-        chassis = DirectChassis(world, hold_s=sc.rates.command_hold_s, model=sc.chassis)
+        chassis = DirectChassis(world, hold_s=sc.rates.command_hold_s, model=sc.chassis,
+                                steer_sensor=sc.chassis.yaw_rate == "steering")  # the loop reads it for nothing else
     rates = sc.rates
     attack = AttackChain(o.attack) if isinstance(o.attack, list) else o.attack
     if o.attack is None:
