@@ -5,8 +5,10 @@ in it), the rate-limited steering advances towards its command by dt and the two
 are sent to the angles it reaches at the interval's end (position control), and the acceleration
 command becomes wheel torques from the speed measured at the interval's start: F = m_eff·a + road_load(v)
 with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at that torque limit, their
-target capped 1 m/s above the body speed as traction control), F < 0 brakes all four (velocity motors
-held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes that hold a stopped car).
+target capped 1 m/s above the body speed as traction control), F < 0 brakes all four with the brake torque as
+their motors' limit: velocity motors held at 0 rad/s (Coulomb-like sliding brakes) and, once the car is below
+`_BRAKE_HOLD_SPEED`, position motors holding each wheel at the angle it stuck at (static friction: the brake
+gives back the wheel's drift, so a stopped car stays stopped at any physics step).
 The road load is pushed on the body as an external force every physics step (`apply_road_load`). A speed
 governor caps the command at (max_speed − v)·2 s⁻¹. `sense` measures the speed after each interval and
 low-pass filters its change into the reported acceleration. The car is only placed by `reset_pose`,
@@ -36,6 +38,10 @@ _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
 _WHEEL_VELOCITY_GAIN = 1.0  # PyBullet's velocity gain of a VELOCITY_CONTROL motor command that gives none
+_BRAKE_HOLD_SPEED = 0.1  # m/s
+"""Below this speed (measured at the command interval's start) braked wheels stick to their pads instead of sliding."""
+_BRAKE_HOLD_GAIN = 0.3
+"""Position gain of a stuck wheel's motor: it gives the wheel's drift back over a few steps (a pad's compliance)."""
 _ORIGIN = (0.0, 0.0, 0.0)
 _KERNELS = compiled_module("vehicles.vehicle_kernels")
 
@@ -87,11 +93,13 @@ class PyBulletVehicle:
         self._load = 0.0
         self._speed = 0.0
         self._accel = 0.0
+        self._brake_lock: tuple[float, ...] | None = None
+        """The wheels' angles (rad) where their brakes stuck, while they stick; None while they slide or drive."""
         self.sensed: tuple[Pose, float, float, float] | None = None
         """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
         self._motion = None if _KERNELS is None else _KERNELS.VehicleMotion(
             self, p, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
-            _STEER_VELOCITY_GAIN, _WHEEL_VELOCITY_GAIN, Pose)
+            _STEER_VELOCITY_GAIN, _WHEEL_VELOCITY_GAIN, _BRAKE_HOLD_SPEED, _BRAKE_HOLD_GAIN, Pose)
         """`actuate` and `sense` compiled (vehicles/vehicle_kernels.pyx), where built; None: the methods below,
         the reference it is tested equal to."""
         self.reset_pose(pose)
@@ -125,6 +133,13 @@ class PyBulletVehicle:
             rear = -force * (1.0 - prm.front_brake_share) * r / 2.0
             targets = (0.0, 0.0, 0.0, 0.0)
             torques = (front, front, rear, rear)
+            if abs(v) < _BRAKE_HOLD_SPEED:
+                if self._brake_lock is None:
+                    states = p.getJointStates(self.body_id, self.wheel_link_ids, physicsClientId=self._cid)
+                    self._brake_lock = tuple(st[0] for st in states)
+                self._send_all(delta, targets, torques, self._brake_lock)
+                return
+        self._brake_lock = None
         if delta != self._sent_steer:  # motors keep their targets: resend on change
             self._send_all(delta, targets, torques)
             return
@@ -171,19 +186,21 @@ class PyBulletVehicle:
         )
         self._sent_steer = delta
 
-    def _send_all(self, delta: float, targets: tuple[float, ...], torques: tuple[float, ...]) -> None:
-        """`_send_steer(delta)` and the wheels' velocity command in one PyBullet call: the wheels' motors as a
-        velocity command leaves them (position target 0 at gain 0, `_WHEEL_VELOCITY_GAIN`), each motor's state
-        the same as after the two calls."""
+    def _send_all(self, delta: float, targets: tuple[float, ...], torques: tuple[float, ...],
+                  lock: tuple[float, ...] | None = None) -> None:
+        """`_send_steer(delta)` and the wheels' command in one PyBullet call: without `lock`, the wheels' motors as
+        a velocity command leaves them (position target 0 at gain 0, `_WHEEL_VELOCITY_GAIN`), each motor's state
+        the same as after the two calls; with it, stuck brakes holding the wheels at the angles in `lock`."""
         left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
+        positions, gain = (0.0, 0.0, 0.0, 0.0) if lock is None else lock, 0.0 if lock is None else _BRAKE_HOLD_GAIN
         p.setJointMotorControlArray(
             self.body_id,
             self.steer_joint_ids + self.wheel_link_ids,
             p.POSITION_CONTROL,
-            targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
+            targetPositions=(left, right, *positions),
             targetVelocities=(0.0, 0.0, *targets),
             forces=(_STEER_TORQUE, _STEER_TORQUE, *torques),
-            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN, 0.0, 0.0, 0.0, 0.0),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN, gain, gain, gain, gain),
             velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN) + (_WHEEL_VELOCITY_GAIN,) * 4,
             physicsClientId=self._cid,
         )
@@ -210,6 +227,7 @@ class PyBulletVehicle:
         self._speed = speed
         self._accel = 0.0
         self._load = 0.0
+        self._brake_lock = None
         self.sensed = None
 
     # -- measurements ---------------------------------------------------------------------------------

@@ -23,15 +23,16 @@ cdef class VehicleMotion:
     """Actuation and sensing of one `PyBulletVehicle` (its body, joints and parameters as built) through the
     `pybullet` module `pb` it was built with (so this module imports no simulator), with the vehicle module's
     constants handed in: the governor's gain, the traction slip, the acceleration filter's time constant,
-    the steering motors' torque and gains, the wheel motors' velocity gain, and the `Pose` type the pose is reported in."""
+    the steering motors' torque and gains, the wheel motors' velocity gain, the speed below which braked wheels stick
+    and a stuck wheel's position gain, and the `Pose` type the pose is reported in."""
 
     cdef object vehicle, steering, pose_type, steer_ids, wheel_ids, joint_ids, wheel_kv, pb
     cdef int body, cid
     cdef double max_decel, max_accel, max_speed, wheel_radius, front_share, m_eff, crr_mg, drag, wheelbase, half_track
-    cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz
+    cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz, hold_speed, hold_gain
 
     def __init__(self, vehicle, pb, double governor, double slip, double filter_tau, double steer_torque,
-                 double steer_kp, double steer_kv, double wheel_kv, pose_type):
+                 double steer_kp, double steer_kv, double wheel_kv, double hold_speed, double hold_gain, pose_type):
         prm = vehicle.params
         self.pb = pb
         self.vehicle, self.steering, self.pose_type = vehicle, vehicle._steering, pose_type
@@ -47,6 +48,7 @@ cdef class VehicleMotion:
         self.governor, self.slip, self.filter_tau = governor, slip, filter_tau
         self.steer_torque, self.steer_kp, self.steer_kv = steer_torque, steer_kp, steer_kv
         self.ox, self.oz = vehicle._cg_offset[0], vehicle._cg_offset[2]
+        self.hold_speed, self.hold_gain = hold_speed, hold_gain
 
     def actuate(self, double dt):
         """`PyBulletVehicle.actuate`."""
@@ -65,6 +67,7 @@ cdef class VehicleMotion:
         vehicle._load = load
         force = self.m_eff * accel + load
         if force >= 0.0:
+            vehicle._brake_lock = None
             drive = force * r / 2.0
             spin = (py_max(v, 0.0) + self.slip) / r
             if resend:
@@ -76,6 +79,13 @@ cdef class VehicleMotion:
         else:
             front = -force * self.front_share * r / 2.0
             rear = -force * (1.0 - self.front_share) * r / 2.0
+            if fabs(v) < self.hold_speed:
+                if vehicle._brake_lock is None:
+                    states = p.getJointStates(self.body, self.wheel_ids, physicsClientId=self.cid)
+                    vehicle._brake_lock = tuple([st[0] for st in states])
+                self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (front, front, rear, rear), vehicle._brake_lock)
+                return
+            vehicle._brake_lock = None
             if resend:
                 self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (front, front, rear, rear))
                 return
@@ -83,18 +93,18 @@ cdef class VehicleMotion:
                                         targetVelocities=(0.0, 0.0, 0.0, 0.0), forces=(front, front, rear, rear),
                                         physicsClientId=self.cid)
 
-    cdef _send_all(self, double delta, tuple targets, tuple torques):
-        """`PyBulletVehicle._send_all`: the front wheels to their Ackermann angles and the wheels' velocity command,
-        in one call."""
-        cdef double t = tan(delta), left, right, wb = self.wheelbase
+    cdef _send_all(self, double delta, tuple targets, tuple torques, tuple lock=None):
+        """`PyBulletVehicle._send_all`: the front wheels to their Ackermann angles and the wheels' velocity command
+        (with `lock`, their stuck brakes' hold), in one call."""
+        cdef double t = tan(delta), left, right, wb = self.wheelbase, gain = 0.0 if lock is None else self.hold_gain
         p = self.pb
         left = atan2(wb * t, wb - self.half_track * t)
         right = atan2(wb * t, wb + self.half_track * t)
         p.setJointMotorControlArray(self.body, self.joint_ids, p.POSITION_CONTROL,
-                                    targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
+                                    targetPositions=(left, right) + ((0.0, 0.0, 0.0, 0.0) if lock is None else lock),
                                     targetVelocities=(0.0, 0.0) + targets,
                                     forces=(self.steer_torque, self.steer_torque) + torques,
-                                    positionGains=(self.steer_kp, self.steer_kp, 0.0, 0.0, 0.0, 0.0),
+                                    positionGains=(self.steer_kp, self.steer_kp, gain, gain, gain, gain),
                                     velocityGains=(self.steer_kv, self.steer_kv) + self.wheel_kv,
                                     physicsClientId=self.cid)
         self.vehicle._sent_steer = delta
