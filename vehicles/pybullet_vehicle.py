@@ -11,11 +11,10 @@ slide, a torque −sign(v)·T on each wheel every physics step with the wheels' 
 they slid that T can stop it, they take the share of T that does, −T·v/((−F/m_eff)·dt); after that they stick,
 position motors holding each wheel at the angle it stuck at under T as their limit (static friction: the brake
 gives back the wheel's drift, so a stopped car stays stopped at any physics step).
-The road load is pushed on the body as an external force every physics step, with the sliding brakes' torques
-(`apply_road_load`). A speed
-governor caps the command at (max_speed − v)·2 s⁻¹. `sense` measures the speed after each interval and
-low-pass filters its change into the reported acceleration. The car is only placed by `reset_pose`,
-never teleported"""
+The road load is pushed on the body as an external force every physics step, with the brakes' torques while they
+slide or stop the car (`apply_road_load`). A speed governor caps the command at (max_speed − v)·2 s⁻¹. `sense`
+measures the speed after each interval and low-pass filters its change into the reported acceleration. The car is
+only placed by `reset_pose`, never teleported"""
 
 from __future__ import annotations
 
@@ -164,8 +163,8 @@ class PyBulletVehicle:
 
     def apply_road_load(self) -> None:
         """Push the road load of the last `actuate` on the body, along its x axis at its centre of mass, and the
-        sliding brakes' torques on the wheels, for the next physics step (PyBullet clears external forces and
-        joint torques after every step); `sensed` is stale after it."""
+        brakes' torques on the wheels while they slide or stop the car, for the next physics step (PyBullet clears
+        external forces and joint torques after every step); `sensed` is stale after it."""
         self.sensed = None
         p.applyExternalForce(self.body_id, -1, (-self._load, 0.0, 0.0), _ORIGIN, p.LINK_FRAME,
                              physicsClientId=self._cid)
