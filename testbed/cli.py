@@ -553,7 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                     "preset, highway@101, urban-curvy@101)")
     p.add_argument("--defenses", metavar="LIST", help="comma list of ld3, ld3-paper, naive-ar, savior (default all)")
     p.add_argument("--threats", metavar="LIST", help="semicolon list of threat models (default "
-                                                     "gnss;msf-output;msf-output,ld-output)")
+                                                     "gnss;msf-output;ld-output;msf-output,ld-output)")
     p.add_argument("--workers", type=int, help="parallel runs per search (as `ld3 campaign --workers`)")
     p.add_argument("--backend", choices=backends, default="local", help="local (default) or ray")
     p.add_argument("--address", help="ray: the cluster to connect to")
@@ -663,14 +663,21 @@ def _user_message(exc: BaseException) -> str:
     return one_line(str(exc))
 
 
+_TERMINATED = threading.Event()
+"""Set by SIGTERM: an interrupt that surfaces as another exception (raised inside a compiled module's initialisation,
+which reports it as ImportError) is still reported as the interrupt."""
+
+
 def _terminate_as_interrupt(signum: int, frame: object) -> None:
     """SIGTERM ends a command as Ctrl-C does: the output being written is removed, an earlier one kept."""
+    _TERMINATED.set()
     raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
+    _TERMINATED.clear()
     previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
     try:
         return _main(argv)
@@ -693,6 +700,9 @@ def _main(argv: list[str] | None) -> int:
         print("ld3: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
+        if _TERMINATED.is_set():
+            print(f"ld3: interrupted ({type(exc).__name__} while it ended)", file=sys.stderr)
+            return 130
         print(f"ld3: internal error (a bug, not your input): {type(exc).__name__}: {one_line(str(exc))}; rerun "
               f"with --debug for the traceback", file=sys.stderr)
         return EXIT_INTERNAL

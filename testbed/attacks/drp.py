@@ -5,7 +5,8 @@ shift so that the LD deviation moves by `shift` (m, + left), ramping in over `ra
 `duration` seconds (the car drives over the patch). Shifting the ego-lane centre right by s makes the car
 appear s further left, so both lines' c0 move by −s. `DrpBend` does the same and also rotates the detected
 lines by `bend` (rad, + left) with the same ramp, so that a response steering by the lines' slope is steered
-by it. `DrpPatch` paints a physical dirty-road patch into the road texture, which the camera sees and the
+by it; `DrpCreep` ramps both over many seconds, so that they stay under the checks while the defense carries
+what they turned. `DrpPatch` paints a physical dirty-road patch into the road texture, which the camera sees and the
 detector reacts to on its own.
 """
 
@@ -99,6 +100,13 @@ class DrpBend(DrpTrace):
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "bend": self.bend}
+
+
+class DrpCreep(DrpBend):
+    """`DrpBend` ramped slowly: the lines bent under the heading check and shifted under b for many seconds, then
+    past b (a search family of its own: `drp-bend`'s ramps end at 3 s)."""
+
+    name = "drp-creep"
 
 
 class DrpPatch(Attack):

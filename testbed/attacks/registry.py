@@ -20,7 +20,7 @@ from testbed.attacks.along import AlongShift
 from testbed.attacks.bound_replay import BoundReplay
 from testbed.attacks.burst import PROFILES, BurstAttack
 from testbed.attacks.coordinated import CoordinatedShift
-from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
+from testbed.attacks.drp import DrpBend, DrpCreep, DrpPatch, DrpTrace
 from testbed.attacks.fusionripper import FusionRipper
 from testbed.attacks.gnss_drift import GnssDrift
 from testbed.attacks.heading import HeadingBias
@@ -133,6 +133,11 @@ ATTACKS.add(_component(
     DrpBend, "an LD deviation trace that also rotates the detected lines", lambda p, rng, defense: DrpBend(**p),
     needs=_LD, space=(START, FloatDim("shift", -2.0, 2.0), FloatDim("bend", -0.3, 0.3),
                       FloatDim("ramp", 0.0, 3.0), FloatDim("duration", 1.0, 20.0))))
+ATTACKS.add(_component(
+    DrpCreep, "an LD deviation trace and rotation of the detected lines ramped over many seconds",
+    lambda p, rng, defense: DrpCreep(**p),
+    needs=_LD, space=(START, FloatDim("shift", -1.5, 1.5), FloatDim("bend", -0.04, 0.04),
+                      FloatDim("ramp", 3.0, 25.0), FloatDim("duration", 5.0, 35.0))))
 ATTACKS.add(_component(
     DrpPatch, "a dark patch painted on the road the camera sees", lambda p, rng, defense: DrpPatch(**p),
     needs=frozenset({Capability.CAMERA_IMAGE})))

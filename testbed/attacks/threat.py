@@ -61,3 +61,8 @@ def within_ld3_threat_model(caps: Iterable[ThreatCapability]) -> bool:
 def reaches_lines(caps: Iterable[ThreatCapability]) -> bool:
     """True when an attacker with `caps` acts on the lane detector's output or the road it sees."""
     return bool(frozenset(caps) & {ThreatCapability.LD_OUTPUT, ThreatCapability.ROAD_PAINT})
+
+
+def reaches_pose(caps: Iterable[ThreatCapability]) -> bool:
+    """True when an attacker with `caps` moves the localization's pose (its GNSS fixes or the MSF's output)."""
+    return bool(frozenset(caps) & {ThreatCapability.GNSS, ThreatCapability.MSF_OUTPUT})

@@ -9,9 +9,9 @@ query, or no D_LD yet is skipped and logged.
 Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
-towards the lane heading plus the lines' relative heading, never towards the MSF yaw, and only where the lines'
-heading is within the heading check's b of the MSF's: lines a road patch bends do not turn the yaw the response will
-steer on), stands in for the lines
+into the interval between the MSF's and the lines' headings relative to the lane: the car heads as the source not
+attacked does, so lines a road patch bends, slowly or not, do not turn the yaw the response will steer on out of
+it), stands in for the lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
@@ -41,7 +41,7 @@ from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, step_toward
+from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, into_span, step_toward
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -108,7 +108,9 @@ detector's heading noise averaged over about ten detections (0.5 s at 20 Hz)."""
 TRUSTED_SHARE = 0.5
 """Share of b within which D_MSF and D_LD agree for `LaneConsistencyMonitor.trusted` to take the dead-reckoned pose:
 lines that ramp away from a true MSF pull the dead-reckoned pose up to b before the CUSUM sees them, the trusted
-pose half that."""
+pose half that. Between those detections the trusted pose is kept within the same share of b of the interval between
+D_MSF and D_LD: against one attacked source the car is at the other, so the trusted pose comes no farther from it
+than the two sources are apart, however long the attacker holds them apart."""
 UNPLACED_RESIDUAL_M = 3.5
 """Residual fed for an MSF pose the map cannot place while the map has given no lane width yet (m): a lane."""
 
@@ -143,7 +145,8 @@ class LaneConsistencyMonitor:
         """The dead-reckoned pose (`lever`: the pose's reference point ahead of the rear axle, m)."""
         self.trusted = DeadReckoning(lever)
         """The dead-reckoned pose as of the last detection where D_MSF and D_LD agreed within `TRUSTED_SHARE` of b,
-        carried by odometry since: where the response's reference starts (`Ld3Defense`)."""
+        carried by odometry since and kept near the interval between D_MSF and D_LD (`TRUSTED_SHARE`): where the
+        response's reference starts (`Ld3Defense`)."""
         self.yaw_agreement = yaw_agreement
         """How closely the MSF's and the lines' headings relative to the lane must agree (rad), D_MSF and D_LD within
         b, for the MSF's yaw to teach `yaw_bias`: before its first estimate (the lines tracked on the biased yaw
@@ -246,6 +249,7 @@ class LaneConsistencyMonitor:
         if reckoned is not None and self._check_along(pose, reckoned, smap, lane):
             return True
         b_lat = self.detector.cusum.b
+        self._hold_trusted(d_msf, d_ld, TRUSTED_SHARE * b_lat, smap, lane)
         if abs(d_msf - d_ld) <= b_lat:
             self._agreed_lane = lane
             self._anchor(ld, pose, smap, lane, d_ld, agreed=True)
@@ -254,7 +258,8 @@ class LaneConsistencyMonitor:
         elif reckoned is not None and abs((d_odo := float(smap.lane_dev(reckoned, lane))) - d_ld) <= b_lat:
             # the lines agree with odometry: its own station kept, moved towards the lines at `line_rate` at most
             since = t - self._anchor_time if self._anchor_time is not None else 0.0
-            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)))
+            self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)),
+                         msf_yaw=pose.yaw)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
             return True
@@ -272,11 +277,13 @@ class LaneConsistencyMonitor:
         return self.along.update(gap) and self._latch(lane)
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float,
-                agreed: bool = False) -> None:
+                agreed: bool = False, msf_yaw: float | None = None) -> None:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
-        towards the lane heading plus the lines' relative heading at `line_yaw_rate` at most, and only where that
-        heading is within the heading check's b of `pose`'s (the MSF yaw only for a first anchor without one).
+        into the interval between the MSF's heading (`msf_yaw`, else `pose`'s) and the lines', relative to the lane,
+        at `line_yaw_rate` at most (the lane heading plus the lines' relative heading for a first anchor, the MSF yaw
+        without lines): against one attacked source the car heads as the other does, so a yaw in that interval
+        stays where the gyro carried it and neither source alone can turn it out of it, however slowly.
         `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
         `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
         teaches nothing)."""
@@ -295,14 +302,29 @@ class LaneConsistencyMonitor:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
             yaw, gain = heading + psi, ANCHOR_YAW_GAIN
-        elif off > self.heading.b:
-            yaw, gain = carried.yaw, 1.0  # lines turned off the pose's heading turn nothing
-        else:  # the lines turn the gyro's yaw by the gain's share, no faster than `line_yaw_rate`
-            turn = ANCHOR_YAW_GAIN * wrap_angle(heading + psi - carried.yaw)
+        else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
+            msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
+            own = wrap_angle(carried.yaw - heading)
+            turn = ANCHOR_YAW_GAIN * (into_span(own, msf_rel, psi) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)
         self._anchor_time = ld.timestamp
+
+    def _hold_trusted(self, d_msf: float, d_ld: float, margin: float, smap: SemanticMap, lane: int) -> None:
+        """Move the trusted pose across `lane`, at its own station and yaw, into [min(D_MSF, D_LD) − margin,
+        max(D_MSF, D_LD) + margin] where it is outside (a pose the map cannot place is left as it is)."""
+        pose = self.trusted.pose
+        if pose is None:
+            return
+        try:
+            d = float(smap.lane_dev(pose, lane))
+            held = into_span(d, d_msf, d_ld, margin)
+            if held != d:
+                point, heading = smap.lane_point(pose, lane)
+                self.trusted.anchor(pose_on_lane(point, heading, held, pose.yaw))
+        except OffMapError:
+            return
 
     def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
         """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""

@@ -45,6 +45,12 @@ def drift_allowance(rate: float, elapsed: float) -> float:
     return rate * elapsed if elapsed > 0.0 and rate > 0.0 else 0.0
 
 
+def into_span(value: float, a: float, b: float, margin: float = 0.0) -> float:
+    """`value` moved into [min(a, b) − margin, max(a, b) + margin], the span of two sources' readings: against one
+    attacked source the car reads as the other does, so the move never takes `value` away from the car."""
+    return min(max(value, min(a, b) - margin), max(a, b) + margin)
+
+
 def step_toward(d_from: float, d_to: float, max_step: float) -> float:
     """`d_to`, or the value `max_step` from `d_from` towards it: one source alone moves a reference no faster than
     odometry could drift, so an attacker of that source cannot drag it."""

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from testbed.attacks.base import AttackerView
-from testbed.attacks.drp import DrpBend, DrpPatch, DrpTrace
+from testbed.attacks.drp import DrpBend, DrpCreep, DrpPatch, DrpTrace
 from testbed.lane_detection import LaneDetection
 from tracks.pose import Pose
 
@@ -73,3 +73,16 @@ def test_drp_bend_shifts_and_rotates_the_lines_with_the_ramp():
 def test_drp_bend_refuses_a_bend_that_does_nothing_or_is_not_an_angle(bend):
     with pytest.raises(ValueError, match="bend"):
         DrpBend(bend=bend)
+
+
+def test_drp_creep_is_a_search_family_of_slow_bends_for_the_lines_attacker():
+    from testbed.attacks.registry import ATTACKS
+    from testbed.attacks.space import FloatDim
+
+    component = ATTACKS.get("drp-creep")
+    ramp = next(d for d in component.space if isinstance(d, FloatDim) and d.name == "ramp")
+    bend = next(d for d in component.space if isinstance(d, FloatDim) and d.name == "bend")
+    assert ramp.low >= 3.0 and ramp.high >= 20.0 and max(abs(bend.low), bend.high) < 0.05  # under heading_b's reach
+    a = DrpCreep(start=5.0, shift=-0.3, bend=0.028, ramp=15.0, duration=30.0)
+    assert ld_dev(a.tamper_ld(ld(12.5), view(12.5))) == pytest.approx(-0.15)
+    assert a.describe()["kind"] == "drp-creep"

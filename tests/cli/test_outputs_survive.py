@@ -67,3 +67,21 @@ def test_a_run_set_aside_by_a_killed_command_is_named_not_overwritten(tmp_path):
     with pytest.raises(UserError, match="set aside by a command that died"), claimed_out_dir(out, force=True):
         pass
     assert (aside / "summary.json").read_text() == "{}"
+
+
+def test_sigterm_that_surfaces_as_another_exception_is_reported_as_the_interrupt(monkeypatch, capsys):
+    import testbed.cli as cli
+
+    def import_interrupted(args):
+        try:  # as a compiled module's initialisation does with the KeyboardInterrupt raised inside it
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed") from None
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_scenarios", import_interrupted)
+    assert main(["scenarios"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    monkeypatch.setattr(cli, "cmd_scenarios", lambda args: 1 / 0)
+    assert main(["scenarios"]) == cli.EXIT_INTERNAL  # the next command's own bug is still one

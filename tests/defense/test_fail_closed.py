@@ -16,7 +16,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
-from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, step_toward
+from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, into_span, step_toward
 from testbed.eval.run.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -193,17 +193,39 @@ def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
 
 
 def test_lines_turned_off_the_msf_heading_do_not_turn_the_dead_reckoned_yaw():
-    """Lines bent 0.08 rad, their offset at the car true, beside a true MSF (the heading check, which catches the bend
-    itself, switched off): the dead-reckoned yaw the response would steer on stays the gyro's. Bent 0.02 rad, inside
-    heading_b, they turn it at line_yaw_rate as a gyro's drift is corrected."""
+    """Lines bent 0.08 or 0.02 rad, their offset at the car true, beside a true MSF (the heading check, which catches
+    a bend past heading_b, switched off): the dead-reckoned yaw, the gyro's 0 inside the interval between the MSF's
+    heading and the lines', stays there."""
     smap = FakeStraightMap()
-    bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
-    Drive(bent, smap).run(1.0).run(3.0, slope=0.08)
-    assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
-    slight = Ld3Defense(DefenseConfig(heading_tau=1e9))
-    Drive(slight, smap).run(1.0).run(3.0, slope=0.02)
-    assert 0.5 * 3.0 * slight.config.line_yaw_rate < abs(slight.monitor.odometry.pose.yaw) <= (
-        3.0 * slight.config.line_yaw_rate + 1e-9)
+    for slope in (0.08, 0.02):
+        bent = Ld3Defense(DefenseConfig(heading_tau=1e9))
+        Drive(bent, smap).run(1.0).run(3.0, slope=slope)
+        assert bent.mode == "normal" and abs(bent.monitor.odometry.pose.yaw) < 1e-9
+
+
+@pytest.mark.parametrize(("slope", "low", "high"), [(0.0, 0.0, 0.001), (0.02, 0.0, 0.001), (-0.02, 0.009, 0.011)])
+def test_a_drifting_gyro_is_turned_back_into_the_interval_between_the_msf_and_the_lines(slope, low, high):
+    """A gyro 1 mrad/s off carries the dead-reckoned yaw out of the interval between a true MSF's heading (0) and the
+    lines' (true, or bent 0.02 rad to the other side): the anchors turn it back at line_yaw_rate, where 10 s of the gyro
+    alone leave it 0.01 rad off. Lines bent to the side the gyro drifts widen the interval: the yaw is left to it."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    Drive(d, smap, gyro_bias=0.001).run(1.0).run(10.0, slope=slope)
+    assert d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
+
+
+def test_the_trusted_pose_stays_between_the_sources_however_long_they_are_held_apart():
+    """An MSF held 0.15 m off the true lines (between half b and b: no anchor of the trusted pose, no alarm) for 20 s,
+    odometry's yaw rate 0.002 rad/s off and no bias learnt: carried alone the trusted pose would drift metres; it
+    stays within half b of the interval between D_MSF and D_LD."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(odometry_bias_span=0.0))
+    drive = Drive(d, smap, gyro_bias=0.002).run(1.0)
+    for _ in range(20):
+        drive.run(1.0, lambda t, x: 0.15)
+        pose = d.monitor.trusted.pose
+        carried = drive.speed * 0.05 * abs(math.sin(pose.yaw))  # odometry since the last detection, 50 ms ago at most
+        assert d.mode == "normal" and -0.1 - carried <= float(smap.lane_dev(pose, 0)) <= 0.25 + carried
 
 
 def test_naive_ar_shares_the_fail_closed_detection():
@@ -372,3 +394,9 @@ def test_a_single_source_moves_a_reference_by_its_drift_allowance_at_most():
     assert step_toward(0.1, -0.9, 0.04) == pytest.approx(0.06)
     assert step_toward(0.1, 0.12, 0.04) == pytest.approx(0.12)
     assert step_toward(0.1, 0.9, math.inf) == pytest.approx(0.9)
+
+
+def test_a_value_moved_into_the_span_of_two_readings():
+    assert into_span(0.5, -0.1, 0.2) == 0.2 and into_span(-0.5, 0.2, -0.1) == -0.1  # either order
+    assert into_span(0.05, -0.1, 0.2) == 0.05  # inside: left where it is
+    assert into_span(0.5, -0.1, 0.2, margin=0.1) == pytest.approx(0.3)

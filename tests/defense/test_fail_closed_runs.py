@@ -12,6 +12,7 @@ import pytest
 
 from testbed import api
 from testbed.attacks.base import Attack, AttackerView, shift_pose
+from testbed.attacks.spec import parse_attack
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import SemanticMap
 from tracks.pose import Pose
@@ -138,3 +139,16 @@ def test_without_failing_closed_the_car_is_lost(attack):
     assert summary["consequence"] not in ("stop_in_lane", "reach_destination")
     assert summary["detected"] is (attack == "off-map-ramp")  # the ramp is seen, then the response follows it
     assert FAULTS[attack] in _defense_faults(summary)
+
+
+@pytest.mark.parametrize("spec", ["drp-bend:start=8,shift=-0.3,bend=0.028,ramp=15,duration=35",
+                                  "drp-bend:start=8,shift=-0.3,bend=-0.028,ramp=15,duration=35"])
+def test_lines_bent_slowly_under_the_heading_check_then_pushed_stop_in_lane(spec):
+    """The lines' attacker alone on the highway: the lines bent over 15 s under the heading check's b while their
+    offset holds the residual between half b and b, then pushed past b. A trusted pose left to odometry for those
+    seconds, on a yaw the bend may turn, is 1.4 m off at the alarm: the true MSF is disowned and the car straddles
+    its lane (2.2–2.4 m)."""
+    sc = api.scenario("highway", localization="msf", defense="ld3", detector="oracle", duration=45.0)
+    summary = api.run(sc, attack=parse_attack(spec)).summary
+    assert summary["detected"] and summary["consequence"] == "stop_in_lane"
+    assert summary["max_abs_dev_m"] < 0.5

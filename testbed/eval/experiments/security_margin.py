@@ -1,13 +1,12 @@
 """The security-margin table (`ld3 security-margin`): a worst-case attack search with the objective `loss` per
 road × threat model × defense × sampler seed, against the oracle lane detector, and per road × threat × defense
-the losses, the worst |D| at all, the worst |D| before detection and LD3's deviation bound at the road's speed.
+the losses, the worst |D| at all, the worst |D| before detection and LD3's deviation bound at the road's speed
+(the bound is on what an attacker of the pose does before the alarm: none for the lines' attacker alone).
 
 Each cell is one `AttackSearch` in `OUT/<road>/<defense>/<threat>/seed<N>/search` (it resumes itself); a cell
 that completed its budget records its figures in `summary.json` beside it and is not run again. The threat
-models of LD3's localization attacker (`gnss`, `msf-output`) make the table; `msf-output,ld-output` (the attacker
-also controls the lane detector's output) is reported beside it, outside the threat model. The lane detector's
-attacker alone (`ld-output`, within LD3's claims) is not in the table: `ld3 search --threat ld-output` and the
-`adaptive` campaign measure it.
+models LD3 claims make the table: its localization attacker (`gnss`, `msf-output`) and the lane detector's attacker
+alone (`ld-output`); `msf-output,ld-output` (the attacker of both) is reported beside it, outside the threat model.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from testbed.attacks.threat import parse_threat, within_ld3_threat_model
+from testbed.attacks.threat import parse_threat, reaches_pose, within_ld3_threat_model
 from testbed.defense.config import PAPER_MODE
 from testbed.errors import UserError
 from testbed.eval.campaign.driver import RunExecutor, campaign_backend, load_summary, run_and_write_data
@@ -37,7 +36,7 @@ from tracks.presets import PRESETS, parse_track_spec
 HELD_OUT = ("highway@101", "urban-curvy@101")
 """Two held-out layouts: seeded variants of the presets whose drives are fastest and most curved."""
 ROADS = (*PRESETS, *HELD_OUT)
-THREATS = ("gnss", "msf-output")
+THREATS = ("gnss", "msf-output", "ld-output")
 BESIDE = ("msf-output,ld-output",)
 """Threat models reported beside the table: outside LD3's (the attacker also controls the lane detector)."""
 SEEDS = (0, 1, 2)
@@ -196,8 +195,9 @@ def table_rows(done: Sequence[tuple[Cell, dict[str, Any]]], bound: Callable[[Cel
 
 
 def cell_bound(cell: Cell) -> float | None:
-    """LD3's deviation bound at the victim's speed (inf in paper mode), None for a defense without LD3's checks."""
-    return _road_bound(cell.road, cell.defended)
+    """LD3's deviation bound at the victim's speed (inf in paper mode), None for a defense without LD3's checks or a
+    threat that moves no pose (the car steers on the true one until the alarm)."""
+    return _road_bound(cell.road, cell.defended) if reaches_pose(parse_threat(cell.threat)) else None
 
 
 @functools.cache
@@ -218,7 +218,10 @@ def _road_bound(road: str, defended: Victim) -> float | None:
 
 def cell_bound_on_car(cell: Cell, cache: Path) -> float | None:
     """The bound at the victim's speed on its loop identified on the car (`ld3 bound --on-car`), kept in
-    `cache`/<road>-<defense>.json; inf in paper mode, None for a defense without LD3's checks."""
+    `cache`/<road>-<defense>.json; inf in paper mode, None for a defense without LD3's checks or a threat that moves
+    no pose."""
+    if not reaches_pose(parse_threat(cell.threat)):
+        return None
     path = cache / f"{cell.road}-{cell.defended.slug}.json"
     if path.exists():
         kept = json.loads(path.read_text())
@@ -259,7 +262,8 @@ def table_markdown(rows: Sequence[Row]) -> str:
              "Worst-case attack search per cell (objective `loss`: any lane departure or contact, detected or not; "
              "oracle lane detector; MSF localization). Losses over every trial of every sampler seed; worst |D| "
              "over them; bound: `ld3 bound` at the road's speed on the linear model, and on the car's loop identified "
-             "in simulation (`ld3 bound --on-car`; – for a defense without LD3's checks). Each "
+             "in simulation (`ld3 bound --on-car`; – for a defense without LD3's checks, and for the lines' attacker "
+             "alone, who moves no pose the car steers on before the alarm). Each "
              "cell's searches: `<road>/<defense>/<threat>/seed<N>/search/report.md`.", ""]
     if inside:
         lines += [HEADER, RULE, *map(_line, inside), ""]

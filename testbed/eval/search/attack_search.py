@@ -176,6 +176,17 @@ MIN_LATEST_START_S = 2.0
 """A victim whose drive leaves no attack start this late is refused."""
 
 
+SPEC_DECIMALS = 4
+"""Decimal places of a sampled real parameter in the trial's attack spec."""
+
+
+def spec_value(draw: float) -> float:
+    """`draw` rounded to `SPEC_DECIMALS` places, away from zero where it would round to zero: a small draw stays the
+    sign of a non-zero value (an attack may refuse zero, as `drp-bend`'s bend does)."""
+    value = round(draw, SPEC_DECIMALS)
+    return value if value != 0.0 or draw == 0.0 else math.copysign(10.0 ** -SPEC_DECIMALS, draw)
+
+
 def sample_attack(trial: Trial, families: Sequence[Component], latest_start: float) -> dict[str, Any]:
     """One attack table: the family, then each dimension of its space (named `family.parameter`); start times
     end at `latest_start` and begin no later than half of it (a drive too short for the family's range)."""
@@ -189,7 +200,7 @@ def sample_attack(trial: Trial, families: Sequence[Component], latest_start: flo
             if dim.name == "start":
                 high = min(high, latest_start)
                 low = min(low, high / 2)
-            table[dim.name] = round(trial.suggest_float(key, low, high, log=dim.log), 4)
+            table[dim.name] = spec_value(trial.suggest_float(key, low, high, log=dim.log))
         elif isinstance(dim, IntDim):
             table[dim.name] = trial.suggest_int(key, dim.low, dim.high)
         elif isinstance(dim, ChoiceDim):

@@ -42,7 +42,7 @@ def _trials(out: Path) -> list[dict[str, str]]:
 def test_every_preset_and_two_held_out_layouts_by_default() -> None:
     cells = plan_cells()
     assert len(ROADS) == 9 and {c.road for c in cells} == set(ROADS)
-    assert len(cells) == 9 * 4 * 3 * 3 and all(c.budget == 120 for c in cells)
+    assert len(cells) == 9 * 4 * 4 * 3 and all(c.budget == 120 for c in cells)
     assert cells[0].victim().detector == "oracle" and plan_cells(roads=["highway@101"])[0].victim().track == \
         "highway@101"
 
@@ -90,6 +90,15 @@ def test_the_bound_column() -> None:
     savior, paper, default = plan_cells(roads=["local"], defenses=["savior", "ld3-paper", "ld3"], threats=["gnss"],
                                         seeds=[0])
     assert cell_bound(savior) is None and cell_bound(paper) == float("inf") and 0.2 < cell_bound(default) < 1.0
+
+
+def test_the_lines_attacker_alone_is_in_the_table_without_a_bound(tmp_path: Path) -> None:
+    (lines,) = plan_cells(roads=["local"], defenses=["ld3"], threats=["ld-output"], seeds=[0])
+    assert {c.threat for c in plan_cells(roads=["local"], defenses=["ld3"], seeds=[0])} == {
+        "gnss", "msf-output", "ld-output", "msf-output,ld-output"}
+    assert cell_bound(lines) is None and cell_bound_on_car(lines, tmp_path) is None
+    table = security_margin([lines], tmp_path, execute=toy_executor, workers=1, progress=False).read_text()
+    assert "| local | LD3 default | ld-output | 1 × 120 |" in table.split("## Beside")[0]
 
 
 def test_the_bound_on_the_car_is_kept_and_read_back(tmp_path: Path) -> None:

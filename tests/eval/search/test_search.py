@@ -244,3 +244,18 @@ def test_a_few_closed_loop_trials_and_their_best_replays(tmp_path):
     assert replay["detected"] == best.detected and replay["consequence"] == best.consequence
     assert replay["max_abs_dev_m"] == pytest.approx(best.max_dev_m, abs=1e-9)
     assert replay["threat_model"] == "msf-output"
+
+
+def test_a_tiny_sampled_bend_stays_a_non_zero_bend_the_attack_builds():
+    import optuna
+
+    from testbed.attacks.spec import parse_attack
+
+    params = {"family": "drp-bend", "drp-bend.start": 20.0, "drp-bend.shift": -0.5, "drp-bend.bend": 3e-5,
+              "drp-bend.ramp": 1.3, "drp-bend.duration": 6.5}
+    table = attack_search.sample_attack(optuna.trial.FixedTrial(params), families_for(
+        parse_threat("ld-output"), load_scenario("highway").with_overrides(defense="ld3", localization="msf")), 40.0)
+    assert table["bend"] == 1e-4  # round(3e-5, 4) is 0.0, which drp-bend refuses
+    assert parse_attack(attack_spec(table)).describe()["bend"] == 1e-4
+    assert attack_search.spec_value(-3e-5) == -1e-4 and attack_search.spec_value(0.0) == 0.0
+    assert attack_search.spec_value(29.68034) == 29.6803
