@@ -59,11 +59,21 @@ class ChassisState:
     mode: str = "self-driving"
     faults: tuple[str, ...] = field(default_factory=tuple)
     true_yaw_rate: float | None = None
+    mean_yaw_rate: float | None = None
+    """The body's yaw rate averaged over the control period that ended at `t` (rad/s), as an integrating gyro's
+    delta angle gives it; None where the chassis measures no such thing (only the sampled `yaw_rate`)."""
 
     @property
     def body_yaw_rate(self) -> float:
         """The yaw rate a simulated IMU measures: the true one where known, else the reported one (rad/s)."""
         return self.yaw_rate if self.true_yaw_rate is None else self.true_yaw_rate
+
+    @property
+    def odometry_yaw_rate(self) -> float:
+        """The yaw rate odometry integrates over the period ending at `t`: its mean where measured, else the sampled
+        one (rad/s). A rate sampled once a period aliases the steering's oscillations near the control rate into a
+        yaw drift; the period's mean does not."""
+        return self.yaw_rate if self.mean_yaw_rate is None else self.mean_yaw_rate
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,10 @@ class DirectChassis(ChassisPort):
     With `hold_s` > 0 commands are applied sample-and-hold the way the CAN chassis applies them: at the
     start of advance(), the latest command is applied only when t >= the next due instant, which then
     moves to the next multiple of `hold_s` after t. So a direct run and a CAN run see the same timing.
-    `model` is what the chassis reports (`ChassisModel`: its yaw rate, its steering sensor's offset). Without
-    `steer_sensor` the port reads no road-wheel angle and its states report it as NaN (a PyBullet state read less
-    a tick, for a loop that uses none; a yaw rate derived from the steering needs the sensor).
+    `model` is what the chassis reports (`ChassisModel`: its yaw rate, its steering sensor's offset). Reporting the
+    body's yaw rate, it also reports that rate averaged over the last advance (an integrating gyro's delta angle).
+    Without `steer_sensor` the port reads no road-wheel angle and its states report it as NaN (a PyBullet state read
+    less a tick, for a loop that uses none; a yaw rate derived from the steering needs the sensor).
     """
 
     def __init__(self, world: PhysicsWorld, hold_s: float = 0.0, model: ChassisModel | None = None,
@@ -36,6 +37,8 @@ class DirectChassis(ChassisPort):
         self._t_target = 0.0
         self._pending: ChassisCommand | None = None
         self._applied = ChassisCommand(0.0, 0.0)
+        self._mean_yaw_rate: float | None = None
+        """The body's yaw rate averaged over the last advance (rad/s); None before the first."""
 
     @property
     def t(self) -> float:
@@ -55,7 +58,8 @@ class DirectChassis(ChassisPort):
         if self.wheelbase is not None:
             return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose,
                                 yaw_rate=bicycle_yaw_rate(speed, steer, self.wheelbase), true_yaw_rate=yaw_rate)
-        return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose, yaw_rate=yaw_rate)
+        return ChassisState(t=self.t, speed=speed, steer=steer, accel=v.accel(), true_pose=pose, yaw_rate=yaw_rate,
+                            mean_yaw_rate=self._mean_yaw_rate)
 
     def send(self, cmd: ChassisCommand) -> None:
         self._pending = cmd
@@ -79,8 +83,11 @@ class DirectChassis(ChassisPort):
         if steps <= 0:
             return
         interval = steps * self.world.dt
-        self.vehicle.actuate(interval)
+        v = self.vehicle
+        yaw = v.sensed[0].yaw if v.sensed is not None else v.pose().yaw
+        v.actuate(interval)
         for _ in range(steps):
             self.world.step()
         self._steps += steps
-        self.vehicle.sense(interval, self.steer_sensor)
+        v.sense(interval, self.steer_sensor)
+        self._mean_yaw_rate = math.remainder(v.sensed[0].yaw - yaw, math.tau) / interval

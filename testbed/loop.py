@@ -149,7 +149,7 @@ class ControlLoop:
         state = self.chassis.read()
         self.last_state = state
         t = state.t
-        self.defense.on_odometry(t, state.speed, state.yaw_rate)
+        self.defense.on_odometry(t, state.speed, state.odometry_yaw_rate)
         yaw_rate = self.defense.odometry_yaw_rate(state.speed, state.yaw_rate)
         view = self._attacker_view(state) if self.attack is not None else None
         spoof = (lambda fix: self.attack.spoof_gnss(fix, view)) if view is not None else None

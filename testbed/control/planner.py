@@ -5,8 +5,9 @@ curve limit: at every point d ahead on the centreline (up to the distance needed
 v ≤ √(a_lat/|κ(d)| + 2·CURVE_DECEL·(d − CURVE_STEP)) (a curve may start a sample step nearer), so the car
 reaches each curve at a speed that keeps its lateral acceleration within `lateral_accel`.
 Stop (LD3 attack response, paper §4.3): same centreline, v(t) = max(0, v0 − decel·(t − t0)) with
-target_accel −decel until standstill, then 0 held (the speed controller holds the brake); the curve limit holds
-there too.
+target_accel −decel until the car stands (its measured speed no longer above 0: a car that lags the profile when
+it reaches 0 keeps braking at decel rather than on the speed error alone), then 0 held (the speed controller holds
+the brake); the curve limit holds there too.
 """
 
 from __future__ import annotations
@@ -178,7 +179,9 @@ class LanePlanner:
             v = v0 - decel * (t - t0)
             if v > limit:
                 return limit, -decel
-            return (v, -decel) if v > 0.0 else (0.0, 0.0)
+            if v > 0.0:
+                return v, -decel
+            return (0.0, -decel) if speed > 0.0 else (0.0, 0.0)
         if self._speed_ref is None:
             self._speed_ref = max(speed, 0.0)
         gap = self.cruise_speed - self._speed_ref

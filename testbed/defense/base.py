@@ -65,7 +65,8 @@ class Defense(ABC):
         """The command just sent (every control tick): road-wheel steer (rad), accel (m/s²), measured speed (m/s)."""
 
     def on_odometry(self, t: float, speed: float, yaw_rate: float) -> None:  # noqa: B027 - optional hook
-        """Chassis odometry at the start of every control tick: speed (m/s), yaw rate (rad/s, + left)."""
+        """Chassis odometry at the start of every control tick: speed (m/s), yaw rate (rad/s, + left; its mean over
+        the period ending at `t` where the chassis measures it, `ChassisState.odometry_yaw_rate`)."""
 
     def odometry_bias(self) -> float | None:
         """Odometry's yaw-rate error per metre travelled as the defense estimated it (rad/m); None where it keeps no

@@ -63,6 +63,8 @@ def test_stop_profile_decelerates_then_holds_zero() -> None:
     p = planner.plan(pose, 19.0, 3.0)
     assert p.target_speed == pytest.approx(20.0 - AR_DECEL) and p.target_accel == -AR_DECEL
     assert planner.plan(pose, 1.0, 6.9).target_speed == pytest.approx(0.4)
+    p = planner.plan(pose, 0.16, 7.0)  # the car lags the profile at its end: the stop's braking goes on
+    assert (p.target_speed, p.target_accel) == (0.0, -AR_DECEL)
     for t in (7.0, 8.0, 100.0):
         p = planner.plan(pose, 0.0, t)
         assert (p.target_speed, p.target_accel) == (0.0, 0.0)

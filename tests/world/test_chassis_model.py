@@ -102,3 +102,20 @@ def test_a_steering_offset_with_a_derived_yaw_rate_keeps_the_lane_only_with_odom
     unlearnt = api.run(sc.replace(defense_params={"odometry_bias_span": 0.0})).summary
     assert unlearnt["consequence"] in ("hit_curb", "hit_lane_divider", "out_of_lane") and not unlearnt["detected"]
     assert unlearnt["odometry_bias_rad_per_m"] is None
+
+
+def test_the_body_yaw_rate_is_also_reported_as_its_mean_over_the_period():
+    plain, derived = turning_chassis(ChassisModel()), turning_chassis(ChassisModel(yaw_rate="steering"))
+    try:
+        before = plain.read()
+        plain.send(ChassisCommand(-0.1, 1.0))  # the steering swings: the period's mean is not its end's sample
+        plain.advance(0.025)
+        after = plain.read()
+        turned = math.remainder(after.true_pose.yaw - before.true_pose.yaw, math.tau)
+        assert after.mean_yaw_rate == pytest.approx(turned / 0.025, rel=1e-12)
+        assert after.odometry_yaw_rate == after.mean_yaw_rate != after.yaw_rate
+        assert derived.read().mean_yaw_rate is None  # a chassis that derives its yaw rate measures no mean
+        assert derived.read().odometry_yaw_rate == derived.read().yaw_rate
+    finally:
+        plain.world.close()
+        derived.world.close()
