@@ -50,7 +50,7 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               heading=Cusum(config.heading_b, config.heading_tau),
                                               along=Cusum(config.along_b, config.along_tau),
                                               along_gain=config.along_gain, line_rate=config.line_rate,
-                                              line_yaw_rate=config.line_yaw_rate,
+                                              line_yaw_rate=config.line_yaw_rate, yaw_margin=config.yaw_margin,
                                               yaw_agreement=(config.heading_b, config.steer_yaw_tol),
                                               bias_span=config.odometry_bias_span, lever=lever)
         self.detection_time: float | None = None

@@ -125,7 +125,7 @@ class LaneConsistencyMonitor:
     def __init__(self, b: float, tau: float, existence_threshold: float, faults: FaultLog, *,
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
-                 yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
+                 yaw_margin: float = 0.0, yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
                  lever: float = 0.0) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
@@ -137,6 +137,9 @@ class LaneConsistencyMonitor:
         """How fast the lines alone (the MSF disagreeing) may move the dead-reckoned pose across the lane (m/s)."""
         self.line_yaw_rate = line_yaw_rate
         """How fast the lines' heading may turn the dead-reckoned yaw (rad/s)."""
+        self.yaw_margin = yaw_margin
+        """How far outside the interval between the sources' headings the dead-reckoned yaw may sit unturned where
+        they disagree that much or more (rad)."""
         self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
@@ -281,9 +284,11 @@ class LaneConsistencyMonitor:
         """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
         way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
         into the interval between the MSF's heading (`msf_yaw`, else `pose`'s) and the lines', relative to the lane,
-        at `line_yaw_rate` at most (the lane heading plus the lines' relative heading for a first anchor, the MSF yaw
-        without lines): against one attacked source the car heads as the other does, so a yaw in that interval
-        stays where the gyro carried it and neither source alone can turn it out of it, however slowly.
+        widened by the two headings' disagreement up to `yaw_margin`, at `line_yaw_rate` at most (the lane heading
+        plus the lines' relative heading for a first anchor, the MSF yaw without lines): against one attacked source
+        the car heads as the other does, so a yaw in that interval stays where the gyro carried it and neither source
+        alone can turn it out of it, however slowly; the margin keeps the honest source's wandering heading from
+        ratcheting it towards the other's.
         `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
         `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
         teaches nothing)."""
@@ -305,7 +310,8 @@ class LaneConsistencyMonitor:
         else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
             msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
             own = wrap_angle(carried.yaw - heading)
-            turn = ANCHOR_YAW_GAIN * (into_span(own, msf_rel, psi) - own)
+            margin = min(self.yaw_margin, abs(msf_rel - psi))  # the sources' own disagreement, up to yaw_margin
+            turn = ANCHOR_YAW_GAIN * (into_span(own, msf_rel, psi, margin) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)

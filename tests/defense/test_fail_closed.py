@@ -209,8 +209,32 @@ def test_a_drifting_gyro_is_turned_back_into_the_interval_between_the_msf_and_th
     lines' (true, or bent 0.02 rad to the other side): the anchors turn it back at line_yaw_rate, where 10 s of the gyro
     alone leave it 0.01 rad off. Lines bent to the side the gyro drifts widen the interval: the yaw is left to it."""
     smap = FakeStraightMap()
-    d = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9, yaw_margin=0.0))
     Drive(d, smap, gyro_bias=0.001).run(1.0).run(10.0, slope=slope)
+    assert d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
+
+
+@pytest.mark.parametrize(("slope", "low", "high"), [(0.0, 0.0, 0.001), (0.02, 0.0095, 0.0105)])
+def test_with_the_margin_a_drifting_gyro_is_turned_back_to_within_the_sources_disagreement(slope, low, high):
+    """The same gyro for 20 s (0.02 rad alone) with the default `yaw_margin`: where the sources agree the interval
+    is not widened and the yaw is turned back into it; lines bent 0.02 rad widen it by their disagreement up to the
+    margin (0.01 rad), and the yaw is turned back to that edge."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9))
+    Drive(d, smap, gyro_bias=0.001).run(1.0).run(20.0, slope=slope)
+    assert d.config.yaw_margin == 0.01 and d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
+
+
+@pytest.mark.parametrize(("margin", "low", "high"), [(None, -0.0005, 0.0005), (0.0, 0.004, 0.007)])
+def test_the_honest_msf_heading_s_wander_does_not_ratchet_the_yaw_towards_bent_lines(margin, low, high):
+    """A true MSF whose heading wanders ±6 mrad (as the MSF's does on benign drives), lines bent 0.03 rad to one
+    side for 20 s (the heading check off), an honest gyro: within the interval widened by the default margin the yaw
+    stays the gyro's. Without the margin each swing of the MSF's heading towards the lines turns it, none back: it
+    ratchets to the swing's edge, and a response steered on it drifts v × 6 mrad a second."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9, **({} if margin is None else {"yaw_margin": margin})))
+    wander = lambda t, x: -0.006 * math.sin(2.0 * math.pi * t / 3.0)  # noqa: E731
+    Drive(d, smap).run(1.0).run(20.0, yaw=wander, slope=-0.03)
     assert d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
 
 
