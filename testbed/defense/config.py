@@ -103,11 +103,11 @@ class DefenseConfig(Params):
     line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
                                  "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
                                  "about what a gyro drifts): lines rotated by a road patch cannot swing it")
-    yaw_margin: float = Field(0.01, ge=0.0, description="fail-closed: the dead-reckoned yaw is turned only into the "
-                              "interval between the MSF's and the lines' headings widened on both sides by their "
-                              "disagreement, up to this (rad; over the MSF's heading error on benign drives, up to "
-                              "0.0085): without it the honest source's wandering heading ratchets the yaw towards "
-                              "the attacked one's")
+    yaw_margin: float = Field(0.01, ge=0.0, description="fail-closed: the dead-reckoned yaw, and in the response "
+                              "the steered one, is turned only into the interval between the MSF's and the lines' "
+                              "headings widened on both sides by their disagreement, up to this (rad; over the MSF's "
+                              "heading error on benign drives, up to 0.0085): without it the honest source's "
+                              "wandering heading ratchets the yaw towards the attacked one's")
     odometry_bias_span: float = Field(100.0, ge=0.0, description="fail-closed: distance (m) over which odometry's "
                                       "yaw-rate error per metre travelled (a steering-angle offset in a yaw rate "
                                       "derived from the steering) is fitted to the MSF's yaw where MSF and lines "

@@ -15,7 +15,10 @@ yaw no attacker moves, so when the fusion leaves the MSF out "fused" follows tha
 slope (which would hide a large heading error from the controller); so does "ld"/"fused" before any line the
 response kept. With the own yaw, "ld" and "fused" turn it by the lines' disagreement with it (the lines' ψ less
 the own yaw relative to the lane), bounded by `clamp` and by `turn_rate` times the time since the response's
-first detection: the lines correct the gyro's slow drift, and lines rotated by a road patch steer no faster.
+first detection: the lines correct the gyro's slow drift, and lines rotated by a road patch steer no faster. Given
+the MSF's heading (the fail-closed response), the lines turn the own yaw only into the interval between the MSF's
+heading and theirs, widened by the two's disagreement up to `yaw_margin`, as the dead-reckoned yaw is turned before
+the alarm: against one attacked source the car heads as the other does, so neither turns the yaw out of it.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from __future__ import annotations
 import math
 
 from testbed.defense.ld_deviation import line_distance
-from testbed.defense.odometry import drift_allowance
+from testbed.defense.odometry import drift_allowance, into_span
 from testbed.lane_detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose, wrap_angle
@@ -80,12 +83,15 @@ class FusedHeading:
     """The fused pose's yaw for one heading source; `relative` is its last heading relative to the lane."""
 
     def __init__(self, source: str, clamp: float, existence_threshold: float, own_yaw: bool = False,
-                 turn_rate: float = math.inf) -> None:
+                 turn_rate: float = math.inf, yaw_margin: float = math.inf) -> None:
         self.source = source
         self.own_yaw = own_yaw
         self.clamp = clamp
         self.turn_rate = turn_rate
         """Own yaw: how fast the lines may turn the heading away from it since the first detection (rad/s)."""
+        self.yaw_margin = yaw_margin
+        """Own yaw with the MSF's heading given: the lines turn it only into the interval between the MSF's heading
+        and theirs, widened by the two's disagreement up to this (rad); infinite: towards the lines wherever it is."""
         self._start: float | None = None
         self.existence_threshold = existence_threshold
         self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then
@@ -99,7 +105,8 @@ class FusedHeading:
         self._ld_ref = None
 
     def on_detection(self, ld: LaneDetection, msf_yaw: float, lane_heading: float,
-                     uncertainties: tuple[float, float] | None = None, lines_kept: bool = True) -> None:
+                     uncertainties: tuple[float, float] | None = None, lines_kept: bool = True,
+                     msf_heading: float | None = None) -> None:
         """Read ψ off a new detection ("ld", "fused"); a detection without a valid line, or whose lines the
         response left out (`lines_kept` false), keeps the last ψ. `uncertainties` = (R_MSF, R_LD) of the fusion
         step, which "fused" weighs the headings by."""
@@ -111,7 +118,11 @@ class FusedHeading:
         if psi is not None and self.own_yaw:
             bound = min(self.clamp, drift_allowance(self.turn_rate, ld.timestamp - self._start))
             own = wrap_angle(msf_yaw - lane_heading)
-            self._ld_ref = (min(max(psi - own, -bound), bound), own)
+            target = psi
+            if msf_heading is not None and math.isfinite(msf_heading) and math.isfinite(self.yaw_margin):
+                msf_rel = wrap_angle(msf_heading - lane_heading)
+                target = into_span(own, msf_rel, psi, min(self.yaw_margin, abs(msf_rel - psi)))
+            self._ld_ref = (min(max(target - own, -bound), bound), own)
         elif psi is not None:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))
         if self.source == "fused" and uncertainties is not None:

@@ -60,7 +60,8 @@ class Ld3Defense(Ld3AlarmedDefense):
         self.fusion = SafetyDrivenFusion(config.window, config.lam, config.kf_q, config.kf_p0, config.r_power)
         self.heading = FusedHeading(config.heading, config.heading_clamp, config.existence_threshold,
                                     own_yaw=config.fail_closed,
-                                    turn_rate=config.line_yaw_rate if config.fail_closed else math.inf)
+                                    turn_rate=config.line_yaw_rate if config.fail_closed else math.inf,
+                                    yaw_margin=config.yaw_margin if config.fail_closed else math.inf)
         self._p_ld = config.p_ld
         self._fused_pose: Pose | None = None
         self._fused_offset: tuple[float, float] | None = None
@@ -142,7 +143,7 @@ class Ld3Defense(Ld3AlarmedDefense):
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None,
-                                  lines_kept=d_ld is not None)
+                                  lines_kept=d_ld is not None, msf_heading=msf.pose.yaw)
 
     def _reference_on_lane(self, t: float, pose: Pose, smap: SemanticMap, lane: int,
                            alarm: bool) -> tuple[Pose, np.ndarray, float]:

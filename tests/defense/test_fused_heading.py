@@ -135,3 +135,25 @@ def test_with_the_own_yaw_honest_lines_correct_its_drift_within_the_clamp():
     moved = FusedHeading("ld", 0.02, 0.5, own_yaw=True)  # without a rate the lines' ψ is taken at once
     moved.on_detection(at(0.0, lines(math.tan(-0.1), math.tan(-0.1))), msf_yaw=0.0, lane_heading=0.0)
     assert moved.yaw(0.0, 0.0) == pytest.approx(0.02)
+
+
+def test_with_the_msf_heading_the_lines_turn_the_own_yaw_only_into_the_interval_between_the_two():
+    """Lines bent 0.03 rad beside an MSF heading with the car (wandering ±6 mrad), the own yaw the car's: the yaw stays
+    the own one, where lines alone turned it at the turn rate (0.006 rad in 3 s). Honest lines and an MSF heading
+    0.03 rad off leave it too. An own yaw 0.004 rad outside the sources' agreement is turned back into it."""
+    bent = lines(math.tan(-0.03), math.tan(-0.03))
+    held = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002, yaw_margin=0.01)
+    alone = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002)
+    for k in range(61):
+        t, wander = 0.05 * k, 0.006 * math.sin(2.0 * math.pi * 0.05 * k / 3.0)
+        held.on_detection(at(t, bent), msf_yaw=0.0, lane_heading=0.0, msf_heading=wander)
+        alone.on_detection(at(t, bent), msf_yaw=0.0, lane_heading=0.0, msf_heading=wander)
+    assert held.yaw(0.0, 0.0) == pytest.approx(0.0) and alone.yaw(0.0, 0.0) == pytest.approx(0.006)
+    honest = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002, yaw_margin=0.01)
+    for k in range(61):
+        honest.on_detection(at(0.05 * k, lines(0.0, 0.0)), msf_yaw=0.0, lane_heading=0.0, msf_heading=0.03)
+    assert honest.yaw(0.0, 0.0) == pytest.approx(0.0)
+    drifted = FusedHeading("ld", 0.02, 0.5, own_yaw=True, turn_rate=0.002, yaw_margin=0.01)
+    for k in range(61):
+        drifted.on_detection(at(0.05 * k, lines(0.0, 0.0)), msf_yaw=0.004, lane_heading=0.0, msf_heading=0.0)
+    assert drifted.yaw(0.004, 0.0) == pytest.approx(0.0)
