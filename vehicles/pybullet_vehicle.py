@@ -5,16 +5,12 @@ in it), the rate-limited steering advances towards its command by dt and the two
 are sent to the angles it reaches at the interval's end (position control), and the acceleration
 command becomes wheel torques from the speed measured at the interval's start: F = m_eff·a + road_load(v)
 with m_eff = m + ΣI_wheel/r²; F > 0 drives the rear wheels (velocity motors at that torque limit, their
-target capped 1 m/s above the body speed as traction control), F < 0 brakes all four with the brake torque T
-(Coulomb friction of the pads): while T cannot stop the car within the interval (|v| > (−F/m_eff)·dt) the pads
-slide, a torque −sign(v)·T on each wheel every physics step with the wheels' motors off; in the interval after
-they slid that T can stop it, they take the share of T that does, −T·v/((−F/m_eff)·dt); after that they stick,
-position motors holding each wheel at the angle it stuck at under T as their limit (static friction: the brake
-gives back the wheel's drift, so a stopped car stays stopped at any physics step).
-The road load is pushed on the body as an external force every physics step, with the brakes' torques while they
-slide or stop the car (`apply_road_load`). A speed governor caps the command at (max_speed − v)·2 s⁻¹. `sense`
-measures the speed after each interval and low-pass filters its change into the reported acceleration. The car is
-only placed by `reset_pose`, never teleported"""
+target capped 1 m/s above the body speed as traction control), F < 0 brakes all four (velocity motors
+held at 0 rad/s with the brake torque as their limit, i.e. Coulomb-like brakes that hold a stopped car).
+The road load is pushed on the body as an external force every physics step (`apply_road_load`). A speed
+governor caps the command at (max_speed − v)·2 s⁻¹. `sense` measures the speed after each interval and
+low-pass filters its change into the reported acceleration. The car is only placed by `reset_pose`,
+never teleported"""
 
 from __future__ import annotations
 
@@ -40,8 +36,6 @@ _STEER_TORQUE = 1.0e4  # N·m
 _STEER_POSITION_GAIN = 1.0
 _STEER_VELOCITY_GAIN = 1.0
 _WHEEL_VELOCITY_GAIN = 1.0  # PyBullet's velocity gain of a VELOCITY_CONTROL motor command that gives none
-_BRAKE_HOLD_GAIN = 0.3
-"""Position gain of a stuck wheel's motor: it gives the wheel's drift back over a few steps (a pad's compliance)."""
 _ORIGIN = (0.0, 0.0, 0.0)
 _KERNELS = compiled_module("vehicles.vehicle_kernels")
 
@@ -93,17 +87,11 @@ class PyBulletVehicle:
         self._load = 0.0
         self._speed = 0.0
         self._accel = 0.0
-        self._brake_lock: tuple[float, ...] | None = None
-        """The wheels' angles (rad) where their brakes stuck, while they stick; None while they slide or drive."""
-        self._brake_torques: tuple[float, ...] | None = None
-        """The brakes' torques on the wheels (N·m, FL, FR, RL, RR) while they slide or stop the car; None otherwise."""
-        self._sliding = False
-        """Whether the brakes slid at their full torque over the last interval (so they cannot have stuck yet)."""
         self.sensed: tuple[Pose, float, float, float] | None = None
         """(pose, speed, yaw rate, steer angle) as `sense` measured them; None once physics has stepped since."""
         self._motion = None if _KERNELS is None else _KERNELS.VehicleMotion(
             self, p, _GOVERNOR_GAIN, _TRACTION_SLIP, _ACCEL_FILTER_TAU, _STEER_TORQUE, _STEER_POSITION_GAIN,
-            _STEER_VELOCITY_GAIN, _WHEEL_VELOCITY_GAIN, _BRAKE_HOLD_GAIN, Pose)
+            _STEER_VELOCITY_GAIN, _WHEEL_VELOCITY_GAIN, Pose)
         """`actuate` and `sense` compiled (vehicles/vehicle_kernels.pyx), where built; None: the methods below,
         the reference it is tested equal to."""
         self.reset_pose(pose)
@@ -127,7 +115,6 @@ class PyBulletVehicle:
         self._load = road_load(prm, v)
         force = self._m_eff * accel + self._load
         r = prm.wheel_radius
-        sliding, self._sliding, self._brake_torques = self._sliding, False, None
         if force >= 0.0:
             drive = force * r / 2.0
             spin = (max(v, 0.0) + _TRACTION_SLIP) / r
@@ -138,17 +125,6 @@ class PyBulletVehicle:
             rear = -force * (1.0 - prm.front_brake_share) * r / 2.0
             targets = (0.0, 0.0, 0.0, 0.0)
             torques = (front, front, rear, rear)
-            grip = max(-1.0, min(1.0, v / (-force / self._m_eff * dt)))
-            if abs(grip) < 1.0 and not sliding:
-                if self._brake_lock is None:
-                    states = p.getJointStates(self.body_id, self.wheel_link_ids, physicsClientId=self._cid)
-                    self._brake_lock = tuple(st[0] for st in states)
-                self._send_all(delta, targets, torques, self._brake_lock)
-                return
-            self._brake_torques = (-grip * front, -grip * front, -grip * rear, -grip * rear)
-            self._sliding = abs(grip) == 1.0
-            torques = (0.0, 0.0, 0.0, 0.0)
-        self._brake_lock = None
         if delta != self._sent_steer:  # motors keep their targets: resend on change
             self._send_all(delta, targets, torques)
             return
@@ -162,15 +138,11 @@ class PyBulletVehicle:
         )
 
     def apply_road_load(self) -> None:
-        """Push the road load of the last `actuate` on the body, along its x axis at its centre of mass, and the
-        brakes' torques on the wheels while they slide or stop the car, for the next physics step (PyBullet clears
-        external forces and joint torques after every step); `sensed` is stale after it."""
+        """Push the road load of the last `actuate` on the body, along its x axis at its centre of mass, for
+        the next physics step (PyBullet clears external forces after every step); `sensed` is stale after it."""
         self.sensed = None
         p.applyExternalForce(self.body_id, -1, (-self._load, 0.0, 0.0), _ORIGIN, p.LINK_FRAME,
                              physicsClientId=self._cid)
-        if self._brake_torques is not None:
-            p.setJointMotorControlArray(self.body_id, self.wheel_link_ids, p.TORQUE_CONTROL,
-                                        forces=self._brake_torques, physicsClientId=self._cid)
 
     def sense(self, dt: float, steer: bool = True) -> None:
         """Measure the state after `dt` s of physics since the last `sense` (kept in `sensed` until the next
@@ -200,21 +172,19 @@ class PyBulletVehicle:
         )
         self._sent_steer = delta
 
-    def _send_all(self, delta: float, targets: tuple[float, ...], torques: tuple[float, ...],
-                  lock: tuple[float, ...] | None = None) -> None:
-        """`_send_steer(delta)` and the wheels' command in one PyBullet call: without `lock`, the wheels' motors as
-        a velocity command leaves them (position target 0 at gain 0, `_WHEEL_VELOCITY_GAIN`), each motor's state
-        the same as after the two calls; with it, stuck brakes holding the wheels at the angles in `lock`."""
+    def _send_all(self, delta: float, targets: tuple[float, ...], torques: tuple[float, ...]) -> None:
+        """`_send_steer(delta)` and the wheels' velocity command in one PyBullet call: the wheels' motors as a
+        velocity command leaves them (position target 0 at gain 0, `_WHEEL_VELOCITY_GAIN`), each motor's state
+        the same as after the two calls."""
         left, right = ackermann_angles(delta, self.params.wheelbase, self.params.track_width)
-        positions, gain = (0.0, 0.0, 0.0, 0.0) if lock is None else lock, 0.0 if lock is None else _BRAKE_HOLD_GAIN
         p.setJointMotorControlArray(
             self.body_id,
             self.steer_joint_ids + self.wheel_link_ids,
             p.POSITION_CONTROL,
-            targetPositions=(left, right, *positions),
+            targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
             targetVelocities=(0.0, 0.0, *targets),
             forces=(_STEER_TORQUE, _STEER_TORQUE, *torques),
-            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN, gain, gain, gain, gain),
+            positionGains=(_STEER_POSITION_GAIN, _STEER_POSITION_GAIN, 0.0, 0.0, 0.0, 0.0),
             velocityGains=(_STEER_VELOCITY_GAIN, _STEER_VELOCITY_GAIN) + (_WHEEL_VELOCITY_GAIN,) * 4,
             physicsClientId=self._cid,
         )
@@ -241,9 +211,6 @@ class PyBulletVehicle:
         self._speed = speed
         self._accel = 0.0
         self._load = 0.0
-        self._brake_lock = None
-        self._brake_torques = None
-        self._sliding = False
         self.sensed = None
 
     # -- measurements ---------------------------------------------------------------------------------

@@ -8,8 +8,7 @@ The same PyBullet calls with the same arguments, and the same arithmetic as the 
 build turns off multiply-add contraction; Python's `min` and `max` as they treat floats; libm's trigonometry, as
 Python's `math` calls it), so every command sent and every state sensed is the same to the bit;
 `tests/vehicles/test_vehicle_kernels.py` holds it to it. The vehicle's Python state (its command, speed, filtered
-acceleration, road load, sent steer, the actuator's angle and rate, the brakes' lock, torques and sliding) is read
-and written back on every call.
+acceleration, road load, sent steer, the actuator's angle and rate) is read and written back on every call.
 """
 
 from libc.math cimport NAN, atan, atan2, cos, fabs, sin, tan
@@ -24,16 +23,15 @@ cdef class VehicleMotion:
     """Actuation and sensing of one `PyBulletVehicle` (its body, joints and parameters as built) through the
     `pybullet` module `pb` it was built with (so this module imports no simulator), with the vehicle module's
     constants handed in: the governor's gain, the traction slip, the acceleration filter's time constant,
-    the steering motors' torque and gains, the wheel motors' velocity gain, a stuck wheel's position gain, and the
-    `Pose` type the pose is reported in."""
+    the steering motors' torque and gains, the wheel motors' velocity gain, and the `Pose` type the pose is reported in."""
 
     cdef object vehicle, steering, pose_type, steer_ids, wheel_ids, joint_ids, wheel_kv, pb
     cdef int body, cid
     cdef double max_decel, max_accel, max_speed, wheel_radius, front_share, m_eff, crr_mg, drag, wheelbase, half_track
-    cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz, hold_gain
+    cdef double governor, slip, filter_tau, steer_torque, steer_kp, steer_kv, ox, oz
 
     def __init__(self, vehicle, pb, double governor, double slip, double filter_tau, double steer_torque,
-                 double steer_kp, double steer_kv, double wheel_kv, double hold_gain, pose_type):
+                 double steer_kp, double steer_kv, double wheel_kv, pose_type):
         prm = vehicle.params
         self.pb = pb
         self.vehicle, self.steering, self.pose_type = vehicle, vehicle._steering, pose_type
@@ -49,13 +47,12 @@ cdef class VehicleMotion:
         self.governor, self.slip, self.filter_tau = governor, slip, filter_tau
         self.steer_torque, self.steer_kp, self.steer_kv = steer_torque, steer_kp, steer_kv
         self.ox, self.oz = vehicle._cg_offset[0], vehicle._cg_offset[2]
-        self.hold_gain = hold_gain
 
     def actuate(self, double dt):
         """`PyBulletVehicle.actuate`."""
         vehicle, steering, p = self.vehicle, self.steering, self.pb
         cdef double v = vehicle._speed, max_angle = steering.max_angle, angle = steering.angle, target, max_step
-        cdef double delta, accel, load, force, r = self.wheel_radius, drive, spin, front, rear, grip
+        cdef double delta, accel, load, force, r = self.wheel_radius, drive, spin, front, rear
         target = py_max(-max_angle, py_min(max_angle, vehicle._cmd_steer))
         max_step = steering.max_rate * dt
         delta = py_max(-max_step, py_min(max_step, target - angle))
@@ -67,10 +64,7 @@ cdef class VehicleMotion:
         load = self.crr_mg * v / py_max(fabs(v), SOFT_SPEED) + self.drag * v * fabs(v)
         vehicle._load = load
         force = self.m_eff * accel + load
-        cdef bint sliding = vehicle._sliding
-        vehicle._sliding, vehicle._brake_torques = False, None
         if force >= 0.0:
-            vehicle._brake_lock = None
             drive = force * r / 2.0
             spin = (py_max(v, 0.0) + self.slip) / r
             if resend:
@@ -82,35 +76,25 @@ cdef class VehicleMotion:
         else:
             front = -force * self.front_share * r / 2.0
             rear = -force * (1.0 - self.front_share) * r / 2.0
-            grip = py_max(-1.0, py_min(1.0, v / (-force / self.m_eff * dt)))
-            if fabs(grip) < 1.0 and not sliding:
-                if vehicle._brake_lock is None:
-                    states = p.getJointStates(self.body, self.wheel_ids, physicsClientId=self.cid)
-                    vehicle._brake_lock = tuple([st[0] for st in states])
-                self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (front, front, rear, rear), vehicle._brake_lock)
-                return
-            vehicle._brake_torques = (-grip * front, -grip * front, -grip * rear, -grip * rear)
-            vehicle._sliding = fabs(grip) == 1.0
-            vehicle._brake_lock = None
             if resend:
-                self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))
+                self._send_all(angle, (0.0, 0.0, 0.0, 0.0), (front, front, rear, rear))
                 return
             p.setJointMotorControlArray(self.body, self.wheel_ids, p.VELOCITY_CONTROL,
-                                        targetVelocities=(0.0, 0.0, 0.0, 0.0), forces=(0.0, 0.0, 0.0, 0.0),
+                                        targetVelocities=(0.0, 0.0, 0.0, 0.0), forces=(front, front, rear, rear),
                                         physicsClientId=self.cid)
 
-    cdef _send_all(self, double delta, tuple targets, tuple torques, tuple lock=None):
-        """`PyBulletVehicle._send_all`: the front wheels to their Ackermann angles and the wheels' velocity command
-        (with `lock`, their stuck brakes' hold), in one call."""
-        cdef double t = tan(delta), left, right, wb = self.wheelbase, gain = 0.0 if lock is None else self.hold_gain
+    cdef _send_all(self, double delta, tuple targets, tuple torques):
+        """`PyBulletVehicle._send_all`: the front wheels to their Ackermann angles and the wheels' velocity command,
+        in one call."""
+        cdef double t = tan(delta), left, right, wb = self.wheelbase
         p = self.pb
         left = atan2(wb * t, wb - self.half_track * t)
         right = atan2(wb * t, wb + self.half_track * t)
         p.setJointMotorControlArray(self.body, self.joint_ids, p.POSITION_CONTROL,
-                                    targetPositions=(left, right) + ((0.0, 0.0, 0.0, 0.0) if lock is None else lock),
+                                    targetPositions=(left, right, 0.0, 0.0, 0.0, 0.0),
                                     targetVelocities=(0.0, 0.0) + targets,
                                     forces=(self.steer_torque, self.steer_torque) + torques,
-                                    positionGains=(self.steer_kp, self.steer_kp, gain, gain, gain, gain),
+                                    positionGains=(self.steer_kp, self.steer_kp, 0.0, 0.0, 0.0, 0.0),
                                     velocityGains=(self.steer_kv, self.steer_kv) + self.wheel_kv,
                                     physicsClientId=self.cid)
         self.vehicle._sent_steer = delta

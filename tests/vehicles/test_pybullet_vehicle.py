@@ -146,29 +146,3 @@ def test_same_commands_give_an_identical_trajectory():
     first, second = _scripted_run(), _scripted_run()
     assert first == second
     assert first[-1][3] > 3.0  # the run actually drove somewhere
-
-
-@pytest.mark.parametrize("params", [SEDAN, DEV_CHASSIS], ids=["sedan", "dev-chassis"])
-def test_braked_car_stops_and_stays_stopped_at_one_physics_step_a_command(params):
-    # one 25 ms physics step a 40 Hz command (`rates.physics_hz = 40`): brakes as velocity motors leave the car creeping
-    # at 3-6 cm/s for seconds (the solver's unconverged brake), and fade the stop below 0.3 m/s; Coulomb torque while
-    # the pads slide stops it, stuck brakes hold it
-    cid = make_world(solver_iterations=10)
-    try:
-        p.setPhysicsEngineParameter(fixedTimeStep=1.0 / 40.0, physicsClientId=cid)
-        car = PyBulletVehicle(cid, params, Pose(0.0, 0.0, 0.0))
-        car.reset_pose(Pose(0.0, 0.0, 0.0), speed=1.6)
-        speeds = []
-        for _ in range(120):  # 3 s braking at 3.5 m/s²: stopped after 0.46 s
-            car.apply(0.0, -3.5)
-            car.actuate(1.0 / 40.0)
-            car.apply_road_load()
-            p.stepSimulation(physicsClientId=cid)
-            car.sense(1.0 / 40.0)
-            speeds.append(car.speed())
-        lateral = car.pose().y
-    finally:
-        p.disconnect(cid)
-    assert max(abs(v) for v in speeds[19:]) < 0.05  # under the run's standstill speed one interval after 0.46 s
-    assert max(abs(v) for v in speeds[40:]) < 0.01  # standing from 1 s on
-    assert abs(lateral) < 0.05

@@ -29,8 +29,7 @@ def bits(values: object) -> object:
 
 def state(car: PyBulletVehicle) -> object:
     steering = car._steering
-    return bits((car.sensed, car._accel, car._speed, car._load, car._sent_steer, steering.angle, steering.rate,
-                 car._brake_lock, car._brake_torques, car._sliding))
+    return bits((car.sensed, car._accel, car._speed, car._load, car._sent_steer, steering.angle, steering.rate))
 
 
 @pytest.mark.skipif(KERNELS is None, reason="the Cython kernels are not built (no C compiler at install)")
@@ -54,7 +53,6 @@ def test_the_compiled_vehicle_commands_and_senses_as_the_python_one(params, monk
         for car in (fast, slow):
             car.reset_pose(Pose(2.0, -1.0, 0.3), speed=3.0)
         steer, accel = 0.0, 0.0
-        phases = set()
         for k in range(1200):
             if k % 30 == 0:
                 steer = float(rng.uniform(-1.5, 1.5) * params.max_steer)
@@ -71,9 +69,6 @@ def test_the_compiled_vehicle_commands_and_senses_as_the_python_one(params, monk
                 car.sense(interval, k % 3 != 0)  # every third interval without the road-wheel angle
             assert state(fast) == state(slow), k
             assert sent[worlds[0]] == sent[worlds[1]], k
-            phases.add("held" if slow._brake_lock is not None else "slid" if slow._sliding
-                       else "stopped" if slow._brake_torques is not None else "free")
-        assert phases == {"free", "slid", "stopped", "held"}  # the brakes slid, stopped the car and stuck too
         assert len(sent[worlds[0]]) > 1200  # every interval's command (the steering in it when it moved) and the resets
     finally:
         for w in worlds:
