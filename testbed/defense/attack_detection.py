@@ -41,7 +41,14 @@ from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
 from testbed.defense.ld_deviation import LdDeviation
-from testbed.defense.odometry import CurvatureBias, DeadReckoning, drift_allowance, into_span, step_toward
+from testbed.defense.odometry import (
+    CurvatureBias,
+    DeadReckoning,
+    drift_allowance,
+    into_heading_span,
+    into_span,
+    step_toward,
+)
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
 from tracks.map_api import OffMapError, SemanticMap
@@ -310,8 +317,7 @@ class LaneConsistencyMonitor:
         else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
             msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
             own = wrap_angle(carried.yaw - heading)
-            margin = min(self.yaw_margin, abs(msf_rel - psi))  # the sources' own disagreement, up to yaw_margin
-            turn = ANCHOR_YAW_GAIN * (into_span(own, msf_rel, psi, margin) - own)
+            turn = ANCHOR_YAW_GAIN * (into_heading_span(own, msf_rel, psi, self.yaw_margin) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)
             yaw, gain = carried.yaw + max(-limit, min(limit, turn)), 1.0
         self.odometry.anchor(pose_on_lane(point, heading, d_ld, yaw), gain)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 from testbed.defense.ld_deviation import line_distance
-from testbed.defense.odometry import drift_allowance, into_span
+from testbed.defense.odometry import drift_allowance, into_heading_span
 from testbed.lane_detection import LaneDetection
 from tracks.map_api import OffMapError, SemanticMap
 from tracks.pose import Pose, wrap_angle
@@ -121,7 +121,7 @@ class FusedHeading:
             target = psi
             if msf_heading is not None and math.isfinite(msf_heading) and math.isfinite(self.yaw_margin):
                 msf_rel = wrap_angle(msf_heading - lane_heading)
-                target = into_span(own, msf_rel, psi, min(self.yaw_margin, abs(msf_rel - psi)))
+                target = into_heading_span(own, msf_rel, psi, self.yaw_margin)
             self._ld_ref = (min(max(target - own, -bound), bound), own)
         elif psi is not None:
             self._ld_ref = (self._clamped(psi), wrap_angle(msf_yaw - lane_heading))

@@ -51,6 +51,13 @@ def into_span(value: float, a: float, b: float, margin: float = 0.0) -> float:
     return min(max(value, min(a, b) - margin), max(a, b) + margin)
 
 
+def into_heading_span(own: float, a: float, b: float, max_margin: float) -> float:
+    """`own` moved into the span of two sources' headings (rad, relative to the lane) widened by their disagreement
+    up to `max_margin`: where they agree nothing widens it; where they disagree, the honest one's wandering heading
+    cannot ratchet `own` towards the other's."""
+    return into_span(own, a, b, min(max_margin, abs(a - b)))
+
+
 def step_toward(d_from: float, d_to: float, max_step: float) -> float:
     """`d_to`, or the value `max_step` from `d_from` towards it: one source alone moves a reference no faster than
     odometry could drift, so an attacker of that source cannot drag it."""

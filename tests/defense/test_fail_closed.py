@@ -16,7 +16,7 @@ from testbed.defense.config import DefenseConfig
 from testbed.defense.faults import FaultLog, FaultRecord
 from testbed.defense.ld3 import Ld3Defense
 from testbed.defense.naive_ar import NaiveArDefense
-from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, into_span, step_toward
+from testbed.defense.odometry import DeadReckoning, advance, drift_allowance, into_heading_span, into_span, step_toward
 from testbed.eval.run.scenario import load_scenario
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -424,3 +424,10 @@ def test_a_value_moved_into_the_span_of_two_readings():
     assert into_span(0.5, -0.1, 0.2) == 0.2 and into_span(-0.5, 0.2, -0.1) == -0.1  # either order
     assert into_span(0.05, -0.1, 0.2) == 0.05  # inside: left where it is
     assert into_span(0.5, -0.1, 0.2, margin=0.1) == pytest.approx(0.3)
+
+
+def test_a_heading_moved_into_the_sources_span_widened_by_their_disagreement():
+    assert into_heading_span(0.01, 0.0, 0.0, 0.01) == 0.0  # the sources agree: nothing widens their span
+    assert into_heading_span(0.01, 0.0, 0.004, 0.01) == pytest.approx(0.008)  # widened by their 4 mrad
+    assert into_heading_span(-0.05, 0.0, 0.03, 0.01) == pytest.approx(-0.01)  # by at most the margin
+    assert into_heading_span(0.005, 0.0, -0.03, 0.01) == 0.005  # inside the widened span: left where it is
