@@ -156,8 +156,8 @@ def test_lines_bent_slowly_under_the_heading_check_then_pushed_stop_in_lane(spec
 
 def test_a_shadow_that_chatters_the_steering_leaves_the_odometry_yaw_unbiased():
     """The MSF's attacker swings the pose at each detection and the steering chatters near the control rate. A yaw
-    rate sampled once a tick aliases that into a drift of the defense's odometry (0.014 rad in 8 s), and this run
-    went 0.528 m undetected, over the bound on the car (0.52 m); integrated as the period's mean it does not."""
+    rate sampled once a tick aliases that into a drift of the defense's odometry (0.014 rad in 8 s) that takes this
+    run 0.528 m undetected, over the bound on the car (0.52 m); integrated as the period's mean it does not."""
     spec = ("shadow:start=15.0085,spend=0.8674,sustain=0.5923,hspend=0.9163,hsustain=0.7026,spread=0.1059,"
             "along=0.173,direction=right")
     sc = api.scenario("highway", localization="msf", defense="ld3", detector="oracle", duration=45.0)
