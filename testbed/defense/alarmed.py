@@ -109,7 +109,8 @@ class Ld3AlarmedDefense(LatchingDefense):
         if not alarm:
             return False
         self.detection_time = ld.timestamp
-        logger.info("%s: attack detected at t=%.3f (S=%.3f)", self.name, ld.timestamp, self.monitor.detector.statistic)
+        logger.info("%s: attack detected at t=%.3f by the %s check (S=%.3f)", self.name, ld.timestamp,
+                    self.monitor.alarm_check, self.monitor.detector.statistic)
         return True
 
     def _take_checked(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> None:
@@ -153,4 +154,5 @@ class Ld3AlarmedDefense(LatchingDefense):
             cusum=self.monitor.detector.statistic,
             d_msf=self.monitor.d_msf,
             d_ld=self.monitor.d_ld,
+            alarm_check=self.monitor.alarm_check,
         )

@@ -171,6 +171,9 @@ class LaneConsistencyMonitor:
         """D_LD of the last detection when a line seen in it gave one (None when absent or reused)."""
         self.in_intersection = False
         self.ego_lane: int | None = None
+        self.alarm_check: str | None = None
+        """Which check raised the alarm and against what: `lateral-` (Alg. 1), `heading-` or `along-`, then `lines`,
+        `odometry` or `unplaced` (an MSF pose the map cannot place, fed the lane width); None before an alarm."""
         self._agreed_lane: int | None = None
         self._width: float | None = None
 
@@ -228,7 +231,7 @@ class LaneConsistencyMonitor:
             lane = None
         if abs(pair[0] - pair[1]) <= self.detector.cusum.b and lane is not None:
             self._agreed_lane = lane
-        return self._update(*pair, lane)
+        return self._update(*pair, lane, "lines")
 
     def _step_fail_closed(self, ld: LaneDetection, pose: Pose, smap: SemanticMap) -> bool:
         """Alg. 1 failing closed: an unplaceable MSF pose feeds a lane width, missing lines the odometry check,
@@ -238,7 +241,7 @@ class LaneConsistencyMonitor:
         lane = self._lane_of(t, reckoned, smap)
         d_msf = self.msf_deviation(t, pose, smap, lane)
         if d_msf is None:
-            return self._update(self._unplaced_residual(reckoned, lane, smap), 0.0, lane)
+            return self._update(self._unplaced_residual(reckoned, lane, smap), 0.0, lane, "unplaced")
         self.d_msf = d_msf
         if lane is None:
             lane = smap.project(pose).lane
@@ -271,20 +274,21 @@ class LaneConsistencyMonitor:
             self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)),
                          msf_yaw=pose.yaw)
         psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
-        if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane):
+        if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane, "lines"):
             return True
-        return self._update(d_msf, d_ld, lane)
+        return self._update(d_msf, d_ld, lane, "lines")
 
-    def _check_heading(self, residual: float, lane: int | None) -> bool:
-        """Feed the heading CUSUM the wrapped heading residual (rad); True (and `ego_lane` fixed) on its alarm."""
-        return self.heading.update(math.remainder(residual, math.tau)) and self._latch(lane)
+    def _check_heading(self, residual: float, lane: int | None, against: str) -> bool:
+        """Feed the heading CUSUM the wrapped heading residual (rad) against `against`'s heading; True (and
+        `ego_lane` fixed) on its alarm."""
+        return self.heading.update(math.remainder(residual, math.tau)) and self._latch(lane, f"heading-{against}")
 
     def _check_along(self, pose: Pose, reckoned: Pose, smap: SemanticMap, lane: int) -> bool:
         """Feed the along CUSUM the MSF pose's distance along the lane from the dead-reckoned pose (m); True (and
         `ego_lane` fixed) on its alarm."""
         heading = smap.lane_point(reckoned, lane)[1]
         gap = (pose.x - reckoned.x) * math.cos(heading) + (pose.y - reckoned.y) * math.sin(heading)
-        return self.along.update(gap) and self._latch(lane)
+        return self.along.update(gap) and self._latch(lane, "along-odometry")
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float,
                 agreed: bool = False, msf_yaw: float | None = None) -> None:
@@ -338,13 +342,15 @@ class LaneConsistencyMonitor:
         except OffMapError:
             return
 
-    def _update(self, d_msf: float, d_ref: float, lane: int | None) -> bool:
-        """Feed the CUSUM D_MSF − D_ref; True (and `ego_lane` fixed) on its alarm."""
-        return self.detector.update(d_msf, d_ref) and self._latch(lane)
+    def _update(self, d_msf: float, d_ref: float, lane: int | None, against: str) -> bool:
+        """Feed the CUSUM D_MSF − D_ref, D_ref from `against` (the lines, odometry, or the lane width standing for
+        an unplaced pose); True (and `ego_lane` fixed) on its alarm."""
+        return self.detector.update(d_msf, d_ref) and self._latch(lane, f"lateral-{against}")
 
-    def _latch(self, lane: int | None) -> bool:
-        """At an alarm: fix `ego_lane` (the last agreed lane, else `lane`); True."""
+    def _latch(self, lane: int | None, check: str) -> bool:
+        """At an alarm: fix `ego_lane` (the last agreed lane, else `lane`) and name the `check` that raised it; True."""
         self.ego_lane = self._agreed_lane if self._agreed_lane is not None else lane
+        self.alarm_check = check
         return True
 
     def _lane_of(self, t: float, reckoned: Pose | None, smap: SemanticMap) -> int | None:
@@ -402,9 +408,9 @@ class LaneConsistencyMonitor:
             self.faults.report("odometry-off-map", t, f"{why}; dead-reckoned pose: {err}; update skipped")
             return False
         self.faults.report(kind, t, f"{why}; D_MSF={d_msf:.3f} checked against odometry D={d_odo:.3f}")
-        if self._check_heading(msf_yaw - reckoned.yaw, lane):
+        if self._check_heading(msf_yaw - reckoned.yaw, lane, "odometry"):
             return True
-        return self._update(d_msf, d_odo, lane)
+        return self._update(d_msf, d_odo, lane, "odometry")
 
     def msf_deviation(self, t: float, pose: Pose, smap: SemanticMap, lane: int | None) -> float | None:
         """D_MSF against `lane` (nearest lane when None), or None (a fault) when the map cannot place the pose."""

@@ -38,6 +38,9 @@ class DefenseStatus:
     kalman_gain_ld: float | None = None
     heading_rel: float | None = None
     """Heading of the pose handed to control relative to the lane (rad, + left), in attack response."""
+    alarm_check: str | None = None
+    """Which of the defense's checks raised the alarm (docs/outputs.md, `alarm_check`); None before an alarm or
+    where the defense has one check only."""
 
 
 class Defense(ABC):

@@ -136,6 +136,7 @@ def along_drive(shift_rate: float, seconds: float = 12.0) -> Ld3Defense:
 def test_an_msf_pose_sliding_along_the_lane_is_caught_by_the_along_check():
     fast = along_drive(5.0)
     assert fast.mode == "ar" and fast.monitor.along.alarmed and not fast.monitor.detector.alarmed
+    assert fast.status().alarm_check == "along-odometry"
     # caught within a few metres: weight 0.5 m, threshold 2 m, the dead-reckoned station taking 5 % an anchor
     assert fast.detection_time < 2.0 + 3.0 / 5.0
 

@@ -151,6 +151,15 @@ def test_odometry_follows_lines_that_agree_with_it_while_the_msf_is_held_just_ab
     assert abs(drive.smap.lane_dev(reckoned, 0)) < 0.02 and abs(reckoned.x - drive.x) < 0.5
 
 
+@pytest.mark.parametrize("config", [{}, PAPER])
+def test_an_msf_shift_beside_the_lines_is_named_the_lateral_check_against_the_lines(config):
+    """A 1 m MSF shift with the lines in view: Alg. 1's CUSUM alarms on D_MSF − D_LD, in both modes, and the status
+    names that check."""
+    d = Ld3Defense(DefenseConfig(**config))
+    Drive(d, FakeStraightMap()).run(1.0).run(1.0, lambda t, x: 1.0)
+    assert d.mode == "ar" and d.status().alarm_check == "lateral-lines"
+
+
 @pytest.mark.parametrize("bad", [30.0, math.nan])
 def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
     smap = FakeStraightMap()
@@ -160,6 +169,7 @@ def test_an_msf_pose_the_map_cannot_place_alarms_at_once(bad):
     drive.run(0.1, lambda t, x: bad)
     assert d.mode == "ar" and d.status().detection_time == pytest.approx(1.0)
     assert d.status().cusum == pytest.approx(3.5 - d.config.b)  # one lane width, less b
+    assert d.status().alarm_check == "lateral-unplaced"
     kind = "off-map" if math.isfinite(bad) else "nan-pose"
     assert {r.kind: r.count for r in d.fault_records()}[kind] >= 1
 
@@ -185,9 +195,10 @@ def test_the_heading_check_catches_a_biased_msf_yaw_with_a_true_position():
     d = Ld3Defense(DefenseConfig())
     drive = Drive(d, smap).run(4.0, yaw=lambda t, x: 0.05 if x >= 60.0 else 0.0)
     assert d.mode == "ar" and 60.0 <= drive.alarm_x <= 60.0 + 16 * drive.speed / 20.0 and d.status().cusum == 0.0
+    assert d.status().alarm_check == "heading-lines"
     quiet = Ld3Defense(DefenseConfig())
     Drive(quiet, smap).run(4.0, yaw=lambda t, x: 0.025 if x >= 60.0 else 0.0)
-    assert quiet.mode == "normal"
+    assert quiet.mode == "normal" and quiet.status().alarm_check is None
     with pytest.raises(ValueError, match="fail_closed = false"):
         DefenseConfig(**PAPER, heading_b=0.05)
 
@@ -329,7 +340,7 @@ def test_a_2_m_msf_shift_inside_an_intersection_is_detected_there():
     assert d.mode == "normal" and d.monitor.in_intersection
     drive.run(1.0, lambda t, x: 2.0)
     assert d.mode == "ar" and ZONE[0] <= drive.alarm_x <= ZONE[0] + 5.0
-    assert d.faults.counts["gated-zone"] > 0
+    assert d.faults.counts["gated-zone"] > 0 and d.status().alarm_check == "lateral-odometry"
     assert all(abs(p.y) < 0.1 for p in drive.control[drive.alarm_tick:])  # the response: on the car
 
 

@@ -102,10 +102,10 @@ def map_runs(detector: str, maps: Sequence[str]) -> list[CampaignRun]:
 
 
 def map_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
-    """One table per file: each drive's consequence, alarm, largest |D| and how it ended; benign drives must reach
-    the route's end without an alarm, attacked ones stop in lane on an alarm raised after the attack's start (an
-    earlier one is a false alarm, marked "before the attack"); a route too short for an attacked drive says so in
-    its place, judged neither way."""
+    """One table per file: each drive's consequence, alarm (and the check that raised it), largest |D| and how it
+    ended; benign drives must reach the route's end without an alarm, attacked ones stop in lane on an alarm raised
+    after the attack's start (an earlier one is a false alarm, marked "before the attack"); a route too short for an
+    attacked drive says so in its place, judged neither way."""
     by_file: dict[str, list[tuple[CampaignRun, RunSummary]]] = {}
     for run, s in done:
         by_file.setdefault(run.tags["file"], []).append((run, s))
@@ -120,6 +120,7 @@ def map_table(done: list[tuple[CampaignRun, RunSummary]], out: Path) -> str:
             early = s.detected and s.detection_time_s < run.tags.get("attack_s", 0.0)
             ok = s.consequence == want and not early and (run.tags["kind"] == "attacked" or not s.detected)
             alarm = f"{s.detection_time_s:.2f} s" if s.detected else "none"
+            alarm += f", {s.alarm_check}" if s.detected and s.alarm_check is not None else ""
             alarm += " (before the attack)" if early else ""
             lines.append(f"| {run.tags['kind']} | {run.tags['detector']} | {s.consequence} | {alarm} "
                          f"| {s.max_abs_dev_m:.3f} | {s.sim_time_s:.1f} | {'yes' if ok else 'NO'} |")

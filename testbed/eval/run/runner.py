@@ -284,7 +284,7 @@ class SimRun:
             + [{"kind": f.kind, "source": "defense", "time": f.time, "detail": f.detail, "last_time": f.last_time,
                 "count": f.count} for f in self.parts.defense.fault_records()],
             "detected": bool(status.detected), "detection_time_s": det_t,
-            "detection_dev_m": max_abs_dev(before) if det_t is not None else None,
+            "detection_dev_m": max_abs_dev(before) if det_t is not None else None, "alarm_check": status.alarm_check,
             "ar_max_dev_m": max_abs_dev(during),
             "ar_stop_dev_m": final_dev if stop_t is not None else None,
             "stop_time_s": stop_t,

@@ -15,7 +15,7 @@ from testbed.errors import UserError
 from testbed.eval.run.consequence import Consequence
 from testbed.traffic.record import HitVehicle
 
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 """Version of summary.json's layout; raised when a key is added, changes meaning or goes away."""
 
 
@@ -70,6 +70,9 @@ class RunSummary(BaseModel):
     detected: bool
     detection_time_s: float | None
     detection_dev_m: float | None
+    alarm_check: str | None = None
+    """Which of the defense's checks raised the alarm (LD3: `lateral-lines`, `lateral-odometry`, `lateral-unplaced`,
+    `heading-lines`, `heading-odometry`, `along-odometry`); None without an alarm or for a defense with one check."""
     ar_max_dev_m: float | None
     ar_stop_dev_m: float | None
     stop_time_s: float | None

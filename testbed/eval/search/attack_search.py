@@ -130,6 +130,8 @@ class TrialOutcome:
     score: float | None
     failure: str = ""
     """Why a trial counts as `run_failed` (its run's failure, or what is wrong with its summary.json); else empty."""
+    alarm_check: str | None = None
+    """The defense's check that raised the alarm (summary.json's `alarm_check`); None without one."""
 
     @property
     def undetected_departure(self) -> bool:
@@ -233,7 +235,8 @@ def outcome_of(number: int, attack: dict[str, Any], summary: RunSummary | None, 
                             failure or "the run failed")
     value, dev_before, dev_all = score(summary, objective)
     return TrialOutcome(number, attack["kind"], attack, summary.detected, summary.detection_time_s,
-                        dev_before, dev_all, str(summary.consequence), summary.lane_straddle_dev_m, value)
+                        dev_before, dev_all, str(summary.consequence), summary.lane_straddle_dev_m, value,
+                        alarm_check=summary.alarm_check)
 
 
 def trial_id(number: int) -> str:
@@ -384,12 +387,13 @@ class AttackSearch:
         with path.open("w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(["trial", "family", "attack", "detected", "detection_time_s", "dev_before_detection_m",
-                             "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score", "failure"])
+                             "max_abs_dev_m", "consequence", "undetected_departure", "loss", "score", "failure",
+                             "alarm_check"])
             for o in self.sorted_outcomes():
                 writer.writerow([o.number, o.family, attack_spec(o.attack), csv_cell(o.detected),
                                  csv_cell(o.detection_time_s), csv_cell(o.dev_before_m), csv_cell(o.max_dev_m),
                                  o.consequence, csv_cell(o.undetected_departure), csv_cell(o.loss), csv_cell(o.score),
-                                 o.failure])
+                                 o.failure, csv_cell(o.alarm_check)])
         return path
 
     def write_best(self) -> Path | None:

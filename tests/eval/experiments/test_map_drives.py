@@ -51,13 +51,14 @@ def test_the_table_has_one_section_per_file_and_judges_each_drive(tmp_path):
     runs = selected_runs("maps", "neural", maps=[str(_maps(tmp_path))])
     base = {"max_abs_dev_m": 0.1, "sim_time_s": 30.0, "detection_time_s": None, "detected": False}
     sums = [fake_summary(**dict(base, consequence="reach_destination")),
-            fake_summary(**dict(base, consequence="stop_in_lane", detected=True, detection_time_s=12.5)),
+            fake_summary(**dict(base, consequence="stop_in_lane", detected=True, detection_time_s=12.5,
+                                alarm_check="heading-lines")),
             fake_summary(**dict(base, consequence="stop_in_lane", detected=True, detection_time_s=11.0))]
     table = map_table(list(zip(runs, sums, strict=True)), tmp_path)
     assert "### a.xodr (default route, 300 m)" in table
     rows = [line for line in table.splitlines() if line.startswith("| benign") or line.startswith("| attacked")]
     assert rows[0].endswith("| yes |") and rows[1].endswith("| NO |") and rows[2].endswith("| yes |")
-    assert "12.50 s" in rows[1]
+    assert "12.50 s, heading-lines |" in rows[1]
     alarmed_early = sums[2].model_copy(update={"detection_time_s": 8.0})  # the attack starts at 10 s
     early = map_table([(runs[2], alarmed_early)], tmp_path)
     assert "8.00 s (before the attack)" in early and early.endswith("| NO |")

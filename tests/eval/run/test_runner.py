@@ -22,7 +22,7 @@ def test_short_closed_loop_keeps_lane_and_writes_contract(preset, tmp_path):
     sc = load_scenario(preset).with_overrides(duration=6.0)
     result = run_scenario(sc, tmp_path)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary.keys() == RunSummary.model_fields.keys() and summary["schema_version"] == 7
+    assert summary.keys() == RunSummary.model_fields.keys() and summary["schema_version"] == 8
     assert summary["consequence"] == "reach_destination" and summary["ended_by"] == "duration"
     assert summary["max_abs_dev_m"] < 0.10
     assert summary["attack"] is None and summary["detected"] is False

@@ -221,8 +221,10 @@ def test_loss_counts_any_departure_or_contact_detected_or_not_and_ranks_by_how_f
     assert scores["detected_crash"] > scores["undetected_crash"] > scores["straddling"] > scores["wide"]
     assert scores["wide"] > scores["stopped"]
     assert score(detected_crash, "undetected")[0] < score(undetected_crash, "undetected")[0]
-    outcome = outcome_of(3, {"kind": "trace"}, detected_crash, "loss")
-    assert outcome.loss is True and outcome_of(4, {"kind": "trace"}, stopped, "loss").loss is False
+    named = detected_crash.model_copy(update={"alarm_check": "heading-lines"})
+    outcome = outcome_of(3, {"kind": "trace"}, named, "loss")
+    assert outcome.loss is True and outcome.alarm_check == "heading-lines"
+    assert outcome_of(4, {"kind": "trace"}, stopped, "loss").loss is False
     assert outcome_of(5, {"kind": "trace"}, None, "loss").loss is None
     assert SearchSpec(load_scenario("local").with_overrides(defense="ld3", localization="msf", duration=45.0),
                       parse_threat("msf-output"), 1).objective == "loss"
