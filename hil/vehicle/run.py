@@ -303,6 +303,7 @@ class VehicleRun:
             "max_abs_msf_dev_m": worst, "consequence": consequence, "ended_by": run.ended_by,
             "faults": [{"kind": f.kind, "source": "chassis", "time": f.t, "detail": f.detail} for f in faults],
             "detected": bool(status.detected), "detection_time_s": status.detection_time, "detection_dev_m": None,
+            "alarm_check": status.alarm_check,
             "ar_max_dev_m": None, "ar_stop_dev_m": None, "stop_time_s": run.stop_t,
             "rates": self.settings.rates.model_dump(), "yaw_rate_source": yaw_source,
             "interface": self.interface, "loop_scheduling": self.scheduling,

@@ -95,7 +95,7 @@ def test_a_recorded_spoofed_drive_replays_to_the_same_detection_time(slow_profil
         bench.close()
     assert code == 0, capsys.readouterr().err
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["detected"] and summary["detection_time_s"] > 2.0
+    assert summary["detected"] and summary["detection_time_s"] > 2.0 and summary["alarm_check"] == "lateral-lines"
     capsys.readouterr()
     assert main(["replay", str(tmp_path / "run"), "--out", str(tmp_path / "replay")]) == 0
     assert f"ld3 detects at {summary['detection_time_s']:.2f} s" in capsys.readouterr().out
