@@ -7,12 +7,15 @@ GNSS or the MSF), so each line becomes y'(x) = y(x + dx) − dψ·x − dx·dψ/
 lane comes from the tracked heading, not from smoothing toward the past. Process noise: lateral motion the
 odometry misses (slip) moves both offsets together, yaw-rate error and road curvature changes act on the
 shared terms, lane-width changes on each offset alone; so one seen line carries the other.
-A present detected line updates the filter with noise `measurement_std` divided by its existence
-probability, c0's variance (and the others in proportion) replaced by the detector's `left_var` /
+A present detected line updates the filter with its cubic's coefficients, noise `measurement_std` divided by its
+existence probability, c0's variance (and the others in proportion) replaced by the detector's `left_var` /
 `right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
-a line that keeps disagreeing with the rest, such as worn paint, counts for less. A line whose offset
-innovation exceeds `gate` standard deviations is left out; both lines jumping together is the car moving
-(accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
+a line that keeps disagreeing with the rest, such as worn paint, counts for less. With `measure_at` it updates
+the filter with its cubic's values at those distances ahead instead (noise `range_std`, scaled the same way): a
+camera reads a line best some metres ahead, and its fit's offset and slope at the car are extrapolations, while
+the odometry carries what was read ahead to the car. A line whose offset innovation (at the first of those
+distances with `measure_at`) exceeds `gate` standard deviations is left out; both lines jumping together is the car
+moving (accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
 while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); any jump
 only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
 the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
@@ -24,6 +27,7 @@ its last detected existence probability, and the filter's c0 variance where the 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -69,9 +73,14 @@ class TrackerParams:
     min_existence: float = 0.05
     """A detected line with a lower existence probability does not update the filter."""
     adapt_rate: float = 0.02
+    """Per frame weight of the newest squared residual in a line's running residual variance (0: no adaption)."""
     min_offset_std: float = 0.03
     """m: floor of the adapted c0 noise std."""
-    """Per frame weight of the newest squared residual in a line's running residual variance (0: no adaption)."""
+    measure_at: tuple[float, ...] = ()
+    """m ahead of the car, increasing: where a detected line is measured (its cubic's value); (): its coefficients."""
+    range_std: float = 0.08
+    """m: std of a detected line's value at each `measure_at` distance at existence probability 1, before the
+    reported or residual variance replaces it."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -85,6 +94,11 @@ class TrackerParams:
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
             (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
+            (not self.measure_at or (len(self.measure_at) >= 2 and self.measure_at[0] > 0.0
+                                     and all(b > a for a, b in itertools.pairwise(self.measure_at))
+                                     and all(math.isfinite(x) for x in self.measure_at)),
+             f"measure_at needs at least 2 finite increasing distances > 0 m, or none (got {list(self.measure_at)})"),
+            (self.range_std > 0.0, "range_std must be > 0"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -122,12 +136,19 @@ def transition(dx: float) -> np.ndarray:
 
 
 class Measurement(NamedTuple):
-    """One detected line as the filter takes it: its cubic z (c0..c3), its noise R and its existence
-    probability."""
+    """One detected line as the filter takes it: its cubic z (c0..c3), the noise R of what updates the filter (the
+    coefficients, or with `measure_at` the values `y` = `h` z), and its existence probability."""
 
     z: np.ndarray
     r: np.ndarray
     prob: float
+    h: np.ndarray | None = None
+    """(k, 4): the line's values at the `measure_at` distances from its coefficients; None: the coefficients."""
+
+    @property
+    def y(self) -> np.ndarray:
+        """What updates the filter: the coefficients, or their values at the `measure_at` distances."""
+        return self.z if self.h is None else self.h @ self.z
 
 
 @dataclass
@@ -141,8 +162,8 @@ class LineMemory:
     outliers: int = 0
     reported: bool = False
     residual_var: float | None = None
-    """Running mean of the squared c0 residual after each update (m²), its first value at most
-    measurement_std[0]²: how far the line sits from the rest."""
+    """Running mean of the squared c0 residual (with `measure_at`: at its first distance) after each update (m²), its
+    first value at most measurement_std[0]² (range_std²): how far the line sits from the rest."""
 
 
 class LaneTracker:
@@ -151,6 +172,9 @@ class LaneTracker:
     def __init__(self, params: TrackerParams | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
         self.kf = KalmanFilter(dim_x=DIM, dim_z=N)
+        ahead = np.asarray(self.params.measure_at, dtype=float)
+        self._ahead = np.stack([ahead**0, ahead, ahead**2, ahead**3], axis=1) if len(ahead) else None
+        """(k, 4): a cubic's coefficients to its values at the `measure_at` distances; None without them."""
         self.reset()
 
     def reset(self) -> None:
@@ -182,13 +206,16 @@ class LaneTracker:
         z[: len(c)] = c
         if not np.isfinite(z).all():
             return None
-        r = np.asarray(self.params.measurement_std, dtype=float) ** 2
+        p = self.params
+        h = self._ahead
+        r = (np.asarray(p.measurement_std, dtype=float) ** 2 if h is None
+             else np.full(len(p.measure_at), p.range_std**2))
         adapted = self.lines[side].residual_var
         if var is not None and math.isfinite(var) and var > 0:
-            r = r * (var / r[0])
+            r = r * (var / p.measurement_std[0] ** 2)
         elif adapted is not None:
-            r = r * (max(adapted, self.params.min_offset_std**2) / r[0])
-        return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0))
+            r = r * (max(adapted, p.min_offset_std**2) / r[0])
+        return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0), h)
 
     def _start(self, meas: list[Measurement | None]) -> None:
         p = self.params
@@ -249,13 +276,16 @@ class LaneTracker:
         nu, s = [0.0, 0.0], [1.0, 1.0]
         for side, m in enumerate(meas):
             if m is not None:
-                nu[side] = m.z[0] - x[side]
-                s[side] = cov[side, side] + m.r[0, 0]
+                row = self._gate_row(side)
+                nu[side] = m.y[0] - (x[side] if row is None else row @ x)
+                s[side] = (cov[side, side] if row is None else row @ cov @ row) + m.r[0, 0]
         z = [nu[k] / math.sqrt(s[k]) if meas[k] is not None else 0.0 for k in (LEFT, RIGHT)]
         out = [abs(v) > p.gate for v in z]
         both = meas[LEFT] is not None and meas[RIGHT] is not None
         if both and out[LEFT] and out[RIGHT]:
-            diff_var = s[LEFT] + s[RIGHT] - 2 * cov[LEFT, RIGHT]
+            rows = (self._gate_row(LEFT), self._gate_row(RIGHT))
+            shared = cov[LEFT, RIGHT] if rows[LEFT] is None else rows[LEFT] @ cov @ rows[RIGHT]
+            diff_var = s[LEFT] + s[RIGHT] - 2 * shared
             if abs(nu[LEFT] - nu[RIGHT]) <= p.gate * math.sqrt(max(diff_var, 1e-12)):
                 if not self._heading_agrees(meas, (LEFT, RIGHT)):
                     return [None, None]  # both lines moved and turned at once: neither is the lane seen before
@@ -281,6 +311,10 @@ class LaneTracker:
                 gated[side] = None
         return gated
 
+    def _gate_row(self, side: int) -> np.ndarray | None:
+        """The state's row giving the line's value at the first `measure_at` distance (None: its offset c0)."""
+        return None if self._ahead is None else self._ahead[0] @ _SELECT[side]
+
     def _heading_agrees(self, meas: list[Measurement | None], sides: tuple[int, ...]) -> bool:
         """Whether the mean heading c1 of these detected lines is within `gate` of the tracked heading, with
         each line's c1 noise `measurement_std[1]`² over its existence probability: a lateral jump of the car
@@ -298,18 +332,24 @@ class LaneTracker:
         rows = [side for side in (LEFT, RIGHT) if meas[side] is not None]
         if not rows:
             return
-        z = np.concatenate([meas[side].z for side in rows])[:, None]
-        h = np.vstack([_SELECT[side] for side in rows])
+        z = np.concatenate([meas[side].y for side in rows])[:, None]
+        h = np.vstack([_SELECT[side] if self._ahead is None else self._ahead @ _SELECT[side] for side in rows])
+        k_rows = N if self._ahead is None else len(self._ahead)
         r = np.zeros((len(z), len(z)))
         for k, side in enumerate(rows):
-            r[k * N : (k + 1) * N, k * N : (k + 1) * N] = meas[side].r
+            r[k * k_rows : (k + 1) * k_rows, k * k_rows : (k + 1) * k_rows] = meas[side].r
         self.kf.update(z, R=r, H=h)
         a = self.params.adapt_rate
         for side in rows:
             line = self.lines[side]
-            spread = (meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
+            row = self._gate_row(side)
+            if row is None:
+                spread = (meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
+            else:
+                spread = (meas[side].y[0] - row @ self.kf.x[:, 0]) ** 2 + row @ self.kf.P @ row
             if line.residual_var is None:  # one frame cannot say the line is noisier than the nominal model
-                line.residual_var = min(spread, self.params.measurement_std[0] ** 2)
+                nominal = self.params.measurement_std[0] if row is None else self.params.range_std
+                line.residual_var = min(spread, nominal**2)
             else:
                 line.residual_var = (1 - a) * line.residual_var + a * spread
 

@@ -32,7 +32,7 @@ from testbed.eval.run.recording import Recording
 from testbed.eval.run.scenario import END_MARGIN_M, Scenario, ScenarioError, check_needs
 from testbed.eval.run.video import VideoWriter
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
-from testbed.lane_tracker import LaneTracker
+from testbed.lane_tracker import LaneTracker, TrackerParams
 from testbed.localization.registry import LOCALIZATIONS
 from testbed.localization.stack import LocalizationConfig
 from testbed.loop import SensorPorts
@@ -193,7 +193,11 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         tracking = getattr(settings, "tracking", False) if o.detector is None else o.detector.reads_camera
     if tracking and detector is None:
         raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
-    tracker = LaneTracker() if tracking else None
+    track_at = tuple(getattr(settings, "track_at", ()))
+    if track_at and not tracking:
+        raise ScenarioError("detector.track_at sets where the lane tracker measures the lines; it needs "
+                            "detector.tracking = true")
+    tracker = (LaneTracker(TrackerParams(measure_at=track_at)) if track_at else LaneTracker()) if tracking else None
     if defense_config.p_source == "reported" and detector is not None and not detector.reports_variance:
         raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                             f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")

@@ -1,8 +1,8 @@
 """The lane-detector registry: built-in detectors and the `ld3.detectors` entry points.
 
 A detector component's factory is `factory(track, rig, rng, **params)` (the run's track, camera rig and
-detector random stream, and the `[detector]` parameters its `params` model validated, less `tracking`,
-which the loop acts on), returning a `LaneDetector` (or None for `none`). What it `provides` says whether
+detector random stream, and the `[detector]` parameters its `params` model validated, less `tracking` and
+`track_at`, which the loop acts on), returning a `LaneDetector` (or None for `none`). What it `provides` says whether
 lane detections reach the defense and whether it reads rendered camera frames (then the run renders them).
 """
 
@@ -15,6 +15,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from testbed.lane_detection import LaneDetector
+from testbed.lane_tracker import TrackerParams
 from testbed.params import Params
 from testbed.perception.detectors.weights import SHIPPED, resolve
 from testbed.registry import Capability, Component, Registry
@@ -28,6 +29,16 @@ class CameraDetectorParams(Params):
 
     tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
                                              "(testbed.lane_tracker), between the detector and LD3")
+    track_at: list[float] = Field(default_factory=list, description="distances ahead (m, increasing, at least two) "
+                                  "where the tracker measures each detected line, its cubic's value there, instead "
+                                  "of the cubic's coefficients (whose offset and slope at the car are the fit's "
+                                  "extrapolation); [] (the default): the coefficients")
+
+    @field_validator("track_at")
+    @classmethod
+    def _ahead(cls, value: list[float]) -> list[float]:
+        TrackerParams(measure_at=tuple(value))  # its ValueError names what is wrong
+        return value
 
 
 class NeuralParams(CameraDetectorParams):
@@ -120,6 +131,6 @@ def make_detector(name: str, *, track, rig, rng: np.random.Generator | None = No
     UnknownComponent if unknown, ParamsError for bad parameters)."""
     component = DETECTORS.get(name)
     settings = component.settings(params or {}, f"detector {name}").model_dump(exclude_unset=True,
-                                                                              exclude={"tracking"})
+                                                                              exclude={"tracking", "track_at"})
     return component.factory(track, rig, rng if rng is not None else np.random.default_rng(0), **settings)
 
