@@ -94,10 +94,10 @@ class TrackerParams:
             (self.max_coast >= 0, "max_coast must be >= 0 s"),
             (0.0 <= self.min_existence < 1.0, "min_existence must be in [0, 1)"),
             (0.0 <= self.adapt_rate <= 1.0, "adapt_rate must be in [0, 1]"),
-            (not self.measure_at or (len(self.measure_at) >= 2 and self.measure_at[0] > 0.0
+            (not self.measure_at or (len(self.measure_at) >= 2 and self.measure_at[0] >= 0.0
                                      and all(b > a for a, b in itertools.pairwise(self.measure_at))
                                      and all(math.isfinite(x) for x in self.measure_at)),
-             f"measure_at needs at least 2 finite increasing distances > 0 m, or none (got {list(self.measure_at)})"),
+             f"measure_at needs at least 2 finite increasing distances >= 0 m, or none (got {list(self.measure_at)})"),
             (self.range_std > 0.0, "range_std must be > 0"),
         ]
         for ok, msg in checks:
@@ -223,11 +223,15 @@ class LaneTracker:
         x = np.zeros(DIM)
         x[_SHARED] = np.mean([m.z[1:] for m in seen], axis=0)
         var = np.zeros(DIM)
-        var[_SHARED] = np.mean([np.diag(m.r)[1:] for m in seen], axis=0) / len(seen)
+        if self._ahead is None:
+            var[_SHARED] = np.mean([np.diag(m.r)[1:] for m in seen], axis=0) / len(seen)
+        else:  # the shared terms' first variance as the coefficients' nominal noise would give it
+            shared = np.asarray(p.measurement_std[1:], dtype=float) ** 2
+            var[_SHARED] = np.mean([shared / m.prob for m in seen], axis=0) / len(seen)
         for side in (LEFT, RIGHT):
             m = meas[side]
             if m is not None:
-                x[side], var[side] = m.z[0], m.r[0, 0]
+                x[side], var[side] = m.z[0], m.r[0, 0] if self._ahead is None else p.measurement_std[0] ** 2 / m.prob
             else:
                 x[side] = seen[0].z[0] + (1.0 if side == LEFT else -1.0) * NOMINAL_LANE_WIDTH
                 var[side] = p.unseen_std**2
