@@ -29,10 +29,11 @@ class CameraDetectorParams(Params):
 
     tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
                                              "(testbed.lane_tracker), between the detector and LD3")
-    track_at: list[float] = Field(default_factory=list, description="distances ahead (m, increasing, at least two) "
-                                  "where the tracker measures each detected line, its cubic's value there, instead "
-                                  "of the cubic's coefficients (whose offset and slope at the car are the fit's "
-                                  "extrapolation); [] (the default): the coefficients")
+    track_at: list[float] = Field(default_factory=list, description="distances ahead (m, increasing, at least two; 0 "
+                                  "is the car) where the tracker measures each detected line, its cubic's value "
+                                  "there, instead of the cubic's coefficients (whose offset and slope at the car are "
+                                  "the fit's extrapolation); [] (the default): the coefficients. Fewer benign alarms "
+                                  "on real maps, later detection (docs/lane-tracking-security.md)")
 
     @field_validator("track_at")
     @classmethod
