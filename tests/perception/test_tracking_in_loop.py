@@ -50,3 +50,18 @@ def test_tracking_is_refused_for_a_detector_without_a_camera():
 
     with pytest.raises(ScenarioError, match=r"\[detector oracle\] unknown parameter 'tracking'"):
         apply_settings(_scenario(detector="oracle"), ["detector.tracking=true"])
+
+
+def test_detector_track_at_sets_where_the_tracker_measures_and_needs_tracking():
+    from testbed.eval.run.scenario import apply_settings
+
+    sim = SimRun(apply_settings(_scenario(detector="classical"), ["detector.track_at=[0, 6, 8]"]))
+    try:
+        assert sim.parts.tracker.params.measure_at == (0.0, 6.0, 8.0)
+    finally:
+        sim.close()
+    with pytest.raises(ScenarioError, match=r"needs detector\.tracking = true"):
+        SimRun(apply_settings(_scenario(detector="classical"), ["detector.track_at=[6, 8]",
+                                                               "detector.tracking=false"]))
+    with pytest.raises(ScenarioError, match="increasing distances"):
+        apply_settings(_scenario(detector="classical"), ["detector.track_at=[8, 6]"])
