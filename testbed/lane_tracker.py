@@ -136,19 +136,13 @@ def transition(dx: float) -> np.ndarray:
 
 
 class Measurement(NamedTuple):
-    """One detected line as the filter takes it: its cubic z (c0..c3), the noise R of what updates the filter (the
-    coefficients, or with `measure_at` the values `y` = `h` z), and its existence probability."""
+    """One detected line as the filter takes it: its cubic z (c0..c3), what updates the filter y (z itself, or with
+    `measure_at` the cubic's values there) with its noise R, and its existence probability."""
 
     z: np.ndarray
     r: np.ndarray
     prob: float
-    h: np.ndarray | None = None
-    """(k, 4): the line's values at the `measure_at` distances from its coefficients; None: the coefficients."""
-
-    @property
-    def y(self) -> np.ndarray:
-        """What updates the filter: the coefficients, or their values at the `measure_at` distances."""
-        return self.z if self.h is None else self.h @ self.z
+    y: np.ndarray
 
 
 @dataclass
@@ -175,6 +169,9 @@ class LaneTracker:
         ahead = np.asarray(self.params.measure_at, dtype=float)
         self._ahead = np.stack([ahead**0, ahead, ahead**2, ahead**3], axis=1) if len(ahead) else None
         """(k, 4): a cubic's coefficients to its values at the `measure_at` distances; None without them."""
+        self._observe = tuple(_SELECT[side] if self._ahead is None else self._ahead @ _SELECT[side]
+                              for side in (LEFT, RIGHT))
+        """Per line, H: what a detection of it measures (its cubic, or the cubic's values ahead) from the state."""
         self.reset()
 
     def reset(self) -> None:
@@ -207,15 +204,15 @@ class LaneTracker:
         if not np.isfinite(z).all():
             return None
         p = self.params
-        h = self._ahead
-        r = (np.asarray(p.measurement_std, dtype=float) ** 2 if h is None
+        r = (np.asarray(p.measurement_std, dtype=float) ** 2 if self._ahead is None
              else np.full(len(p.measure_at), p.range_std**2))
         adapted = self.lines[side].residual_var
         if var is not None and math.isfinite(var) and var > 0:
             r = r * (var / p.measurement_std[0] ** 2)
         elif adapted is not None:
             r = r * (max(adapted, p.min_offset_std**2) / r[0])
-        return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0), h)
+        y = z if self._ahead is None else self._ahead @ z
+        return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0), y)
 
     def _start(self, meas: list[Measurement | None]) -> None:
         p = self.params
@@ -317,7 +314,7 @@ class LaneTracker:
 
     def _gate_row(self, side: int) -> np.ndarray | None:
         """The state's row giving the line's value at the first `measure_at` distance (None: its offset c0)."""
-        return None if self._ahead is None else self._ahead[0] @ _SELECT[side]
+        return None if self._ahead is None else self._observe[side][0]
 
     def _heading_agrees(self, meas: list[Measurement | None], sides: tuple[int, ...]) -> bool:
         """Whether the mean heading c1 of these detected lines is within `gate` of the tracked heading, with
@@ -337,8 +334,8 @@ class LaneTracker:
         if not rows:
             return
         z = np.concatenate([meas[side].y for side in rows])[:, None]
-        h = np.vstack([_SELECT[side] if self._ahead is None else self._ahead @ _SELECT[side] for side in rows])
-        k_rows = N if self._ahead is None else len(self._ahead)
+        h = np.vstack([self._observe[side] for side in rows])
+        k_rows = len(self._observe[LEFT])
         r = np.zeros((len(z), len(z)))
         for k, side in enumerate(rows):
             r[k * k_rows : (k + 1) * k_rows, k * k_rows : (k + 1) * k_rows] = meas[side].r

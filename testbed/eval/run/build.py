@@ -197,7 +197,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     if track_at and not tracking:
         raise ScenarioError("detector.track_at sets where the lane tracker measures the lines; it needs "
                             "detector.tracking = true")
-    tracker = (LaneTracker(TrackerParams(measure_at=track_at)) if track_at else LaneTracker()) if tracking else None
+    tracker = LaneTracker(TrackerParams(measure_at=track_at)) if tracking else None
     if defense_config.p_source == "reported" and detector is not None and not detector.reports_variance:
         raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                             f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
