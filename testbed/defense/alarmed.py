@@ -8,7 +8,8 @@ lines are absent), carried to the current tick by odometry. An MSF pose between 
 controller, whatever the control and camera rates and however late or irregular the frames. An MSF pose the
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
 The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
-turns no faster than `line_yaw_rate` and only into the interval between the MSF's and theirs; of the lines' heading
+turns no faster than `line_yaw_rate` and only into the interval spanned by the MSF's, theirs and the lane's; of the
+lines' heading
 before odometry has one): a yaw bias the heading check lets through cannot steer the car by more than that, nor can
 lines rotated by a road patch. Every odometry-carried pose moves on the yaw rate less the bias the monitor learns
 where MSF and lines agree (`odometry_bias_span`).

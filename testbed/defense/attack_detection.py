@@ -9,9 +9,10 @@ query, or no D_LD yet is skipped and logged.
 Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
 residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
 lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
-into the interval between the MSF's and the lines' headings relative to the lane: the car heads as the source not
-attacked does, so lines a road patch bends, slowly or not, do not turn the yaw the response will steer on out of
-it), stands in for the lines
+into the interval spanned by the MSF's and the lines' headings relative to the lane and the lane's own: the car heads
+as the source not attacked does, so lines a road patch bends, slowly or not, do not turn the yaw the response will
+steer on out of it, nor, with an honest heading erring to the same side, past the lane's heading), stands in for the
+lines
 where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
 residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
@@ -292,17 +293,16 @@ class LaneConsistencyMonitor:
 
     def _anchor(self, ld: LaneDetection, pose: Pose, smap: SemanticMap, lane: int, d_ld: float,
                 agreed: bool = False, msf_yaw: float | None = None) -> None:
-        """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the
-        way from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled
-        into the interval between the MSF's heading (`msf_yaw`, else `pose`'s) and the lines', relative to the lane,
-        widened by the two headings' disagreement up to `yaw_margin`, at `line_yaw_rate` at most (the lane heading
-        plus the lines' relative heading for a first anchor, the MSF yaw without lines): against one attacked source
-        the car heads as the other does, so a yaw in that interval stays where the gyro carried it and neither source
-        alone can turn it out of it, however slowly; the margin keeps the honest source's wandering heading from
-        ratcheting it towards the other's.
-        `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
-        `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
-        teaches nothing)."""
+        """Re-anchor the dead-reckoned pose where MSF and lines agree: at the station the share `along_gain` of the way
+        from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled into the
+        interval spanned by the MSF's heading (`msf_yaw`, else `pose`'s), the lines' and the lane's, relative to the
+        lane, widened by the two sources' disagreement up to `yaw_margin` (`into_heading_span`), at `line_yaw_rate` at
+        most (the lane heading plus the lines' relative heading for a first anchor, the MSF yaw without lines): against
+        one attacked source the car heads as the other does, so a yaw in that interval stays where the gyro carried it
+        and neither source alone can turn it out of it, however slowly; the margin keeps the honest source's wandering
+        heading from ratcheting it towards the other's. `agreed`: D_MSF and D_LD within b; where the MSF's heading
+        (`pose.yaw`) also agrees with the lines' within `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the
+        lines' heading: an attacker of the lines alone then teaches nothing)."""
         reckoned = self.reckoned
         if reckoned is not None and self.along_gain < 1.0:
             g = self.along_gain

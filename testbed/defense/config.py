@@ -97,16 +97,17 @@ class DefenseConfig(Params):
     along_gain: float = Field(0.05, gt=0.0, le=1.0, description="fail-closed: share of the way to the MSF pose's "
                               "station the dead-reckoned pose takes at each anchor (1 = all of it)")
     line_rate: float = Field(0.02, ge=0.0, description="fail-closed: how fast the lines alone (the MSF "
-                             "disagreeing) may move the dead-reckoned pose and the response's reference across the "
-                             "lane (m/s; about what odometry can drift): an attacker of the lines cannot drag the "
-                             "reference the sources are judged by")
+                             "disagreeing) may move the dead-reckoned pose, and Alg. 2's fused deviation the "
+                             "response's reference, across the lane (m/s; about what odometry can drift): an attacker "
+                             "of either source cannot drag the reference the sources are judged by")
     line_yaw_rate: float = Field(0.002, ge=0.0, description="fail-closed: how fast the lines' heading may turn the "
                                  "dead-reckoned yaw, which the steered yaw is kept within steer_yaw_tol of (rad/s; "
                                  "about what a gyro drifts): lines rotated by a road patch cannot swing it")
     yaw_margin: float = Field(0.01, ge=0.0, description="fail-closed: the dead-reckoned yaw, and in the response "
-                              "the steered one, is turned only into the interval between the MSF's and the lines' "
-                              "headings widened on both sides by their disagreement, up to this (rad; over the MSF's "
-                              "heading error on benign drives, up to 0.0085): without it the honest source's "
+                              "the steered one, is turned only into the interval spanned by the MSF's, the lines' "
+                              "and the lane's headings, widened on both sides by the first two's disagreement, up "
+                              "to this (rad; over the MSF's heading error on benign drives, up to 0.0085): without "
+                              "it the honest source's "
                               "wandering heading ratchets the yaw towards the attacked one's")
     odometry_bias_span: float = Field(100.0, ge=0.0, description="fail-closed: distance (m) over which odometry's "
                                       "yaw-rate error per metre travelled (a steering-angle offset in a yaw rate "

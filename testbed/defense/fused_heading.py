@@ -14,11 +14,11 @@ In fail-closed mode the LD3 response passes the dead-reckoned yaw where "MSF yaw
 yaw no attacker moves, so when the fusion leaves the MSF out "fused" follows that yaw, not the lines' clamped
 slope (which would hide a large heading error from the controller); so does "ld"/"fused" before any line the
 response kept. With the own yaw, "ld" and "fused" turn it by the lines' disagreement with it (the lines' ψ less
-the own yaw relative to the lane), bounded by `clamp` and by `turn_rate` times the time since the response's
-first detection: the lines correct the gyro's slow drift, and lines rotated by a road patch steer no faster. Given
-the MSF's heading (the fail-closed response), the lines turn the own yaw only into the interval between the MSF's
-heading and theirs, widened by the two's disagreement up to `yaw_margin`, as the dead-reckoned yaw is turned before
-the alarm: against one attacked source the car heads as the other does, so neither turns the yaw out of it.
+the own yaw relative to the lane), bounded by `clamp` and by `turn_rate` times the time since the response's first
+detection: the lines correct the gyro's slow drift, and lines rotated by a road patch steer no faster. Given the MSF's
+heading (the fail-closed response), the lines turn the own yaw only into the interval spanned by the MSF's heading,
+theirs and the lane's, widened by the first two's disagreement up to `yaw_margin`, as the dead-reckoned yaw is turned
+before the alarm: against one attacked source the car heads as the other does, so neither turns the yaw out of it.
 """
 
 from __future__ import annotations
@@ -90,8 +90,9 @@ class FusedHeading:
         self.turn_rate = turn_rate
         """Own yaw: how fast the lines may turn the heading away from it since the first detection (rad/s)."""
         self.yaw_margin = yaw_margin
-        """Own yaw with the MSF's heading given: the lines turn it only into the interval between the MSF's heading
-        and theirs, widened by the two's disagreement up to this (rad); infinite: towards the lines wherever it is."""
+        """Own yaw with the MSF's heading given: the lines turn it only into the interval spanned by the MSF's heading,
+        theirs and the lane's, widened by the first two's disagreement up to this (rad); infinite: towards the lines
+        wherever it is."""
         self._start: float | None = None
         self.existence_threshold = existence_threshold
         self._ld_ref: tuple[float, float] | None = None  # (ψ from the lines, MSF yaw − lane heading) then

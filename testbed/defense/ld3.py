@@ -17,7 +17,9 @@ deviation (lane point at its own station, its own yaw), Alg. 2's state first mov
 the heading option reads that yaw where the paper reads the MSF's. Each source is checked against a reference,
 the dead-reckoned pose as of the last detection where MSF and lines agreed within half b (lines that ramp away from a
 true MSF pull the dead-reckoned pose up to b before the alarm), carried by odometry to the alarm and from there
-moved only towards lines that pass the check, no faster than `line_rate`:
+moved only towards Alg. 2's fused deviation, on detections whose lines pass the check, no faster than `line_rate`
+(the sources as Alg. 2 weighs them, not the lines alone: lines that creep away from a true MSF would otherwise take the
+reference with them until the MSF fell outside the gate):
 lines farther than `response_gate` are left out of that detection, the MSF out of the rest of the response (as is
 an MSF pose the map cannot place); Alg. 2 then runs on D_LD alone. A detection without a valid line leaves the pose to
 odometry. The MSF pose is handed to control in response only when there is no pose to carry (never anchored,
@@ -68,8 +70,8 @@ class Ld3Defense(Ld3AlarmedDefense):
         self._msf_disowned = False
         self._reference = DeadReckoning(lever)
         """The response's reference: the monitor's trusted pose at the alarm (`LaneConsistencyMonitor.trusted`), carried
-        by odometry and moved towards the lines' D_LD that passed the gate no faster than `line_rate`; the MSF never
-        moves it."""
+        by odometry and moved towards Alg. 2's fused deviation, on detections whose lines passed the gate, no faster
+        than `line_rate`."""
         self._reference_time = -math.inf
         """When the reference was last anchored or moved (s)."""
 
@@ -134,12 +136,12 @@ class Ld3Defense(Ld3AlarmedDefense):
         if d_ld is not None:
             d_ld = self._gate_ld(t, nearest_lane_image(d_ld, d_ref, width), d_ref)
         if d_ld is not None:
-            limit = drift_allowance(self.config.line_rate, t - self._reference_time)
-            self._reference.anchor(pose_on_lane(ref_point, ref_heading, step_toward(d_ref, d_ld, limit),
-                                                reference.yaw))
-            self._reference_time = t
             self.fusion.carry(float(smap.lane_dev(pose, lane)))
             step = self._fuse(ld, msf, d_msf, d_ld, heading)
+            limit = drift_allowance(self.config.line_rate, t - self._reference_time)
+            self._reference.anchor(pose_on_lane(ref_point, ref_heading, step_toward(d_ref, step.d, limit),
+                                                reference.yaw))
+            self._reference_time = t
             mon.odometry.anchor(pose_on_lane(point, heading, step.d, pose.yaw))
         step = self.fusion.last
         self.heading.on_detection(ld, pose.yaw, heading, (step.r_msf, step.r_ld) if step else None,

@@ -52,10 +52,13 @@ def into_span(value: float, a: float, b: float, margin: float = 0.0) -> float:
 
 
 def into_heading_span(own: float, a: float, b: float, max_margin: float) -> float:
-    """`own` moved into the span of two sources' headings (rad, relative to the lane) widened by their disagreement
-    up to `max_margin`: where they agree nothing widens it; where they disagree, the honest one's wandering heading
-    cannot ratchet `own` towards the other's."""
-    return into_span(own, a, b, min(max_margin, abs(a - b)))
+    """`own` moved into the span of two sources' headings and the lane's own (rad, relative to the lane, so the lane's
+    is 0) widened by the sources' disagreement up to `max_margin`: where they agree nothing widens it; where they
+    disagree, the honest one's wandering heading cannot ratchet `own` towards the other's; and where both head to the
+    same side of the lane (an honest source's slow heading error beside an attacker's) they turn `own` no farther
+    than along the lane, which a car keeping its lane heads along on average."""
+    margin = min(max_margin, abs(a - b))
+    return min(max(own, min(a, b, 0.0) - margin), max(a, b, 0.0) + margin)
 
 
 def step_toward(d_from: float, d_to: float, max_step: float) -> float:

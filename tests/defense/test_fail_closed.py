@@ -236,17 +236,51 @@ def test_with_the_margin_a_drifting_gyro_is_turned_back_to_within_the_sources_di
     assert d.config.yaw_margin == 0.01 and d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
 
 
-@pytest.mark.parametrize(("margin", "low", "high"), [(None, -0.0005, 0.0005), (0.0, 0.004, 0.007)])
+@pytest.mark.parametrize(("margin", "low", "high"), [(None, -0.0005, 0.0005), (0.0, -0.0005, 0.0005)])
 def test_the_honest_msf_heading_s_wander_does_not_ratchet_the_yaw_towards_bent_lines(margin, low, high):
     """A true MSF whose heading wanders ±6 mrad (as the MSF's does on benign drives), lines bent 0.03 rad to one
-    side for 20 s (the heading check off), an honest gyro: within the interval widened by the default margin the yaw
-    stays the gyro's. Without the margin each swing of the MSF's heading towards the lines turns it, none back: it
-    ratchets to the swing's edge, and a response steered on it drifts v × 6 mrad a second."""
+    side for 20 s (the heading check off), an honest gyro: the yaw stays the gyro's, with the default margin and
+    without one. Were the span the two headings' alone, each swing of the MSF's heading towards the lines would turn
+    it, none back: it would ratchet to the swing's edge, and a response steered on it drift v × 6 mrad a second; the
+    lane's heading in the span holds the gyro's yaw along the lane."""
     smap = FakeStraightMap()
     d = Ld3Defense(DefenseConfig(heading_tau=1e9, **({} if margin is None else {"yaw_margin": margin})))
     wander = lambda t, x: -0.006 * math.sin(2.0 * math.pi * t / 3.0)  # noqa: E731
     Drive(d, smap).run(1.0).run(20.0, yaw=wander, slope=-0.03)
     assert d.mode == "normal" and low < d.monitor.odometry.pose.yaw < high
+
+
+def test_an_msf_heading_off_to_the_side_lines_are_bent_does_not_turn_the_yaw_off_the_lane():
+    """A true MSF position whose heading errs 5 mrad for 10 s (an honest MSF's does for seconds at highway speed),
+    lines bent 8 mrad to the same side, an honest gyro (no bias learnt): the dead-reckoned yaw, the gyro's 0 along the
+    lane, stays there. Turned into the sources' interval alone it would go to the MSF's 5 mrad less their 3 mrad of
+    disagreement and carry the dead-reckoned pose, and the response's reference with it, sideways at v × 2 mrad."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(odometry_bias_span=0.0))
+    Drive(d, smap).run(1.0).run(10.0, yaw=lambda t, x: 0.005, slope=-0.008)
+    assert d.mode == "normal" and d.monitor.odometry.pose.yaw == 0.0
+
+
+def test_lines_creeping_from_a_true_msf_after_the_alarm_do_not_drag_the_reference():
+    """Lines that creep away from a true MSF at 0.1 m/s raise the alarm and creep on for 10 s more: the response's
+    reference, which starts at the trusted pose the creep pulled towards the lines, follows Alg. 2's fused deviation
+    (the steady MSF weighed over the creeping lines) back towards the car until the lines leave the gate; moved towards
+    the lines at `line_rate` it would go the other way, 0.06 m farther with them. The MSF is never disowned and the
+    control pose stays at the car."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig())
+    drive = Drive(d, smap).run(1.0)
+    while d.mode == "normal" and drive.t < 10.0:
+        drive.dev += 0.005  # the lines' offset from the car's lane; the MSF held at the car, 0
+        drive.run(0.05, lambda t, x: -drive.dev)
+    assert d.mode == "ar" and d.status().alarm_check == "lateral-lines"
+    at_alarm = float(smap.lane_dev(d._reference.pose, 0))
+    for _ in range(200):
+        drive.dev += 0.005
+        drive.run(0.05, lambda t, x: -drive.dev)
+    assert drive.dev > 1.2 and d.faults.counts.get("msf-disowned", 0) == 0 and d.faults.counts["ld-gated"] > 100
+    assert at_alarm > 0.05 and float(smap.lane_dev(d._reference.pose, 0)) < at_alarm - 0.03
+    assert abs(drive.control[-1].y) < 0.01
 
 
 def test_the_trusted_pose_stays_between_the_sources_however_long_they_are_held_apart():
@@ -442,3 +476,10 @@ def test_a_heading_moved_into_the_sources_span_widened_by_their_disagreement():
     assert into_heading_span(0.01, 0.0, 0.004, 0.01) == pytest.approx(0.008)  # widened by their 4 mrad
     assert into_heading_span(-0.05, 0.0, 0.03, 0.01) == pytest.approx(-0.01)  # by at most the margin
     assert into_heading_span(0.005, 0.0, -0.03, 0.01) == 0.005  # inside the widened span: left where it is
+
+
+def test_the_span_of_two_headings_to_one_side_of_the_lane_reaches_back_to_the_lane_s():
+    assert into_heading_span(0.002, 0.005, 0.004, 0.01) == 0.002  # between the lane's and theirs: left where it is
+    assert into_heading_span(-0.003, 0.005, 0.004, 0.01) == pytest.approx(-0.001)  # turned to the lane's, widened
+    assert into_heading_span(0.009, 0.005, 0.004, 0.01) == pytest.approx(0.006)  # the far side as before
+    assert into_heading_span(0.003, -0.005, -0.006, 0.0) == 0.0  # the other side of the lane, no margin
