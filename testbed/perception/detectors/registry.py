@@ -33,8 +33,9 @@ class CameraDetectorParams(Params):
                                   "is the car) where the tracker measures each detected line, its cubic's value "
                                   "there, instead of the cubic's coefficients (whose offset and slope at the car are "
                                   "the fit's extrapolation); [] (the default): the coefficients. Fewer benign alarms "
-                                  "on real maps, but a slow lateral shift by the lines' attacker defeats the response "
-                                  "far more often than with the coefficients (docs/lane-tracking-security.md)")
+                                  "on real maps and a smaller tracked error, and against the lines' attacker as safe "
+                                  "as the coefficients; not yet the default: the paper's neural campaigns and the "
+                                  "vehicle's tracker still use the coefficients (docs/lane-tracking-security.md)")
 
     @field_validator("track_at")
     @classmethod
