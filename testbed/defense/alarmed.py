@@ -9,10 +9,9 @@ controller, whatever the control and camera rates and however late or irregular 
 map cannot place (or not finite) is never taken as the checked pose: the last one is carried on, as a fault.
 The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
 turns no faster than `line_yaw_rate` and only into the interval spanned by the MSF's, theirs and the lane's; of the
-lines' heading
-before odometry has one): a yaw bias the heading check lets through cannot steer the car by more than that, nor can
-lines rotated by a road patch. Every odometry-carried pose moves on the yaw rate less the bias the monitor learns
-where MSF and lines agree (`odometry_bias_span`).
+lines' heading before odometry has one): a yaw bias the heading check lets through cannot steer the car by more than
+that, nor can lines rotated by a road patch. Every odometry-carried pose moves on the yaw rate less the bias the monitor
+learns where MSF and lines agree (`odometry_bias_span`).
 The paper mode steers on every MSF pose.
 
 Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range

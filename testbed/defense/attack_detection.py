@@ -6,15 +6,14 @@ Paper mode: detection is disabled while the MSF pose is inside an intersection (
 resumes after it with S reset and Alg. 3's memory cleared; a detection with a non-finite pose, an off-map
 query, or no D_LD yet is skipped and logged.
 
-Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its
-residual. A pose dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and
-lines agree within b (the MSF pose moved across the lane to D_LD; the yaw carried by the gyro and pulled
-into the interval spanned by the MSF's and the lines' headings relative to the lane and the lane's own: the car heads
-as the source not attacked does, so lines a road patch bends, slowly or not, do not turn the yaw the response will
-steer on out of it, nor, with an honest heading erring to the same side, past the lane's heading), stands in for the
-lines
-where they are absent: inside intersections (judged at that pose) and on detections without a valid line the
-residual is D_MSF − D_odometry, S is never reset, and only Alg. 3's memory is cleared after a zone. Where the
+Fail-closed mode (the default): an MSF pose the map cannot place feeds the CUSUM the lane width as its residual. A pose
+dead-reckoned from odometry (`DeadReckoning`), anchored at every detection where MSF and lines agree within b (the MSF
+pose moved across the lane to D_LD; the yaw carried by the gyro and pulled into the interval spanned by the MSF's and
+the lines' headings relative to the lane and the lane's own: the car heads as the source not attacked does, so lines a
+road patch bends, slowly or not, do not turn the yaw the response will steer on out of it, nor, with an honest heading
+erring to the same side, past the lane's heading), stands in for the lines where they are absent: inside intersections
+(judged at that pose) and on detections without a valid line the residual is D_MSF − D_odometry, S is never reset, and
+only Alg. 3's memory is cleared after a zone. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
 them at its own station, by no more than `line_rate` allows since its last anchor: an attacker who holds the
 residual just above b cannot leave odometry to drift until the response takes it for the car's place, and an

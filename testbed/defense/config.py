@@ -107,8 +107,7 @@ class DefenseConfig(Params):
                               "the steered one, is turned only into the interval spanned by the MSF's, the lines' "
                               "and the lane's headings, widened on both sides by the first two's disagreement, up "
                               "to this (rad; over the MSF's heading error on benign drives, up to 0.0085): without "
-                              "it the honest source's "
-                              "wandering heading ratchets the yaw towards the attacked one's")
+                              "it the honest source's wandering heading ratchets the yaw towards the attacked one's")
     odometry_bias_span: float = Field(100.0, ge=0.0, description="fail-closed: distance (m) over which odometry's "
                                       "yaw-rate error per metre travelled (a steering-angle offset in a yaw rate "
                                       "derived from the steering) is fitted to the MSF's yaw where MSF and lines "

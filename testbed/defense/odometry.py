@@ -57,8 +57,7 @@ def into_heading_span(own: float, a: float, b: float, max_margin: float) -> floa
     disagree, the honest one's wandering heading cannot ratchet `own` towards the other's; and where both head to the
     same side of the lane (an honest source's slow heading error beside an attacker's) they turn `own` no farther
     than along the lane, which a car keeping its lane heads along on average."""
-    margin = min(max_margin, abs(a - b))
-    return min(max(own, min(a, b, 0.0) - margin), max(a, b, 0.0) + margin)
+    return into_span(own, min(a, b, 0.0), max(a, b, 0.0), min(max_margin, abs(a - b)))
 
 
 def step_toward(d_from: float, d_to: float, max_step: float) -> float:
