@@ -7,13 +7,13 @@ GNSS or the MSF), so each line becomes y'(x) = y(x + dx) − dψ·x − dx·dψ/
 lane comes from the tracked heading, not from smoothing toward the past. Process noise: lateral motion the
 odometry misses (slip) moves both offsets together, yaw-rate error and road curvature changes act on the
 shared terms, lane-width changes on each offset alone; so one seen line carries the other.
-A present detected line updates the filter with its cubic's coefficients, noise `measurement_std` divided by its
-existence probability, c0's variance (and the others in proportion) replaced by the detector's `left_var` /
-`right_var` when reported, else by the line's running residual variance (floored at `min_offset_std`²):
-a line that keeps disagreeing with the rest, such as worn paint, counts for less. With `measure_at` it updates
-the filter with its cubic's values at those distances ahead instead (noise `range_std`, scaled the same way): a
-camera reads a line best some metres ahead, and its fit's offset and slope at the car are extrapolations, while
-the odometry carries what was read ahead to the car. A line whose offset innovation (at the first of those
+A present detected line updates the filter with its cubic's values at the `measure_at` distances ahead, noise
+`range_std` divided by its existence probability, replaced by the detector's `left_var` / `right_var` when reported,
+else by the line's running residual variance (floored at `min_offset_std`²): a line that keeps disagreeing with
+the rest, such as worn paint, counts for less. A camera reads a line best some metres ahead, and its fit's offset
+and slope at the car are extrapolations, while the odometry carries what was read ahead to the car. With no
+`measure_at` distances it updates the filter with the cubic's coefficients instead (noise `measurement_std`, c0's
+variance replaced the same way and the others in proportion). A line whose offset innovation (at the first of those
 distances with `measure_at`) exceeds `gate` standard deviations is left out; both lines jumping together is the car
 moving (accepted at once); the only seen line off for `confirm_frames` frames in a row is the car moving, one line off
 while the other stays for `width_confirm_frames` is the lane's width changing (accepted then); any jump
@@ -76,7 +76,7 @@ class TrackerParams:
     """Per frame weight of the newest squared residual in a line's running residual variance (0: no adaption)."""
     min_offset_std: float = 0.03
     """m: floor of the adapted c0 noise std."""
-    measure_at: tuple[float, ...] = ()
+    measure_at: tuple[float, ...] = (0.0, 6.0, 8.0, 10.0, 12.0)
     """m ahead of the car, increasing: where a detected line is measured (its cubic's value); (): its coefficients."""
     range_std: float = 0.08
     """m: std of a detected line's value at each `measure_at` distance at existence probability 1, before the
@@ -312,6 +312,11 @@ class LaneTracker:
                 gated[side] = None
         return gated
 
+    def _seen(self, side: int, t: float) -> bool:
+        """Whether the line was seen within `max_coast` before `t`."""
+        last = self.lines[side].last_seen
+        return last is not None and t - last <= self.params.max_coast
+
     def _gate_row(self, side: int) -> np.ndarray | None:
         """The state's row giving the line's value at the first `measure_at` distance (None: its offset c0)."""
         return None if self._ahead is None else self._observe[side][0]
@@ -359,10 +364,8 @@ class LaneTracker:
         """Predict to `ld.timestamp` with the odometry (speed m/s, yaw rate rad/s, now), update with `ld`, and
         return the tracked lines (a line last seen more than `max_coast` s ago is None, probability 0; a
         detection the gate leaves out does not count as seen)."""
-        p = self.params
         meas = [self._measurement(ld, side) for side in (LEFT, RIGHT)]
-        if self.started and any(line.last_seen is not None and ld.timestamp - line.last_seen <= p.max_coast
-                                for line in self.lines):
+        if self.started and (self._seen(LEFT, ld.timestamp) or self._seen(RIGHT, ld.timestamp)):
             self._predict(max(0.0, ld.timestamp - self.t), speed, yaw_rate)
             self._associate(meas)
             meas = self._gate(meas)
@@ -387,7 +390,7 @@ class LaneTracker:
         var: list[float | None] = [None, None]
         for side in (LEFT, RIGHT):
             line = self.lines[side]
-            if self.started and line.last_seen is not None and t - line.last_seen <= self.params.max_coast:
+            if self.started and self._seen(side, t):
                 lines[side] = _SELECT[side] @ self.kf.x[:, 0]
                 probs[side] = float(line.existence)
                 var[side] = float(self.kf.P[side, side]) if line.reported else None

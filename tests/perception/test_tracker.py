@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import numpy as np
@@ -14,10 +15,19 @@ def d_ld(ld: LaneDetection) -> float | None:
     return LdDeviation(0.5).update(ld, LANE_W)
 
 
-def track(scene: Scene, frames: int, detect, tracker: LaneTracker | None = None):
+MODES = {"ahead": TrackerParams(), "coefficients": TrackerParams(measure_at=())}
+"""The tracker measuring the lines at distances ahead (the default) and measuring their cubics' coefficients."""
+
+
+@pytest.fixture(params=sorted(MODES))
+def params(request) -> TrackerParams:
+    return MODES[request.param]
+
+
+def track(scene: Scene, frames: int, detect, tracker: LaneTracker | TrackerParams):
     """Run `frames` frames; `detect(k, scene)` gives frame k's detection. Returns the tracker and per frame
     (tracked detection, true D_LD from the noiseless lines, detection fed)."""
-    tracker = tracker if tracker is not None else LaneTracker()
+    tracker = tracker if isinstance(tracker, LaneTracker) else LaneTracker(tracker)
     out = []
     for k in range(frames):
         ld = detect(k, scene)
@@ -36,16 +46,19 @@ def test_shift_matrix_moves_a_cubic_along_x():
 
 
 @pytest.mark.parametrize("curvature", [0.0, 1 / 80.0, -1 / 150.0])
-def test_clean_lines_pass_through_unchanged(curvature):
-    _, out = track(Scene(curvature, lateral=0.4), 60, lambda k, s: s.detect())
+def test_clean_lines_pass_through_unchanged(curvature, params):
+    _, out = track(Scene(curvature, lateral=0.4), 60, lambda k, s: s.detect(), params)
+    # measured ahead, an 80-m curve's lines (c2 of the left and right line differ by 3 %) are fitted by the shared
+    # cubic about 1 cm off at the car (`test_measured_ahead_the_lines_offset_at_the_car_beats_the_fits_extrapolation`)
+    tolerance = 0.01 if not params.measure_at else 0.015
     for tracked, truth, _ in out:
-        assert d_ld(tracked) == pytest.approx(truth, abs=0.01)
+        assert d_ld(tracked) == pytest.approx(truth, abs=tolerance)
         assert tracked.left is not None and tracked.right is not None
 
 
-def test_noise_on_the_offsets_is_reduced():
+def test_noise_on_the_offsets_is_reduced(params):
     rng = np.random.default_rng(3)
-    _, out = track(Scene(1 / 200.0, lateral=-0.3), 400, lambda k, s: s.detect(rng, noise=0.10))
+    _, out = track(Scene(1 / 200.0, lateral=-0.3), 400, lambda k, s: s.detect(rng, noise=0.10), params)
     raw = np.array([d_ld(ld) - truth for _, truth, ld in out[20:]])
     tracked = np.array([d_ld(t) - truth for t, truth, _ in out[20:]])
     assert np.sqrt(np.mean(tracked**2)) < 0.5 * np.sqrt(np.mean(raw**2))
@@ -53,28 +66,28 @@ def test_noise_on_the_offsets_is_reduced():
 
 
 @pytest.mark.parametrize("curvature", [0.0, 1 / 60.0])
-def test_coasting_predicts_with_the_odometry(curvature):
+def test_coasting_predicts_with_the_odometry(curvature, params):
     """Both lines unseen for 0.8 s while the car drifts across the lane at 0.6 m/s: the tracked D_LD follows
     the drift (odometry and tracked heading), it does not hold the last seen value."""
     scene = Scene(curvature, yaw=math.asin(0.6 / 12.0))
-    _, out = track(scene, 56, lambda k, s: s.detect(left=k < 40, right=k < 40))
+    _, out = track(scene, 56, lambda k, s: s.detect(left=k < 40, right=k < 40), params)
     for tracked, truth, _ in out[40:]:
         assert d_ld(tracked) == pytest.approx(truth, abs=0.02)
     assert out[55][1] - out[39][1] > 0.4  # the car did move
 
 
-def test_a_lateral_step_shows_in_the_same_frame_with_both_lines():
+def test_a_lateral_step_shows_in_the_same_frame_with_both_lines(params):
     rng = np.random.default_rng(1)
     scene = Scene(1 / 300.0)
-    tracker, _ = track(scene, 40, lambda k, s: s.detect(rng, noise=0.05))
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(rng, noise=0.05), params)
     scene.y += 0.6  # the car is moved 0.6 m to the left
     tracked = tracker.update(scene.detect(rng, noise=0.05), scene.speed, scene.yaw_rate)
     assert d_ld(tracked) == pytest.approx(d_ld(scene.detect()), abs=0.08)
 
 
-def test_a_lateral_step_shows_within_one_frame_with_one_line():
+def test_a_lateral_step_shows_within_one_frame_with_one_line(params):
     scene = Scene()
-    tracker, _ = track(scene, 40, lambda k, s: s.detect(left=False))
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(left=False), params)
     scene.y -= 0.5
     first = tracker.update(scene.detect(left=False), scene.speed, scene.yaw_rate)
     scene.step()
@@ -83,9 +96,9 @@ def test_a_lateral_step_shows_within_one_frame_with_one_line():
     assert d_ld(first) > d_ld(second) + 0.3  # the first frame alone is not trusted
 
 
-def test_a_one_frame_glitch_on_one_line_is_rejected():
+def test_a_one_frame_glitch_on_one_line_is_rejected(params):
     scene = Scene()
-    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(), params)
     ld = scene.detect()
     glitch = LaneDetection(ld.timestamp, ld.left - np.array([0.9, 0, 0, 0]), ld.right, 1.0, 1.0, ld.x_range)
     tracked = tracker.update(glitch, scene.speed, scene.yaw_rate)
@@ -101,11 +114,11 @@ def turned(ld: LaneDetection, shift: float, dc1: float, left: bool = True, right
                          1.0 if left else 0.0, 1.0 if right else 0.0, ld.x_range)
 
 
-def test_both_lines_jumping_with_a_turn_are_rejected():
+def test_both_lines_jumping_with_a_turn_are_rejected(params):
     """Both lines read 0.9 m to the left and 0.15 rad turned for one frame (paint misread across the image):
     not the car moving, whose heading to the lane the gyro carries; a jump without the turn is taken."""
     scene = Scene()
-    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(), params)
     glitch = turned(scene.detect(), 0.9, 0.15)
     assert d_ld(tracker.update(glitch, scene.speed, scene.yaw_rate)) == pytest.approx(d_ld(scene.detect()),
                                                                                          abs=0.03)
@@ -114,23 +127,23 @@ def test_both_lines_jumping_with_a_turn_are_rejected():
     assert d_ld(tracker.update(moved, scene.speed, scene.yaw_rate)) == pytest.approx(d_ld(moved), abs=0.03)
 
 
-def test_one_line_jumping_with_a_turn_is_not_confirmed():
+def test_one_line_jumping_with_a_turn_is_not_confirmed(params):
     """The only seen line reads 1.1 m further out and 0.18 rad turned for several frames (worn paint, the
     detector on the next marking): the tracked lane stays where the odometry carries it."""
     scene = Scene()
-    tracker, _ = track(scene, 40, lambda k, s: s.detect())
+    tracker, _ = track(scene, 40, lambda k, s: s.detect(), params)
     for _ in range(6):
         tracked = tracker.update(turned(scene.detect(), 1.1, -0.18, right=False), scene.speed, scene.yaw_rate)
         assert d_ld(tracked) == pytest.approx(d_ld(scene.detect()), abs=0.03)
         scene.step()
 
 
-def test_a_turned_jump_that_persists_takes_over_after_max_coast():
+def test_a_turned_jump_that_persists_takes_over_after_max_coast(params):
     """Detections that keep disagreeing in place and heading with the tracked lane are not seen lines: once
     none has been taken for `max_coast`, the tracker starts again from what the detector sees (here a car 0.9 m
     further right and turned 0.1 rad to the right, its lines drifting away as that heading implies), so it
     cannot lock itself out."""
-    params = TrackerParams(max_coast=0.5)
+    params = dataclasses.replace(params, max_coast=0.5)
     scene = Scene()
     tracker, _ = track(scene, 40, lambda k, s: s.detect(), LaneTracker(params))
     seen = Scene(lateral=-0.9, yaw=-0.1)
@@ -148,10 +161,9 @@ def test_a_turned_jump_that_persists_takes_over_after_max_coast():
         assert d_ld(tracked) == pytest.approx(d_ld(ld), abs=0.03)
 
 
-def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
+def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen(params):
     """The right line is seen 0.4 m further right for 10 frames (a dark patch along it), the left one is fine:
     the tracked right line takes the shift only once it persists (`width_confirm_frames`) and drops it as late."""
-    params = TrackerParams()
     shifted = range(40, 50)
 
     def detect(k: int, s: Scene) -> LaneDetection:
@@ -160,7 +172,7 @@ def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
             return ld
         return LaneDetection(ld.timestamp, ld.left, ld.right - np.array([0.4, 0, 0, 0]), 1.0, 1.0, ld.x_range)
 
-    _, out = track(Scene(lateral=-0.3), 70, detect)
+    _, out = track(Scene(lateral=-0.3), 70, detect, params)
     true_right = [fed.right[0] + (0.4 if k in shifted else 0.0) for k, (_, _, fed) in enumerate(out)]
     off = [k for k, (tracked, _, _) in enumerate(out) if abs(tracked.right[0] - true_right[k]) > 0.2]
     assert off[0] == shifted.start + params.width_confirm_frames - 1
@@ -168,18 +180,18 @@ def test_a_patch_on_one_line_shows_late_and_no_longer_than_it_is_seen():
     assert len(off) == len(shifted)
 
 
-def test_a_dashed_lines_gaps_are_bridged():
+def test_a_dashed_lines_gaps_are_bridged(params):
     """The left line is seen 0.3 s, unseen 0.3 s (a dashed line's gaps); the car sits nearer the left line."""
     rng = np.random.default_rng(5)
     scene = Scene(1 / 120.0, lateral=0.5)
-    _, out = track(scene, 200, lambda k, s: s.detect(rng, noise=0.05, left=(k // 6) % 2 == 0))
+    _, out = track(scene, 200, lambda k, s: s.detect(rng, noise=0.05, left=(k // 6) % 2 == 0), params)
     for tracked, truth, _ in out[12:]:
         assert tracked.left is not None and tracked.left_prob >= 0.5
         assert d_ld(tracked) == pytest.approx(truth, abs=0.06)
 
 
-def test_a_missing_line_coasts_for_a_bounded_time():
-    params = TrackerParams(max_coast=1.0)
+def test_a_missing_line_coasts_for_a_bounded_time(params):
+    params = dataclasses.replace(params, max_coast=1.0)
     scene = Scene(lateral=0.3)
     _, out = track(scene, 120, lambda k, s: s.detect(left=not 40 <= k < 100), LaneTracker(params))
     # frames 40.. are 0.05 s apart: the left line is output for 1.0 s after it was last seen at frame 39
@@ -190,38 +202,41 @@ def test_a_missing_line_coasts_for_a_bounded_time():
         assert d_ld(tracked) == pytest.approx(truth, abs=0.02)
 
 
-def test_the_lines_swap_when_the_car_changes_lane():
+def test_the_lines_swap_when_the_car_changes_lane(params):
     scene = Scene(yaw=math.asin(1.0 / 12.0))  # 1 m/s to the left: crosses the left line at 1.75 m
-    tracker, out = track(scene, 80, lambda k, s: s.detect())
+    tracker, out = track(scene, 80, lambda k, s: s.detect(), params)
     assert tracker.swaps == 1
     for tracked, truth, _ in out:
         assert tracked.left[0] > -0.05 and tracked.right[0] < 0.05
         assert d_ld(tracked) == pytest.approx(truth, abs=0.03)
 
 
-def test_coasting_across_a_line_swaps_by_the_prediction():
+def test_coasting_across_a_line_swaps_by_the_prediction(params):
     scene = Scene(yaw=math.asin(1.0 / 12.0))
-    tracker, out = track(scene, 40, lambda k, s: s.detect(left=k < 30, right=k < 30))
+    tracker, out = track(scene, 40, lambda k, s: s.detect(left=k < 30, right=k < 30), params)
     assert tracker.swaps == 1  # crossed at t = 1.75 s (frame 35) with nothing seen
     for tracked, truth, _ in out[30:]:
         assert d_ld(tracked) == pytest.approx(truth, abs=0.03)
 
 
-def test_existence_and_reported_variance_weight_the_update():
+def test_existence_and_reported_variance_weight_the_update(params):
+    """A line read 5 cm off moves the tracked one more where it is surer: more probable, or a smaller reported
+    variance (the step is inside the gate at each: measured ahead, 10 cm at 1 cm reported is an outlier)."""
+
     def moved(prob: float, var: float | None) -> float:
         scene = Scene()
-        tracker, _ = track(scene, 20, lambda k, s: s.detect(right=False))
+        tracker, _ = track(scene, 20, lambda k, s: s.detect(right=False), params)
         ld = scene.detect(right=False)
-        off = LaneDetection(ld.timestamp, ld.left + np.array([0.1, 0, 0, 0]), None, prob, 0.0, ld.x_range, var)
+        off = LaneDetection(ld.timestamp, ld.left + np.array([0.05, 0, 0, 0]), None, prob, 0.0, ld.x_range, var)
         return tracker.update(off, scene.speed, scene.yaw_rate).left[0] - ld.left[0]
 
     assert moved(0.6, None) < moved(1.0, None)
     assert moved(1.0, 0.2**2) < moved(1.0, None) < moved(1.0, 0.01**2)
 
 
-def test_the_output_keeps_the_detection_contract():
+def test_the_output_keeps_the_detection_contract(params):
     scene = Scene()
-    tracker = LaneTracker()
+    tracker = LaneTracker(params)
     assert tracker.update(LaneDetection.empty(0.0), 12.0, 0.0) == LaneDetection.empty(0.0)
     ld = scene.detect(right=False)
     tracked = tracker.update(ld, 12.0, 0.0)
@@ -233,9 +248,9 @@ def test_the_output_keeps_the_detection_contract():
     assert 0.0 < reported.left_var < 0.01
 
 
-def test_non_finite_or_improbable_lines_do_not_update():
+def test_non_finite_or_improbable_lines_do_not_update(params):
     scene = Scene()
-    tracker, _ = track(scene, 20, lambda k, s: s.detect())
+    tracker, _ = track(scene, 20, lambda k, s: s.detect(), params)
     ld = scene.detect()
     bad = LaneDetection(ld.timestamp, np.array([np.nan, 0, 0, 0]), ld.right, 1.0, 0.01, ld.x_range)
     tracked = tracker.update(bad, scene.speed, scene.yaw_rate)
@@ -263,7 +278,7 @@ def test_measured_ahead_the_lines_offset_at_the_car_beats_the_fits_extrapolation
     """Fits that go wrong towards the car: measured where they are read well (`measure_at`), the tracked offset at the
     car is under 0.6 of the error of the tracker fed the fits' coefficients; clean lines pass through within 1.5 cm."""
     errors = []
-    for params in (TrackerParams(), TrackerParams(measure_at=AHEAD)):
+    for params in (TrackerParams(measure_at=()), TrackerParams(measure_at=AHEAD)):
         _, out = track(Scene(curvature, lateral=0.2), 300, bent_near(np.random.default_rng(5)), LaneTracker(params))
         errors.append(np.sqrt(np.mean([(d_ld(t) - truth) ** 2 for t, truth, _ in out[40:]])))
     assert errors[1] < 0.6 * errors[0] and errors[1] < 0.02
@@ -293,3 +308,4 @@ def test_measured_ahead_a_lateral_step_of_the_car_still_shows_at_once():
 def test_bad_parameters_are_refused(bad):
     with pytest.raises(ValueError, match="tracker"):
         TrackerParams(**bad)
+

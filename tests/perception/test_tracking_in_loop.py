@@ -55,11 +55,13 @@ def test_tracking_is_refused_for_a_detector_without_a_camera():
 def test_detector_track_at_sets_where_the_tracker_measures_and_needs_tracking():
     from testbed.eval.run.scenario import apply_settings
 
-    sim = SimRun(apply_settings(_scenario(detector="classical"), ["detector.track_at=[0, 6, 8]"]))
-    try:
-        assert sim.parts.tracker.params.measure_at == (0.0, 6.0, 8.0)
-    finally:
-        sim.close()
+    for settings, measure_at in ([], (0.0, 6.0, 8.0, 10.0, 12.0)), (["detector.track_at=[0, 6, 8]"], (0.0, 6.0, 8.0)), \
+            (["detector.track_at=[]"], ()):
+        sim = SimRun(apply_settings(_scenario(detector="classical"), settings))
+        try:
+            assert sim.parts.tracker.params.measure_at == measure_at
+        finally:
+            sim.close()
     with pytest.raises(ScenarioError, match=r"needs detector\.tracking = true"):
         SimRun(apply_settings(_scenario(detector="classical"), ["detector.track_at=[6, 8]",
                                                                "detector.tracking=false"]))

@@ -194,7 +194,7 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     if tracking and detector is None:
         raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
     track_at = tuple(getattr(settings, "track_at", ()))
-    if track_at and not tracking:
+    if "track_at" in getattr(settings, "model_fields_set", ()) and not tracking:
         raise ScenarioError("detector.track_at sets where the lane tracker measures the lines; it needs "
                             "detector.tracking = true")
     tracker = LaneTracker(TrackerParams(measure_at=track_at)) if tracking else None

@@ -29,13 +29,12 @@ class CameraDetectorParams(Params):
 
     tracking: bool = Field(True, description="track the detected lines over frames with the chassis odometry "
                                              "(testbed.lane_tracker), between the detector and LD3")
-    track_at: list[float] = Field(default_factory=list, description="distances ahead (m, increasing, at least two; 0 "
-                                  "is the car) where the tracker measures each detected line, its cubic's value "
-                                  "there, instead of the cubic's coefficients (whose offset and slope at the car are "
-                                  "the fit's extrapolation); [] (the default): the coefficients. Fewer benign alarms "
-                                  "on real maps and a smaller tracked error, and against the lines' attacker as safe "
-                                  "as the coefficients; not yet the default: the paper's neural campaigns and the "
-                                  "vehicle's tracker still use the coefficients (docs/lane-tracking-security.md)")
+    track_at: list[float] = Field(default_factory=lambda: list(TrackerParams().measure_at),
+                                  description="distances ahead (m, increasing, at least two; 0 is the car) where the "
+                                  "tracker measures each detected line, its cubic's value there; [] measures the "
+                                  "cubic's coefficients instead (whose offset and slope at the car are the fit's "
+                                  "extrapolation: more benign alarms on real maps' corners; "
+                                  "docs/lane-tracking-security.md)")
 
     @field_validator("track_at")
     @classmethod
