@@ -78,6 +78,9 @@ class TrackerParams:
     """m: floor of the adapted c0 noise std."""
     measure_at: tuple[float, ...] = (0.0, 6.0, 8.0, 10.0, 12.0)
     """m ahead of the car, increasing: where a detected line is measured (its cubic's value); (): its coefficients."""
+    lane_width_range: tuple[float, float] = (2.5, 5.0)
+    """m: the widths a lane can have; a line taken up (not seen within `max_coast`) that would put the lane's width
+    outside them, against the other line as tracked, is left out."""
     range_std: float = 0.08
     """m: std of a detected line's value at each `measure_at` distance at existence probability 1, before the
     reported or residual variance replaces it."""
@@ -99,6 +102,8 @@ class TrackerParams:
                                      and all(math.isfinite(x) for x in self.measure_at)),
              f"measure_at needs at least 2 finite increasing distances >= 0 m, or none (got {list(self.measure_at)})"),
             (self.range_std > 0.0, "range_std must be > 0"),
+            (len(self.lane_width_range) == 2 and 0.0 < self.lane_width_range[0] < self.lane_width_range[1],
+             f"lane_width_range needs 0 < min < max m (got {list(self.lane_width_range)})"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -312,6 +317,25 @@ class LaneTracker:
                 gated[side] = None
         return gated
 
+    def _plausible(self, meas: list[Measurement | None], t: float) -> list[Measurement | None]:
+        """The measurements without a line being taken up (not seen within `max_coast`) that would make the lane
+        narrower or wider than `lane_width_range` against the other line as tracked, where that one was seen within
+        `max_coast` (at each `measure_at` distance; at the car without them): a lane's lines are a lane's width apart,
+        and a misread line, such as the first line read past a junction, seldom is. A line already tracked is left
+        to the gate, so that a line dragged outwards cannot make the tracker drop the other."""
+        low, high = self.params.lane_width_range
+        x = self.kf.x[:, 0]
+        kept = list(meas)
+        for side, m in enumerate(meas):
+            if m is None or self._seen(side, t) or not self._seen(1 - side, t):
+                continue
+            values = m.y if self._ahead is not None else m.y[:1]
+            tracked = (self._observe[1 - side] @ x)[: len(values)]
+            width = values - tracked if side == LEFT else tracked - values
+            if not np.all((width >= low) & (width <= high)):
+                kept[side] = None
+        return kept
+
     def _seen(self, side: int, t: float) -> bool:
         """Whether the line was seen within `max_coast` before `t`."""
         last = self.lines[side].last_seen
@@ -368,7 +392,7 @@ class LaneTracker:
         if self.started and (self._seen(LEFT, ld.timestamp) or self._seen(RIGHT, ld.timestamp)):
             self._predict(max(0.0, ld.timestamp - self.t), speed, yaw_rate)
             self._associate(meas)
-            meas = self._gate(meas)
+            meas = self._gate(self._plausible(meas, ld.timestamp))
             self._update(meas)
         elif any(m is not None for m in meas):
             self.reset()

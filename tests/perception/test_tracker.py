@@ -304,8 +304,41 @@ def test_measured_ahead_a_lateral_step_of_the_car_still_shows_at_once():
 @pytest.mark.parametrize("bad", [dict(measurement_std=(0.1, 0.0, 1e-3, 1e-5)), dict(gate=0.0),
                                  dict(confirm_frames=0), dict(width_confirm_frames=0), dict(max_coast=-1.0),
                                  dict(lateral_std=-0.1), dict(measure_at=(8.0,)), dict(measure_at=(8.0, 6.0)),
-                                 dict(measure_at=(-1.0, 6.0)), dict(range_std=0.0)])
+                                 dict(measure_at=(-1.0, 6.0)), dict(range_std=0.0),
+                                 dict(lane_width_range=(3.0, 2.5)), dict(lane_width_range=(0.0, 4.0))])
 def test_bad_parameters_are_refused(bad):
     with pytest.raises(ValueError, match="tracker"):
         TrackerParams(**bad)
 
+
+def test_a_line_that_would_make_the_lane_too_narrow_or_wide_is_left_out(params):
+    """Only the left line seen, then a right line read 1.9 m inside it (a lane 1.6 m wide, the first line read past
+    a junction) or 1.6 m outside it (5.1 m): left out, and the right line stays unseen; read where it is, taken."""
+    scene = Scene(lateral=0.2)
+    tracker, _ = track(scene, 20, lambda k, s: s.detect(right=False), params)
+    for shift in (1.9, -1.6):
+        ld = scene.detect()
+        misread = LaneDetection(ld.timestamp, ld.left, ld.right + np.array([shift, 0, 0, 0]), 1.0, 1.0, ld.x_range)
+        tracked = tracker.update(misread, scene.speed, scene.yaw_rate)
+        assert tracked.right is None
+        assert d_ld(tracked) == pytest.approx(d_ld(scene.detect()), abs=0.03)
+        scene.step()
+    tracked = tracker.update(scene.detect(), scene.speed, scene.yaw_rate)
+    assert tracked.right is not None and tracked.right[0] == pytest.approx(scene.detect().right[0], abs=0.05)
+
+
+def test_the_width_bound_applies_only_to_a_line_being_taken_up(params):
+    """Both lines tracked from the start 5.2 m apart (wider than `lane_width_range`): each is still taken at every
+    frame, so a line dragged outwards under the gate cannot make the tracker drop the other, already tracked."""
+    scene = Scene()
+
+    def wide(k: int, s: Scene) -> LaneDetection:
+        ld = s.detect()
+        return LaneDetection(ld.timestamp, ld.left + np.array([1.7, 0, 0, 0]), ld.right, 1.0, 1.0, ld.x_range)
+
+    tracker, out = track(scene, 40, wide, params)
+    for tracked, _, fed in out:
+        assert tracked.left is not None and tracked.right is not None
+        assert tracked.left[0] == pytest.approx(fed.left[0], abs=0.03)
+        assert tracked.right[0] == pytest.approx(fed.right[0], abs=0.03)
+    assert tracker.lines[0].last_seen == tracker.lines[1].last_seen == out[-1][2].timestamp
