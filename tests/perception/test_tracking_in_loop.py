@@ -2,6 +2,7 @@ import pytest
 
 from testbed.eval.run.runner import SimRun
 from testbed.eval.run.scenario import ScenarioError, load_scenario
+from testbed.lane_tracker import TrackerParams
 
 
 def _scenario(**overrides):
@@ -27,6 +28,7 @@ def test_the_tracker_runs_after_the_ld_side_tamper_and_feeds_the_recorded_d_ld()
     finally:
         sim.close()
     assert result.summary["tracking"] is True
+    assert sim.parts.tracker.params == TrackerParams()  # a detector without `track_at` gets the default tracker
     last = result.rows[-1]
     assert last.ld_dev - last.phys_dev == pytest.approx(shift, abs=0.03)  # D_LD is of the tracked lines
     tracked_left = sim.parts.tracker.kf.x[0, 0]  # the tracker itself saw the tampered lines

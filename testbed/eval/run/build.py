@@ -193,11 +193,13 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
         tracking = getattr(settings, "tracking", False) if o.detector is None else o.detector.reads_camera
     if tracking and detector is None:
         raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
-    track_at = tuple(getattr(settings, "track_at", ()))
     if "track_at" in getattr(settings, "model_fields_set", ()) and not tracking:
         raise ScenarioError("detector.track_at sets where the lane tracker measures the lines; it needs "
                             "detector.tracking = true")
-    tracker = LaneTracker(TrackerParams(measure_at=track_at)) if tracking else None
+    tracker = None
+    if tracking:  # a detector without the key (given as an object, or one that reads no camera): the default
+        measure_at = getattr(settings, "track_at", None)
+        tracker = LaneTracker(TrackerParams() if measure_at is None else TrackerParams(measure_at=tuple(measure_at)))
     if defense_config.p_source == "reported" and detector is not None and not detector.reports_variance:
         raise ScenarioError(f"defense.p_source = 'reported' needs a lane detector that reports its c0 variance; "
                             f"{sc.detector!r} does not: use detector oracle, or defense.p_source = 'constant'")
