@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from hil.vehicle.camera_calibration import CameraCalibration, Rectifier
-from hil.vehicle.camera_detect import LaneCentre
+from hil.vehicle.camera_detect import CAMERA_ONLY_TRACKER, LaneCentre
 from hil.vehicle.frame_stream import frame_stream
 from testbed.lane_detection import CameraFrame
 from testbed.lane_tracker import LaneTracker
@@ -33,7 +33,7 @@ def step(t: np.ndarray | float, start: float, duration: float) -> np.ndarray:
 
 
 def tracked_deviation(cal, video, detector, rig, speed, shift, start, duration, tracking=True) -> tuple:
-    tracker, centre, out, times = LaneTracker(), LaneCentre(), [], []
+    tracker, centre, out, times = LaneTracker(CAMERA_ONLY_TRACKER), LaneCentre(), [], []
     for t, rgb in frame_stream(f"video:{video}", 25.0):
         s = shift * float(step(t, start, duration))
         rate = shift * math.pi / (2 * duration) * math.sin(math.pi * float(np.clip((t - start) / duration, 0, 1)))
