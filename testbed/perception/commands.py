@@ -112,6 +112,9 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                         "default: the shipped lanenet.pt, with and without --traffic)")
     p.add_argument("--fit", choices=("cubic", "near", "spread"),
                    help="the neural detector's anchor fit (detector.fit; default: the detector's own)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override every drive's scenario as `ld3 run --set` does (repeatable), e.g. "
+                        "'detector.track_at=[]' for the tracker fed the lines' coefficients")
     p.add_argument("--out", type=Path, default=Path("out/ld_closed_loop"))
     p.set_defaults(func=_closed_loop)
     return ld
@@ -256,7 +259,7 @@ def _closed_loop(args: argparse.Namespace) -> int:
     results = run_closed_loop(args.presets or list(PRESETS), args.conditions or list(CONDITIONS), args.detector,
                               args.duration, workers=args.workers, progress=True, traffic=args.traffic,
                               lead_gap=args.lead_gap, weights=args.weights, check=args.layouts == "check",
-                              fit=args.fit)
+                              fit=args.fit, settings=tuple(args.set))
     with output_folder(args.out, True, "closed_loop.csv", "a closed-loop report") as tmp:
         paths = {k: args.out / p.name for k, p in write_report(results, tmp).items()}
     print(markdown_table(results))

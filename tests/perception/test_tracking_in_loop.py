@@ -69,3 +69,23 @@ def test_detector_track_at_sets_where_the_tracker_measures_and_needs_tracking():
                                                                "detector.tracking=false"]))
     with pytest.raises(ScenarioError, match="increasing distances"):
         apply_settings(_scenario(detector="classical"), ["detector.track_at=[8, 6]"])
+
+
+def test_a_detector_given_as_an_object_is_tracked_as_the_scenario_says():
+    """`ld3 ld closed-loop` hands the run its own detector object: the tracker still measures where the scenario's
+    `[detector] track_at` says, and at the default without it."""
+    from testbed.eval.run.scenario import apply_settings
+    from testbed.lane_detection import LaneDetection, LaneDetector
+
+    class Blank(LaneDetector):
+        reads_camera = False
+
+        def detect(self, frame):
+            return LaneDetection.empty(frame.t)
+
+    for settings, measure_at in ([], TrackerParams().measure_at), (["detector.track_at=[]"], ()):
+        sim = SimRun(apply_settings(_scenario(detector="classical"), settings), detector=Blank(), tracking=True)
+        try:
+            assert sim.parts.tracker.params.measure_at == measure_at
+        finally:
+            sim.close()

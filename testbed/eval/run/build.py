@@ -186,18 +186,17 @@ def build_run(sc: Scenario, options: RunOptions, keep_frame: FrameSink) -> RunPa
     detector_params = sc.run_detector_params
     detector = o.detector if o.detector is not None else make_detector(
         sc.detector, track=track, rig=rig, rng=rng_detector, params=detector_params)
-    settings = (DETECTORS.get(sc.detector).settings(detector_params, f"detector {sc.detector}")
-                if o.detector is None else None)
+    settings = DETECTORS.get(sc.detector).settings(detector_params, f"detector {sc.detector}")
     tracking = o.tracking
     if tracking is None:
         tracking = getattr(settings, "tracking", False) if o.detector is None else o.detector.reads_camera
     if tracking and detector is None:
         raise ScenarioError("tracking needs a lane detector; name one, or turn tracking off")
-    if "track_at" in getattr(settings, "model_fields_set", ()) and not tracking:
+    if "track_at" in settings.model_fields_set and not tracking:
         raise ScenarioError("detector.track_at sets where the lane tracker measures the lines; it needs "
                             "detector.tracking = true")
     tracker = None
-    if tracking:  # a detector without the key (given as an object, or one that reads no camera): the default
+    if tracking:  # the scenario's `[detector] track_at`, also beside a detector given as an object; else the default
         measure_at = getattr(settings, "track_at", None)
         tracker = LaneTracker(TrackerParams() if measure_at is None else TrackerParams(measure_at=tuple(measure_at)))
     if defense_config.p_source == "reported" and detector is not None and not detector.reports_variance:

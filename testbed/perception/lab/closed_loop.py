@@ -30,7 +30,7 @@ from testbed.conditions import get_condition
 from testbed.defense.ld_deviation import LdDeviation
 from testbed.errors import UserError
 from testbed.eval.run.runner import SimRun
-from testbed.eval.run.scenario import END_MARGIN_M, Scenario, load_scenario
+from testbed.eval.run.scenario import END_MARGIN_M, Scenario, apply_settings, load_scenario
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.params import ParamsError
 from testbed.perception.detectors.registry import DETECTORS, make_detector
@@ -80,9 +80,9 @@ def error_stats(err: np.ndarray) -> dict[str, float | None]:
 
 def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, traffic: int = 0,
                    lead_gap: float = LEAD_GAP_M, weights: str | None = None,
-                   fit: str | None = None) -> tuple[Scenario, Track]:
-    """The scenario of a cell's drive and its track (the detector's `weights` and anchor `fit` where given); a
-    UserError where its road cannot hold the traffic."""
+                   fit: str | None = None, settings: tuple[str, ...] = ()) -> tuple[Scenario, Track]:
+    """The scenario of a cell's drive and its track (the detector's `weights` and anchor `fit` where given, then the
+    `KEY=VALUE` `settings` as `ld3 run --set` applies them); a UserError where its road cannot hold the traffic."""
     base = load_scenario(cell.preset)
     spec = f"{cell.preset}@{cell.track_seed}"
     track = load_track(spec)
@@ -97,18 +97,18 @@ def drive_scenario(cell: Cell, detector: str, duration: float, seed: int = 0, tr
     sc = base.with_overrides(track=spec, condition=cell.condition, duration=duration, speed=speed, seed=seed,
                              detector=detector, localization="msf", defense="none", name=f"ld-{cell.preset}",
                              traffic=table, **({"detector_params": params} if params else {}))
-    return sc, track
+    return apply_settings(sc, list(settings)), track
 
 
 def drive(cell: Cell, detector: str = "neural", duration: float = 30.0, seed: int = 0,
           existence_threshold: float = 0.5, traffic: int = 0, lead_gap: float = LEAD_GAP_M,
-          weights: str | None = None, fit: str | None = None) -> dict:
+          weights: str | None = None, fit: str | None = None, settings: tuple[str, ...] = ()) -> dict:
     """Drive one cell (with `traffic` cars, see the module): what was driven, the per-tick errors (m) without
     (`raw`) and with (`tracked`) tracking, and the per-tick occluded fraction (`occluded`, NaN without traffic
     or before the first frame), and the detector and weights it read (`weights` None: its default); `weights`
     the detector's checkpoint (`detector.weights`, default its own), `fit` its
-    anchor fit (`detector.fit`)."""
-    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights, fit)
+    anchor fit (`detector.fit`), `settings` further `KEY=VALUE` overrides of its scenario."""
+    sc, track = drive_scenario(cell, detector, duration, seed, traffic, lead_gap, weights, fit, settings)
     spec, speed = sc.track, sc.speed
     rig = CameraRig(get_vehicle(sc.vehicle).camera)
     tap = _RawTap(make_detector(detector, track=track, rig=rig, rng=np.random.default_rng(seed),
@@ -153,11 +153,12 @@ def _one_thread() -> None:
 def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "neural", duration: float = 30.0,
                     workers: int = 1, progress: bool = False, traffic: int = 0,
                     lead_gap: float | None = None, weights: str | None = None, check: bool = False,
-                    fit: str | None = None) -> list[dict]:
+                    fit: str | None = None, settings: tuple[str, ...] = ()) -> list[dict]:
     """Drive every cell (one torch thread each; `workers` processes at once; `traffic` cars, the lead
     `lead_gap` m ahead, default `LEAD_GAP_M`; the detector's checkpoint `weights`, default its own; on the check
-    block's layouts with `check`; the anchor `fit`, default the detector's own), results in cell order; a bad
-    preset, condition, duration, traffic, weights or fit is a UserError before any drive."""
+    block's layouts with `check`; the anchor `fit`, default the detector's own; `settings`, `KEY=VALUE` overrides of
+    every drive's scenario), results in cell order; a bad preset, condition, duration, traffic, weights, fit or
+    setting is a UserError before any drive, and so is `detector.tracking`, which the matrix sets itself."""
     if not (math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a time > 0 s, got {duration}")
     if traffic < 0:
@@ -180,12 +181,14 @@ def run_closed_loop(presets: list[str], conditions: list[str], detector: str = "
             DETECTORS.get(detector).settings({"fit": fit}, f"detector {detector}")
         except ParamsError as exc:
             raise UserError(f"--fit: {exc}") from None
+    if any(item.partition("=")[0].strip() == "detector.tracking" for item in settings):
+        raise UserError("--set detector.tracking: the closed-loop matrix measures every drive with and without "
+                        "tracking itself; drop it")
     todo = (check_cells if check else cells)(presets, conditions)
     options = {"traffic": traffic, "lead_gap": LEAD_GAP_M if lead_gap is None else lead_gap, "weights": weights,
-               "fit": fit}
-    if traffic:
-        for cell in todo:
-            drive_scenario(cell, detector, duration, **options)
+               "fit": fit, "settings": tuple(settings)}
+    for cell in todo if traffic or settings else ():
+        drive_scenario(cell, detector, duration, **options)
     bar = tqdm(total=len(todo), desc="closed loop", unit="drive", disable=not progress)
     if workers <= 1:
         _one_thread()

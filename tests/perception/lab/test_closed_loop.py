@@ -104,6 +104,25 @@ def test_a_fit_other_than_a_neural_detectors_is_refused_before_any_drive():
         run_closed_loop(["slr"], ["day"], detector="classical", fit="near")
 
 
+def test_settings_reach_every_drives_scenario_and_tracking_is_refused():
+    cell = Cell("urban-straight", "day", 9010)
+    told = drive_scenario(cell, "neural", 30.0, settings=("detector.track_at=[]",))[0]
+    assert told.run_detector_params == {"track_at": []}
+    with pytest.raises(UserError, match=r"detector\.tracking"):
+        run_closed_loop(["slr"], ["day"], settings=("detector.tracking=false",))
+    with pytest.raises(UserError, match="increasing distances"):
+        run_closed_loop(["slr"], ["day"], settings=("detector.track_at=[8, 6]",))
+
+
+@pytest.mark.slow
+def test_a_drive_with_the_coefficients_tracker_scores_the_same_raw_detections_tracked_otherwise():
+    cell = Cell("urban-straight", "day", 9010)
+    ahead, coefficients = drive(cell, "neural", duration=2.0), drive(cell, "neural", duration=2.0,
+                                                                     settings=("detector.track_at=[]",))
+    np.testing.assert_array_equal(ahead["raw"], coefficients["raw"])
+    assert not np.array_equal(ahead["tracked"], coefficients["tracked"], equal_nan=True)
+
+
 @pytest.mark.slow
 def test_a_drive_with_other_weights_scores_that_checkpoints_detections(tmp_path):
     cell = Cell("urban-straight", "day", 9010)
