@@ -54,7 +54,10 @@ class TrackerParams:
     yaw_rate_std: float = 0.003
     """rad/s: yaw-rate error, common to both lines' heading."""
     curvature_std: float = 1e-5
-    """1/m per √m: random walk of c2 (road curvature changes), common to both lines."""
+    """1/m per √m: random walk of c2 (road curvature changes), common to both lines, fed the coefficients."""
+    ahead_curvature_std: float = 1e-3
+    """1/m per √m: the same measured ahead, where the values ahead see a curve's start (an arc drawn without a
+    clothoid, as public maps often are) at once and the shape must follow it."""
     curvature_rate_std: float = 1e-5
     """1/m² per √m: random walk of c3, common to both lines."""
     width_std: float = 0.005
@@ -89,8 +92,8 @@ class TrackerParams:
         checks = [
             (len(self.measurement_std) == N and all(s > 0 for s in self.measurement_std),
              "measurement_std needs 4 positive values (c0..c3)"),
-            (min(self.lateral_std, self.yaw_rate_std, self.curvature_std, self.curvature_rate_std,
-                 self.width_std) >= 0, "process noise stds must be >= 0"),
+            (min(self.lateral_std, self.yaw_rate_std, self.curvature_std, self.ahead_curvature_std,
+                 self.curvature_rate_std, self.width_std) >= 0, "process noise stds must be >= 0"),
             (self.unseen_std > 0 and self.gate > 0, "unseen_std and gate must be > 0"),
             (self.confirm_frames >= 1 and self.width_confirm_frames >= 1,
              "confirm_frames and width_confirm_frames must be >= 1"),
@@ -193,8 +196,9 @@ class LaneTracker:
     def _process_noise(self, dt: float, dx: float) -> np.ndarray:
         p = self.params
         q = p.lateral_std**2 * dt * np.outer(_COMMON_OFFSET, _COMMON_OFFSET)
+        curvature_std = p.curvature_std if self._ahead is None else p.ahead_curvature_std
         q += np.diag([p.width_std**2 * dx, p.width_std**2 * dx, (p.yaw_rate_std * dt) ** 2,
-                      p.curvature_std**2 * dx, p.curvature_rate_std**2 * dx])
+                      curvature_std**2 * dx, p.curvature_rate_std**2 * dx])
         return q
 
     def _measurement(self, ld: LaneDetection, side: int) -> Measurement | None:

@@ -79,3 +79,40 @@ class Scene:
             out.append(c if keep else None)
         return LaneDetection(self.t, out[0], out[1], 1.0 if out[0] is not None else 0.0,
                              1.0 if out[1] is not None else 0.0, (0.0, 30.0))
+
+
+class CurveEntry:
+    """A straight that runs into an arc of radius `radius` turning left at `entry` m (no clothoid, as public maps often
+    draw it), the car on the lane centre at `speed`; frames every `dt` seconds from `start` m."""
+
+    def __init__(self, radius: float = 60.0, entry: float = 60.0, start: float = 20.0, speed: float = 12.0,
+                 dt: float = 0.05) -> None:
+        self.radius, self.entry, self.speed, self.dt = radius, entry, speed, dt
+        self.s, self.t = start, 0.0
+
+    @property
+    def yaw_rate(self) -> float:
+        return self.speed / self.radius if self.s >= self.entry else 0.0
+
+    def _road(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        heading = np.where(s < self.entry, 0.0, (s - self.entry) / self.radius)
+        x = np.where(s < self.entry, s, self.entry + self.radius * np.sin(heading))
+        y = np.where(s < self.entry, 0.0, self.radius - self.radius * np.cos(heading))
+        return x, y, heading
+
+    def detect(self) -> LaneDetection:
+        """Both ego lines, each a cubic fitted to it in the vehicle frame over x in [−2, 32] m."""
+        cx, cy, ch = (float(v) for v in self._road(np.array(self.s)))
+        x, y, heading = self._road(self.s + np.linspace(-5.0, 45.0, 400))
+        cubics = []
+        for offset in (LANE_W / 2, -LANE_W / 2):
+            px, py = x - offset * np.sin(heading), y + offset * np.cos(heading)
+            vx = math.cos(ch) * (px - cx) + math.sin(ch) * (py - cy)
+            vy = -math.sin(ch) * (px - cx) + math.cos(ch) * (py - cy)
+            keep = (vx >= -2.0) & (vx <= 32.0)
+            cubics.append(np.polynomial.polynomial.polyfit(vx[keep], vy[keep], 3))
+        return LaneDetection(self.t, cubics[0], cubics[1], 1.0, 1.0, (0.0, 30.0))
+
+    def step(self) -> None:
+        self.s += self.speed * self.dt
+        self.t += self.dt

@@ -23,8 +23,8 @@ from testbed.eval.run.summary import RunSummary
 
 LD_NOISE_STD: dict[str, dict[str, float]] = {
     "oracle": {"local": 0.0, "highway": 0.0},
-    "classical": {"local": 0.126, "highway": 0.074},
-    "neural": {"local": 0.012, "highway": 0.019},
+    "classical": {"local": 0.127, "highway": 0.081},
+    "neural": {"local": 0.013, "highway": 0.023},
 }
 """σ of each lane detector's lateral error D_LD − D_phys (m) per track, measured on 25-s benign LD3 drives
 (docs/decisions.md): what the white-box attacker is told. A detector without noise gets the margin 0 only."""
