@@ -20,6 +20,7 @@ while the other stays for `width_confirm_frames` is the lane's width changing (a
 only where the jumped lines' heading agrees with the tracked one (a car moved sideways keeps its heading to
 the lane, which the gyro carries; a line read off the wrong paint seldom does). A detection left out does
 not count as seen.
+A track starts on one detected line, or on two a lane's width apart (`lane_width_range`).
 Lines are re-associated when the car crosses one (left becomes right, and the next line over is predicted
 one lane width further). A line not seen for `max_coast` seconds is no longer output; an output line carries
 its last detected existence probability, and the filter's c0 variance where the detector reports its own.
@@ -83,7 +84,8 @@ class TrackerParams:
     """m ahead of the car, increasing: where a detected line is measured (its cubic's value); (): its coefficients."""
     lane_width_range: tuple[float, float] = (2.5, 5.0)
     """m: the widths a lane can have; a line taken up (not seen within `max_coast`) that would put the lane's width
-    outside them, against the other line as tracked, is left out."""
+    outside them, against the other line as tracked, is left out, and two lines that are not that far apart start
+    no track."""
     range_std: float = 0.08
     """m: std of a detected line's value at each `measure_at` distance at existence probability 1, before the
     reported or residual variance replaces it."""
@@ -327,18 +329,33 @@ class LaneTracker:
         `max_coast` (at each `measure_at` distance; at the car without them): a lane's lines are a lane's width apart,
         and a misread line, such as the first line read past a junction, seldom is. A line already tracked is left
         to the gate, so that a line dragged outwards cannot make the tracker drop the other."""
-        low, high = self.params.lane_width_range
         x = self.kf.x[:, 0]
         kept = list(meas)
         for side, m in enumerate(meas):
             if m is None or self._seen(side, t) or not self._seen(1 - side, t):
                 continue
-            values = m.y if self._ahead is not None else m.y[:1]
+            values = self._values(m)
             tracked = (self._observe[1 - side] @ x)[: len(values)]
-            width = values - tracked if side == LEFT else tracked - values
-            if not np.all((width >= low) & (width <= high)):
+            if not self._a_lane_wide(values - tracked if side == LEFT else tracked - values):
                 kept[side] = None
         return kept
+
+    def _startable(self, meas: list[Measurement | None]) -> bool:
+        """Whether the measurements may start a track: a line seen alone, or two lines a lane's width apart
+        (`lane_width_range`, as `_plausible` judges); two that are not start nothing, since which of them is misread
+        cannot be told (a pair read off a junction's other paint, or one line read a lane further, seldom is a lane)."""
+        if meas[LEFT] is None or meas[RIGHT] is None:
+            return meas[LEFT] is not None or meas[RIGHT] is not None
+        return self._a_lane_wide(self._values(meas[LEFT]) - self._values(meas[RIGHT]))
+
+    def _values(self, m: Measurement) -> np.ndarray:
+        """A detected line's values at the `measure_at` distances (its offset at the car without them)."""
+        return m.y if self._ahead is not None else m.y[:1]
+
+    def _a_lane_wide(self, width: np.ndarray) -> bool:
+        """Whether a lane's width at each distance is within `lane_width_range`."""
+        low, high = self.params.lane_width_range
+        return bool(np.all((width >= low) & (width <= high)))
 
     def _seen(self, side: int, t: float) -> bool:
         """Whether the line was seen within `max_coast` before `t`."""
@@ -398,9 +415,11 @@ class LaneTracker:
             self._associate(meas)
             meas = self._gate(self._plausible(meas, ld.timestamp))
             self._update(meas)
-        elif any(m is not None for m in meas):
+        elif self._startable(meas):
             self.reset()
             self._start(meas)
+        else:
+            meas = [None, None]
         self.t, self.odometry = ld.timestamp, (speed, yaw_rate)
         for side in (LEFT, RIGHT):
             if meas[side] is not None:

@@ -328,20 +328,44 @@ def test_a_line_that_would_make_the_lane_too_narrow_or_wide_is_left_out(params):
 
 
 def test_the_width_bound_applies_only_to_a_line_being_taken_up(params):
-    """Both lines tracked from the start 5.2 m apart (wider than `lane_width_range`): each is still taken at every
-    frame, so a line dragged outwards under the gate cannot make the tracker drop the other, already tracked."""
+    """Both lines tracked, then the left one dragged outwards 1.7 m over 2 s (the lane 5.2 m wide, past
+    `lane_width_range`) and held there: each line is still taken at every frame, so a line dragged outwards under the
+    gate cannot make the tracker drop the other, already tracked."""
     scene = Scene()
 
-    def wide(k: int, s: Scene) -> LaneDetection:
+    def dragged(k: int, s: Scene) -> LaneDetection:
         ld = s.detect()
-        return LaneDetection(ld.timestamp, ld.left + np.array([1.7, 0, 0, 0]), ld.right, 1.0, 1.0, ld.x_range)
+        shift = 1.7 * min(1.0, max(0.0, (k - 10) / 40))
+        return LaneDetection(ld.timestamp, ld.left + np.array([shift, 0, 0, 0]), ld.right, 1.0, 1.0, ld.x_range)
 
-    tracker, out = track(scene, 40, wide, params)
-    for tracked, _, fed in out:
+    tracker = LaneTracker(params)
+    for k in range(80):
+        fed = dragged(k, scene)
+        tracked = tracker.update(fed, scene.speed, scene.yaw_rate)
         assert tracked.left is not None and tracked.right is not None
-        assert tracked.left[0] == pytest.approx(fed.left[0], abs=0.03)
-        assert tracked.right[0] == pytest.approx(fed.right[0], abs=0.03)
-    assert tracker.lines[0].last_seen == tracker.lines[1].last_seen == out[-1][2].timestamp
+        assert tracker.lines[0].last_seen == tracker.lines[1].last_seen == fed.timestamp  # both taken
+        scene.step()
+    assert fed.left[0] - fed.right[0] > 5.0
+
+
+def test_two_lines_that_are_no_lane_start_no_track(params):
+    """Nothing tracked yet, a right line read 1.9 m inside the left (a lane 1.6 m wide) or 1.6 m outside it (5.1 m):
+    which of the two is misread cannot be told, so neither starts a track; the true pair, or a line alone, does."""
+    scene = Scene(lateral=0.2)
+    for shift in (1.9, -1.6):
+        tracker = LaneTracker(params)
+        ld = scene.detect()
+        misread = LaneDetection(ld.timestamp, ld.left, ld.right + np.array([shift, 0, 0, 0]), 1.0, 1.0, ld.x_range)
+        tracked = tracker.update(misread, scene.speed, scene.yaw_rate)
+        assert tracked.left is None and tracked.right is None and not tracker.started
+        scene.step()
+        tracked = tracker.update(scene.detect(), scene.speed, scene.yaw_rate)
+        assert tracked.left[0] == pytest.approx(scene.detect().left[0], abs=1e-9)
+        assert tracked.right[0] == pytest.approx(scene.detect().right[0], abs=1e-9)
+    alone = LaneTracker(params)
+    ld = scene.detect()
+    tracked = alone.update(LaneDetection(ld.timestamp, None, ld.right, 0.0, 1.0, ld.x_range), scene.speed, 0.0)
+    assert tracked.right is not None and alone.started
 
 
 @pytest.mark.parametrize(("curvature_std", "follows"), [(None, True), (1e-5, False)])
