@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 import pybullet as pb
 
+from testbed import physics_clients
 from testbed.errors import UserError
 from testbed.ground import SEGMENT_SPACING_M, GroundCanvas, Lighting
 from testbed.rates import PHYSICS_HZ
@@ -83,7 +84,8 @@ class PhysicsWorld:
 
     def __init__(self, track, params: VehicleParams, start: Pose, physics_hz: float = PHYSICS_HZ,
                  obstacle_window_m: float | None = None) -> None:
-        self.client = pb.connect(pb.DIRECT)
+        self.client = physics_clients.connect()
+        self._released = False
         self.track = track
         self.dt = 1.0 / physics_hz
         self.t = 0.0
@@ -212,8 +214,10 @@ class PhysicsWorld:
                 if c[2] in known}
 
     def close(self) -> None:
-        if pb.isConnected(self.client):
-            pb.disconnect(self.client)
+        """Hand the client back (`physics_clients.release`); the world is not used after."""
+        if not self._released:
+            self._released = True
+            physics_clients.release(self.client)
 
 
 Move = Callable[[int, Sequence[float], Sequence[float]], None]
