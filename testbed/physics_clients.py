@@ -1,6 +1,7 @@
 """PyBullet DIRECT clients kept for reuse within a process: a released client's world is emptied
-(`resetSimulation`) and handed to the next physics world, which sets every engine parameter it uses itself.
-Connecting a client costs about 18 ms, emptying a kept one under 1 ms; a campaign's worker builds a world per run.
+(`resetSimulation`) and handed to the next physics world, which sets every engine parameter it uses itself, so a
+campaign's worker, which builds a world per run, connects once (docs/decisions.md, "Campaign speed, eighteenth
+round").
 """
 
 from __future__ import annotations
