@@ -24,7 +24,8 @@ def add_ld_parser(subparsers) -> argparse.ArgumentParser:
                    help="render episodes in these camera conditions only (default: all, cycled evenly)")
     tracks = p.add_mutually_exclusive_group()
     tracks.add_argument("--presets", nargs="+", metavar="PRESET",
-                        help="render episodes of these track presets only (default: all, cycled evenly)")
+                        help="render episodes of these track presets only (default: all, cycled evenly); also "
+                             "'corners', town roads of tight corners rendered for training only")
     tracks.add_argument("--tracks", nargs="+", metavar="xodr:FILE[#ROUTE]",
                         help="render episodes on these OpenDRIVE routes instead of the presets (cycled evenly; "
                              "the seed draws the frames' places along each route)")

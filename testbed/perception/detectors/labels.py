@@ -22,6 +22,7 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from tracks.compiled import compiled_module
 from tracks.map_api import OffMapError
@@ -139,13 +140,35 @@ class FrameVisibility:
 class LineTruth:
     """One true lane line: cubic y(x) coefficients (ascending powers, vehicle frame), its existence, its
     marking kind (the most common in view, the nearest first among equals), the fraction of its judged
-    rows whose paint the frame shows (None where not judged) and how far ahead the fit holds (m)."""
+    rows whose paint the frame shows (None where not judged), how far ahead the fit holds (m) and the line's
+    samples (x, y) in the vehicle frame, in driving order (`offsets_at`)."""
 
     coeffs: np.ndarray
     exists: bool
     kind: str
     visible: float | None = None
     x_far: float = X_MAX
+    samples: tuple[np.ndarray, np.ndarray] | None = None
+
+    def offsets_at(self, xs: np.ndarray) -> np.ndarray:
+        """The line's offset y (m) at each distance ahead in `xs`, where the line itself lies (interpolated
+        between its samples, not the cubic, which holds only up to `x_far`): over the run of samples that leads
+        away from the car from x = 0 until the line turns back (shape-preserving cubic interpolation); NaN outside
+        that run."""
+        xs = np.asarray(xs, dtype=float)
+        if self.samples is None:
+            return np.full(xs.shape, np.nan)
+        x, y = self.samples
+        started = np.flatnonzero(x >= 0.0)
+        if not len(started):
+            return np.full(xs.shape, np.nan)
+        first = max(int(started[0]) - 1, 0)
+        turned = np.flatnonzero(np.diff(x[first:]) <= 0.0)
+        stop = first + int(turned[0]) + 1 if len(turned) else len(x)
+        run_x, run_y = x[first:stop], y[first:stop]
+        if len(run_x) < 2:
+            return np.full(xs.shape, np.nan)
+        return PchipInterpolator(run_x, run_y, extrapolate=False)(xs)
 
 
 @dataclass(frozen=True)
@@ -208,7 +231,7 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
         at_car = _at_car(ref, boundary.t, pose, s, x)
     if at_car is None and np.count_nonzero((x >= -2.0) & (x <= X_MAX + 2.0)) < 4:
         # the car faces away from the line (turned across the road): nothing in view to fit
-        return LineTruth(coeffs=np.full(4, np.nan), exists=False, kind="none")
+        return LineTruth(coeffs=np.full(4, np.nan), exists=False, kind="none", samples=(x, y))
     if compiled is not None and at_car is not None:
         coeffs, x_far, fit = _KERNELS.range_fit(x, y, at_car[0], at_car[1])
         run_s0, run_s1, run_kind, names = compiled.runs[boundary_index]
@@ -226,7 +249,7 @@ def _line_truth(track, boundary_index: int, pose: Pose, s0: float,
     if exists and visibility is not None:
         seen = visibility.visible_fraction(boundary.t, s[fit], x[fit], y[fit])
         exists = seen is not None and seen >= VISIBLE_FRACTION
-    return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen, x_far=x_far)
+    return LineTruth(coeffs=coeffs, exists=exists, kind=kind, visible=seen, x_far=x_far, samples=(x, y))
 
 
 def _at_car(ref, t: float, pose: Pose, s: np.ndarray, x: np.ndarray) -> tuple[float, float] | None:

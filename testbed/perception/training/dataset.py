@@ -34,6 +34,8 @@ from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS, get_condition
 from testbed.errors import UserError
 from testbed.perception.detectors.labels import FrameVisibility, PaintLayout, ego_lines
+from testbed.perception.detectors.neural import X_ANCHORS as ANCHOR_X
+from testbed.perception.training import corner_roads
 from testbed.perception.training.occlusion import occluded_fraction
 from testbed.perception.training.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
 from testbed.world import TileStreamer
@@ -54,6 +56,7 @@ HEIGHT_JITTER = 0.05  # m
 POSES_PER_STATION = 2  # frames rendered at each station along the road (different pose and rig)
 ERASED_PER_KM = 5.0  # unpainted stretches (15-80 m) per km of each lane line
 LABEL_KEYS = ("left", "right", "left_exists", "right_exists", "lane_width", "deviation")
+ANCHOR_KEYS = ("left_anchors", "right_anchors")  # each line's offset (m) at the network's anchors, NaN past the line
 LEAD_PROBABILITY = 0.75
 LEAD_GAP_RANGE_M = (3.0, 25.0)  # ego front to lead car rear
 OTHERS_RANGE_M = (5.0, 60.0)  # centres of the other cars ahead of the camera's pose
@@ -61,6 +64,9 @@ TRAFFIC_LATERAL_M = 0.3  # a car's offset from its lane's centre, each side
 PLACEMENT_DRAWS_PER_CAR = 50  # draws of a free place per car before the frame makes do with the cars placed
 TRAFFIC_CAR = "sedan"
 TRAFFIC_STREAM = 7  # tells the traffic's stream apart from the episode's and the label redraws'
+TRAINING_ROADS = {corner_roads.NAME: corner_roads.corner_road}
+"""Roads rendered only when asked for by name (`presets`), never by default: not presets of the campaigns."""
+ROADS = {**PRESETS, **TRAINING_ROADS}
 
 
 class MarkingFadePainter:
@@ -125,6 +131,13 @@ class Episode:
     def track_spec(self) -> str:
         return self.track if self.track is not None else f"{self.preset}@{self.seed}"
 
+    def build_track(self):
+        """The episode's road: the map route, the training-only road of that name (`TRAINING_ROADS`) or the
+        preset."""
+        if self.track is None and self.preset in TRAINING_ROADS:
+            return TRAINING_ROADS[self.preset](self.seed)
+        return load_track(self.track_spec)
+
 
 def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None = None,
              presets: Sequence[str] | None = None, tracks: Sequence[str] | None = None) -> list[Episode]:
@@ -141,7 +154,7 @@ def episodes(split: str, count: int, seed: int, conditions: Sequence[str] | None
         specs: list[str | None] = list(_map_tracks(tracks))
         names = [map_track_name(t) for t in tracks]
     else:
-        names = _distinct("presets", presets, PRESETS)
+        names = list(PRESETS) if presets is None else _distinct("presets", presets, ROADS)
         specs = [None] * len(names)
     rng = np.random.default_rng([seed, 0 if split == "train" else 1])
     out = []
@@ -213,7 +226,7 @@ def render_episode(ep: Episode, n_frames: int, vehicle: str = "sedan",
     key = [ep.seed, sum(map(ord, ep.preset)), sum(map(ord, ep.condition))]
     rng = np.random.default_rng(key)
     traffic_rng = np.random.default_rng([*key, traffic, TRAFFIC_STREAM])
-    track = load_track(ep.track_spec)
+    track = ep.build_track()
     condition = get_condition(ep.condition)
     erase_stretches(track, rng)
     track.painters = [
@@ -271,6 +284,7 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLay
                for _ in range(label_draws)]
     label = {
         "left": truth.left.coeffs, "right": truth.right.coeffs,
+        "left_anchors": truth.left.offsets_at(ANCHOR_X), "right_anchors": truth.right.offsets_at(ANCHOR_X),
         "left_exists": truth.left.exists, "right_exists": truth.right.exists,
         "lane_width": truth.width, "deviation": truth.deviation,
         "meta": {"preset": ep.preset, "seed": ep.seed, "condition": ep.condition, "s": round(s, 2),
@@ -286,14 +300,20 @@ def _render_pose(track, lane, s: float, streamer: TileStreamer, layout: PaintLay
 
 
 def write_shard(path: Path, images: list[np.ndarray], labels: list[dict]) -> None:
-    arrays = {k: np.asarray([lb[k] for lb in labels]) for k in LABEL_KEYS}
+    """One shard: the images, the label arrays, the anchors' labels with their distances (`anchor_x`) where every
+    label has them, and the metadata."""
+    keys = LABEL_KEYS + (ANCHOR_KEYS if all(k in lb for lb in labels for k in ANCHOR_KEYS) else ())
+    arrays = {k: np.asarray([lb[k] for lb in labels]) for k in keys}
+    if ANCHOR_KEYS[0] in arrays:
+        arrays["anchor_x"] = np.asarray(ANCHOR_X)
     meta = np.asarray([json.dumps(lb["meta"]) for lb in labels])
     np.savez(path, images=np.stack(images), meta=meta, **arrays)
 
 
 @dataclass
 class FrameSet:
-    """Frames and labels loaded from a dataset directory (all shards concatenated)."""
+    """Frames and labels loaded from a dataset directory (all shards concatenated); the anchors' labels are None
+    for datasets written before they were (their lines are then labelled by the cubic alone)."""
 
     images: np.ndarray
     left: np.ndarray
@@ -303,6 +323,8 @@ class FrameSet:
     lane_width: np.ndarray
     deviation: np.ndarray
     meta: list[dict]
+    left_anchors: np.ndarray | None = None
+    right_anchors: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.images)
@@ -341,6 +363,7 @@ def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndar
                                 f"dataset`)")
             arrays = {k: z[k][:limit] for k in SHARD_SHAPES}
             meta = [json.loads(m) for m in arrays.pop("meta")]
+            arrays.update(_anchor_labels(shard, z, limit))
     except UserError:
         raise
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:  # truncated, pickled, bad JSON
@@ -348,7 +371,7 @@ def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndar
         raise UserError(f"{shard}: cannot read the dataset shard: {problem}") from None
     rows = {len(a) for a in arrays.values()} | {len(meta)}
     for key, array in arrays.items():
-        ndim, last = SHARD_SHAPES[key]
+        ndim, last = SHARD_SHAPES[key] if key in SHARD_SHAPES else (2, len(ANCHOR_X))
         if (array.ndim != ndim or (last is not None and array.shape[-1] != last) or array.dtype.kind not in "biuf"
                 or (key == "images" and array.dtype != np.uint8)):
             raise UserError(f"{shard}: array {key!r} is {array.dtype} of shape {array.shape}, not a dataset's")
@@ -357,10 +380,28 @@ def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndar
     return arrays, meta
 
 
+def _anchor_labels(shard: Path, z, limit: int | None) -> dict[str, np.ndarray]:
+    """The shard's anchor labels (none in a shard written before them); refused where they were taken at other
+    distances than the network's anchors."""
+    present = [k for k in (*ANCHOR_KEYS, "anchor_x") if k in z.files]
+    if not present:
+        return {}
+    if len(present) < 3:
+        raise UserError(f"{shard}: not a dataset shard: anchor labels without all of {', '.join(ANCHOR_KEYS)}, "
+                        f"anchor_x")
+    at = z["anchor_x"]
+    if at.shape != (len(ANCHOR_X),) or not np.array_equal(at, ANCHOR_X):
+        raise UserError(f"{shard}: its lines are labelled at {at.tolist()} m, the network's anchors are at "
+                        f"{list(ANCHOR_X)} m: render the dataset again")
+    return {k: z[k][:limit] for k in ANCHOR_KEYS}
+
+
 def load_frames(directory: Path, limit: int | None = None) -> FrameSet:
-    """All shards of the dataset in `directory` (at most `limit` frames) concatenated."""
+    """All shards of the dataset in `directory` (at most `limit` frames) concatenated; the anchor labels only
+    where every shard has them."""
     parts = list(iter_shards(directory, limit))
-    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in ("images", *LABEL_KEYS)}
+    keys = ("images", *LABEL_KEYS) + (ANCHOR_KEYS if all(p.left_anchors is not None for p in parts) else ())
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in keys}
     return FrameSet(meta=[m for p in parts for m in p.meta], **cat)
 
 

@@ -1,7 +1,8 @@
 """Training of LaneNet from scratch on CPU, from dataset shards (`ld3 ld dataset`).
 
-Targets come from the label cubics: each line's column cell at every anchor row (absent where the line is
-unpainted or out of the image), its offsets y (m) at the anchors, its c0 and its existence. Loss = column
+Targets come from the labels: each line's offset y (m) at every anchor row where the line lies (the dataset's
+anchor labels; the label cubic's value in datasets written before them), its column cell there (absent where
+the line is unpainted, out of the image or does not reach that far), its c0 and its existence. Loss = column
 cross-entropy + L1 on the decoded offsets + L1 on the fitted c0 + weighted existence BCE. Each batch is
 mirrored left-right with probability 1/2 (image flipped, lines swapped and negated). Frames without lane lines
 (`negatives`, `existence_head.negative_frames`) may be added: both lines absent, every anchor absent. A fine-tune
@@ -84,17 +85,26 @@ def load_tensors(directories: list[Path], limit: int | None = None, rows: int = 
 
 def to_tensors(frames: FrameSet, rows: int = INPUT_ROWS[0]) -> Tensors:
     x = np.stack([preprocess(img, rows) for img in frames.images]).astype(np.float16)
-    anchors = np.asarray(X_ANCHORS)
     coeffs = np.stack([frames.left, frames.right], axis=1)  # (N, 2, 4)
-    y = np.polynomial.polynomial.polyval(anchors, coeffs.reshape(-1, 4).T).reshape(len(x), 2, -1)
+    y = anchor_offsets(frames, coeffs)
     exists = np.stack([frames.left_exists, frames.right_exists], axis=1)
     u = GEOMETRY.y_to_u(y)
-    cls = np.floor((u + 0.5) / 8.0).astype(np.int64)  # cell j holds pixel centres 8j .. 8j + 7
-    visible = (u >= -0.5) & (u < 8.0 * N_COLS - 0.5) & exists[..., None]
-    cls[~visible] = N_COLS
+    visible = np.isfinite(u) & (u >= -0.5) & (u < 8.0 * N_COLS - 0.5) & exists[..., None]
+    cls = np.where(visible, np.floor((np.where(visible, u, 0.0) + 0.5) / 8.0), N_COLS).astype(np.int64)  # cell j:
+    # pixel centres 8j .. 8j + 7
+    y = np.where(np.isfinite(y), y, 0.0)  # an anchor past the line is absent; its offset is never scored
     return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(cls),
                    torch.from_numpy(coeffs[..., 0].astype(np.float32)),
                    torch.from_numpy(exists.astype(np.float32)))
+
+
+def anchor_offsets(frames: FrameSet, coeffs: np.ndarray) -> np.ndarray:
+    """Each line's offset (N, 2, K) at the anchors: where the line lies (the dataset's anchor labels, NaN past the
+    line), or the label cubic's value for datasets written without them."""
+    if frames.left_anchors is not None and frames.right_anchors is not None:
+        return np.stack([frames.left_anchors, frames.right_anchors], axis=1).astype(float)
+    anchors = np.asarray(X_ANCHORS)
+    return np.polynomial.polynomial.polyval(anchors, coeffs.reshape(-1, 4).T).reshape(len(coeffs), 2, -1)
 
 
 def negative_tensors(n: int, seed: int, rows: int = INPUT_ROWS[0]) -> Tensors:

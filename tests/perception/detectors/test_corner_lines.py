@@ -46,3 +46,25 @@ def test_a_straight_road_is_fitted_over_the_whole_range():
     truth = ego_lines(track, Pose(5.0, 0.1, 0.0))
     assert truth.left.x_far == X_MAX and truth.right.x_far == X_MAX
     assert truth.left.coeffs == pytest.approx([1.65, 0.0, 0.0, 0.0], abs=1e-6)
+
+
+def _circle_offset(radius: float, x: np.ndarray) -> np.ndarray:
+    """Offset y(x) of a circle of `radius` curving left, tangent to the x axis at the origin."""
+    return radius - np.sqrt(radius**2 - x**2)
+
+
+def test_the_lines_offsets_ahead_follow_the_corner_where_the_cubic_does_not():
+    track = _corner()
+    lane = track.lanes[0]
+    x, y = lane.position(60.0, 0.0)
+    pose = Pose(float(x), float(y), lane.heading_at(60.0))  # at the corner's start, centred, along the lane
+    truth = ego_lines(track, pose)
+    xs = np.array([1.0, 3.0, 5.0, 6.0, 8.0, 12.0, 20.0])
+    for line, radius in ((truth.left, 7.0 - 1.75), (truth.right, 7.0 + 1.75)):
+        ahead = xs[xs < radius - 0.5]  # the line runs away from the car until it has turned 90°
+        expected = _circle_offset(radius, ahead) + (1.75 if radius < 7.0 else -1.75)
+        np.testing.assert_allclose(line.offsets_at(ahead), expected, atol=0.01)
+        assert np.isnan(line.offsets_at(xs[xs > radius + 0.5])).all()  # past the turn: no offset
+    inner = np.array([3.5, 4.0, 4.5])  # the inner line in the turn, which the cubic cannot follow (range ≥ 8 m)
+    cubic = np.polynomial.polynomial.polyval(inner, truth.left.coeffs)
+    assert np.abs(cubic - truth.left.offsets_at(inner)).max() > 0.25

@@ -36,7 +36,8 @@ def _poses(track, n: int, rng: np.random.Generator) -> list[Pose]:
 
 
 def _as_tuple(truth: labels.LineTruth) -> tuple:
-    return truth.coeffs.tobytes(), truth.exists, truth.kind, truth.visible, truth.x_far
+    return (truth.coeffs.tobytes(), truth.exists, truth.kind, truth.visible, truth.x_far,
+            truth.offsets_at(np.arange(0.0, 45.0, 2.5)).tobytes())
 
 
 @compiled

@@ -5,8 +5,10 @@ import pytest
 
 from testbed.conditions import CONDITIONS
 from testbed.perception.detectors.labels import VISIBLE_FRACTION
-from testbed.perception.training.dataset import build_dataset, episodes, erase_stretches
+from testbed.perception.detectors.neural import X_ANCHORS
+from testbed.perception.training.dataset import build_dataset, episodes, erase_stretches, render_episode
 from testbed.perception.training.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS
+from tracks.geometry import Arc, Straight
 from tracks.layout import MARKING_KINDS
 from tracks.presets import PRESETS
 
@@ -43,6 +45,23 @@ def test_episodes_can_be_drawn_on_chosen_presets_only():
             episodes("train", 3, 0, presets=bad)
 
 
+def test_corner_roads_are_rendered_only_when_named_and_turn_tight_without_transitions():
+    assert "corners" not in {ep.preset for ep in episodes("train", 40, 1)}
+    chosen = episodes("train", 4, 1, ["day"], ["corners"])
+    assert {ep.preset for ep in chosen} == {"corners"}
+    track = chosen[0].build_track()
+    assert track.name == "corners" and track.length >= 900.0
+    bends = [seg for seg in track.reference.segments if not isinstance(seg, Straight)]
+    assert bends and all(isinstance(seg, Arc) and 15.0 <= abs(seg.radius) <= 50.0 for seg in bends)
+    assert {seg.radius > 0 for seg in bends} == {True, False}  # corners both ways
+    again = chosen[0].build_track()
+    assert [(type(a), a.length) for a in track.reference.segments] == [
+        (type(b), b.length) for b in again.reference.segments]
+    assert chosen[1].build_track().reference.length != track.length  # another seed, another road
+    image, label = next(render_episode(chosen[0], 1))
+    assert image.shape == (160, 320, 3) and label["meta"]["preset"] == "corners"
+
+
 def test_erased_stretches_keep_the_runs_tiling_the_road(track):
     before = [b.t for b in track.boundaries]
     erase_stretches(track, np.random.default_rng(4), per_km=20.0)
@@ -65,7 +84,12 @@ def test_same_episode_renders_the_same_bytes():
     for (img_a, lab_a), (img_b, lab_b) in zip(first, second, strict=True):
         assert img_a.tobytes() == img_b.tobytes()
         np.testing.assert_array_equal(lab_a["left"], lab_b["left"])
+        np.testing.assert_array_equal(lab_a["left_anchors"], lab_b["left_anchors"])
         assert lab_a["meta"] == lab_b["meta"]
+        for side in ("left", "right"):  # on a straight local road the line lies on its cubic at every anchor
+            at = lab_a[f"{side}_anchors"]
+            assert at.shape == (len(X_ANCHORS),) and np.isfinite(at).all()
+            np.testing.assert_allclose(at, np.polynomial.polynomial.polyval(X_ANCHORS, lab_a[side]), atol=0.1)
         meta = lab_a["meta"]  # the rig jitter and the line markings are recorded for per-frame analysis
         assert abs(meta["pitch_jitter_deg"]) <= 0.5 and abs(meta["height_jitter_m"]) <= 0.05
         assert {meta["left_kind"], meta["right_kind"]} <= set(MARKING_KINDS)

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 import torch
 
+from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame
-from testbed.perception.detectors.neural import N_COLS, LaneNet, NeuralLaneDetector, load_model
+from testbed.perception.detectors.neural import N_COLS, X_ANCHORS, LaneNet, NeuralLaneDetector, load_model
 from testbed.perception.training.dataset import LABEL_KEYS, iter_shards, load_frames, write_shard
 from testbed.perception.training.train import TrainConfig, load_tensors, mirror, negative_tensors, to_tensors, train
 
@@ -26,6 +27,39 @@ def test_dataset_shards_round_trip(tmp_path):
     assert len(frames) == 12 and frames.images.shape == (12, 160, 320, 3)
     assert frames.right_exists.tolist() == [bool(i % 2) for i in range(12)]
     assert set(LABEL_KEYS) <= set(vars(frames))
+
+
+def test_the_anchors_are_labelled_where_the_line_lies_and_absent_past_it(tmp_path):
+    _tiny_dataset(tmp_path / "cubic", 2)
+    cubic = to_tensors(load_frames(tmp_path / "cubic"))  # a dataset written before the anchor labels
+    assert load_frames(tmp_path / "cubic").left_anchors is None
+    expected_left = np.polynomial.polynomial.polyval(np.asarray(X_ANCHORS), [1.7, 0.05, 1e-3, 0.0])
+    torch.testing.assert_close(cubic.y[0, 0].double(), torch.from_numpy(expected_left), atol=1e-5, rtol=0)
+
+    rng = np.random.default_rng(0)
+    k = len(X_ANCHORS)
+    bent = np.linspace(1.7, 4.0, k)
+    bent[-3:] = np.nan  # the line has turned away before the last three anchors
+    labels = [{"left": np.array([1.7, 0.05, 1e-3, 0.0]), "right": np.array([-1.8, 0.05, 1e-3, 0.0]),
+               "left_anchors": bent, "right_anchors": np.full(k, -1.8), "left_exists": True, "right_exists": True,
+               "lane_width": 3.5, "deviation": 0.05, "meta": {}}] * 2
+    (tmp_path / "lines").mkdir()
+    write_shard(tmp_path / "lines" / "shard_00000.npz",
+                [rng.integers(0, 255, (160, 320, 3), dtype=np.uint8) for _ in range(2)], labels)
+    frames = load_frames(tmp_path / "lines")
+    t = to_tensors(frames)
+    torch.testing.assert_close(t.y[0, 0, :-3].double(), torch.from_numpy(bent[:-3]), atol=1e-5, rtol=0)
+    torch.testing.assert_close(t.y[0, 1], torch.full((k,), -1.8))
+    assert (t.cls[0, 0, -3:] == N_COLS).all() and (t.cls[0, 0, :-3] < N_COLS).all()
+    assert (t.y[0, 0, -3:] == 0.0).all()  # never scored: absent
+    assert (t.cls[:, 1] < N_COLS).all()
+
+    with np.load(tmp_path / "lines" / "shard_00000.npz") as z:
+        stored = {key: z[key] for key in z.files}
+    stored["anchor_x"] = stored["anchor_x"] + 1.0
+    np.savez(tmp_path / "lines" / "shard_00000.npz", **stored)
+    with pytest.raises(UserError, match="render the dataset again"):
+        load_frames(tmp_path / "lines")
 
 
 def test_shards_load_one_at_a_time_up_to_the_limit(tmp_path):
