@@ -15,7 +15,8 @@ camera's lane `LEAD_GAP_RANGE_M` ahead of the car's front, the others in random 
 then come from the frame with the cars in it, and the meta keeps the share of the ego lines the cars hide
 (`occluded`, `testbed.perception.training.occlusion`). Track seeds for training come from `TRAIN_SEEDS`;
 `HELD_OUT_SEEDS` is reserved for evaluation, never trained on. Shards are `.npz` files: images (N, 160, 320, 3)
-uint8 plus label arrays; `meta` holds one JSON per frame.
+uint8 plus label arrays (each line's cubic and, at the network's anchors `anchor_x`, its own offset, NaN past where it
+turns away); `meta` holds one JSON per frame.
 """
 
 from __future__ import annotations
