@@ -37,11 +37,10 @@ from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 from testbed.errors import UserError
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
+from testbed.perception.detectors.anchors import ANCHOR_WEIGHTS, X_ANCHORS
 from vehicles.camera_rig import CameraRig
 from vehicles.params import CameraParams
 
-X_ANCHORS = (5.0, 6.0, 7.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 25.0, 30.0)
-ANCHOR_WEIGHTS = (3.0, 3.0, 2.5, 2.0, 1.5, 1.2, 1.0, 0.8, 0.6, 0.4, 0.3)  # fit emphasis near the car
 FIT_SCALE = 30.0  # m: the fit runs in t = x / FIT_SCALE, which keeps its normal equations well conditioned
 RIDGE = 1e-9  # t-basis ridge on every coefficient: numerical safety only (no visible bias; fit in float64)
 PINNED = 1e3  # t-basis ridge that holds a coefficient at 0 when too few anchors are present to fit it

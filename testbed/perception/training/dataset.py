@@ -34,8 +34,8 @@ import numpy as np
 from testbed.camera import FrontCamera
 from testbed.conditions import CONDITIONS, get_condition
 from testbed.errors import UserError
+from testbed.perception.detectors.anchors import X_ANCHORS as ANCHOR_X
 from testbed.perception.detectors.labels import FrameVisibility, PaintLayout, ego_lines
-from testbed.perception.detectors.neural import X_ANCHORS as ANCHOR_X
 from testbed.perception.training import corner_roads
 from testbed.perception.training.occlusion import occluded_fraction
 from testbed.perception.training.seeds import HELD_OUT_SEEDS, TRAIN_SEEDS

@@ -172,3 +172,12 @@ def test_episodes_can_be_drawn_on_map_routes_and_label_the_maps_lanes(tmp_path):
             episodes("train", 3, 0, tracks=bad)
     with pytest.raises(UserError, match="either presets or map tracks"):
         episodes("train", 3, 0, presets=["slr"], tracks=[spec])
+
+
+def test_rendering_datasets_needs_no_torch():
+    import subprocess
+    import sys
+
+    code = "import sys, testbed.perception.training.dataset; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"  # torch is the optional `nn` extra: labels are made without it
