@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import weakref
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -148,7 +148,7 @@ class LineTruth:
     kind: str
     visible: float | None = None
     x_far: float = X_MAX
-    samples: tuple[np.ndarray, np.ndarray] | None = None
+    samples: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def offsets_at(self, xs: np.ndarray) -> np.ndarray:
         """The line's offset y (m) at each distance ahead in `xs`, where the line itself lies (interpolated
