@@ -159,12 +159,10 @@ class LineTruth:
         if self.samples is None:
             return np.full(xs.shape, np.nan)
         x, y = self.samples
-        started = np.flatnonzero(x >= 0.0)
-        if not len(started):
+        run = _run_ahead(x)
+        if run is None:
             return np.full(xs.shape, np.nan)
-        first = max(int(started[0]) - 1, 0)
-        turned = np.flatnonzero(np.diff(x[first:]) <= 0.0)
-        stop = first + int(turned[0]) + 1 if len(turned) else len(x)
+        first, stop = max(run[0] - 1, 0), run[1]  # from the sample behind x = 0, for the values just ahead of it
         run_x, run_y = x[first:stop], y[first:stop]
         if len(run_x) < 2:
             return np.full(xs.shape, np.nan)
@@ -287,11 +285,9 @@ def _range_fit(x: np.ndarray, y: np.ndarray, at_car: tuple[float, float] | None
         fit = (x >= -2.0) & (x <= X_MAX + 2.0)
         return np.polynomial.polynomial.polyfit(x[fit], y[fit], 3), X_MAX, fit
     ahead = np.ones(len(x), dtype=bool)
-    started = np.flatnonzero(x >= 0.0)
-    if len(started):
-        turned = np.flatnonzero(np.diff(x[started[0]:]) <= 0.0)
-        if len(turned):
-            ahead[started[0] + turned[0] + 1:] = False
+    run = _run_ahead(x)
+    if run is not None:
+        ahead[run[1]:] = False
     y0, slope = at_car
     x_far = X_MAX
     while True:
@@ -303,6 +299,18 @@ def _range_fit(x: np.ndarray, y: np.ndarray, at_car: tuple[float, float] | None
         if _stray(coeffs, xs, y[fit]) <= FIT_TOLERANCE or x_far * FIT_SHRINK < X_FIT_MIN:
             return coeffs, x_far, fit
         x_far *= FIT_SHRINK
+
+
+def _run_ahead(x: np.ndarray) -> tuple[int, int] | None:
+    """(start, stop) of the samples of a line sampled in driving order that lead away from the car: from the first at
+    x ≥ 0 up to the last before x stops growing (the line turns back across the car's path); None when none is
+    ahead."""
+    started = np.flatnonzero(x >= 0.0)
+    if not len(started):
+        return None
+    start = int(started[0])
+    turned = np.flatnonzero(np.diff(x[start:]) <= 0.0)
+    return start, start + int(turned[0]) + 1 if len(turned) else len(x)
 
 
 def _stray(coeffs: np.ndarray, x: np.ndarray, y: np.ndarray) -> float:

@@ -46,6 +46,7 @@ from tracks.opendrive.model import OpenDriveError
 from tracks.paint import AsphaltPainter, MarkingPainter, marking_coverage
 from tracks.pose import Pose
 from tracks.presets import PRESETS, load_track
+from tracks.road import Track
 from tracks.tile_frame import TileFrame
 from vehicles.camera_rig import CameraRig
 from vehicles.params import get_vehicle
@@ -132,7 +133,7 @@ class Episode:
     def track_spec(self) -> str:
         return self.track if self.track is not None else f"{self.preset}@{self.seed}"
 
-    def build_track(self):
+    def build_track(self) -> Track:
         """The episode's road: the map route, the training-only road of that name (`TRAINING_ROADS`) or the
         preset."""
         if self.track is None and self.preset in TRAINING_ROADS:
@@ -350,6 +351,8 @@ def iter_shards(directory: Path, limit: int | None = None) -> Iterator[FrameSet]
 SHARD_SHAPES = {"images": (4, 3), "left": (2, 4), "right": (2, 4), "left_exists": (1, None), "right_exists": (1, None),
                 "lane_width": (1, None), "deviation": (1, None), "meta": (1, None)}
 """Each shard array's dimensions and last size (None: any); all hold one row per frame, numbers (images uint8)."""
+ANCHOR_SHAPE = (2, len(ANCHOR_X))
+"""The same of each `ANCHOR_KEYS` array, where a shard has them."""
 
 
 def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndarray], list[dict]]:
@@ -372,7 +375,7 @@ def read_shard(shard: Path, limit: int | None = None) -> tuple[dict[str, np.ndar
         raise UserError(f"{shard}: cannot read the dataset shard: {problem}") from None
     rows = {len(a) for a in arrays.values()} | {len(meta)}
     for key, array in arrays.items():
-        ndim, last = SHARD_SHAPES[key] if key in SHARD_SHAPES else (2, len(ANCHOR_X))
+        ndim, last = SHARD_SHAPES.get(key, ANCHOR_SHAPE)
         if (array.ndim != ndim or (last is not None and array.shape[-1] != last) or array.dtype.kind not in "biuf"
                 or (key == "images" and array.dtype != np.uint8)):
             raise UserError(f"{shard}: array {key!r} is {array.dtype} of shape {array.shape}, not a dataset's")
@@ -387,7 +390,7 @@ def _anchor_labels(shard: Path, z, limit: int | None) -> dict[str, np.ndarray]:
     present = [k for k in (*ANCHOR_KEYS, "anchor_x") if k in z.files]
     if not present:
         return {}
-    if len(present) < 3:
+    if len(present) < len(ANCHOR_KEYS) + 1:
         raise UserError(f"{shard}: not a dataset shard: anchor labels without all of {', '.join(ANCHOR_KEYS)}, "
                         f"anchor_x")
     at = z["anchor_x"]

@@ -90,8 +90,8 @@ def to_tensors(frames: FrameSet, rows: int = INPUT_ROWS[0]) -> Tensors:
     exists = np.stack([frames.left_exists, frames.right_exists], axis=1)
     u = GEOMETRY.y_to_u(y)
     visible = np.isfinite(u) & (u >= -0.5) & (u < 8.0 * N_COLS - 0.5) & exists[..., None]
-    cls = np.where(visible, np.floor((np.where(visible, u, 0.0) + 0.5) / 8.0), N_COLS).astype(np.int64)  # cell j:
-    # pixel centres 8j .. 8j + 7
+    cls = np.full(u.shape, N_COLS, dtype=np.int64)
+    cls[visible] = np.floor((u[visible] + 0.5) / 8.0)  # cell j holds pixel centres 8j .. 8j + 7
     y = np.where(np.isfinite(y), y, 0.0)  # an anchor past the line is absent; its offset is never scored
     return Tensors(torch.from_numpy(x), torch.from_numpy(y.astype(np.float32)), torch.from_numpy(cls),
                    torch.from_numpy(coeffs[..., 0].astype(np.float32)),
