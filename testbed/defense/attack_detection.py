@@ -133,7 +133,7 @@ class LaneConsistencyMonitor:
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
                  yaw_margin: float = 0.0, yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
-                 lever: float = 0.0) -> None:
+                 lever: float = 0.0, lines_gate: tuple[float, float] = (math.inf, math.inf)) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -147,6 +147,10 @@ class LaneConsistencyMonitor:
         self.yaw_margin = yaw_margin
         """How far outside the interval between the sources' headings the dead-reckoned yaw may sit unturned where
         they disagree that much or more (rad)."""
+        self.lines_gate = lines_gate
+        """(m, rad): a detection whose lines disagree with the MSF (beyond b, or beyond the heading check's b) and lie
+        farther than this from the dead-reckoned pose, across the lane or in heading relative to it, is astray: the
+        MSF is checked against odometry on it, as where lines are absent."""
         self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
@@ -257,6 +261,11 @@ class LaneConsistencyMonitor:
         if d_ld is None or self.ld_dev.reused:
             return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "no-lane-lines",
                                         "no valid lane line")
+        psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
+        if reckoned is not None:
+            astray = self._lines_astray(d_msf, d_ld, pose.yaw, psi, reckoned, smap, lane)
+            if astray is not None:
+                return self._odometry_check(t, d_msf, pose.yaw, reckoned, lane, smap, "lines-astray", astray)
         self.faults.clear()
         self.d_ld = self.fresh_d_ld = d_ld
         if reckoned is not None and self._check_along(pose, reckoned, smap, lane):
@@ -273,10 +282,26 @@ class LaneConsistencyMonitor:
             since = t - self._anchor_time if self._anchor_time is not None else 0.0
             self._anchor(ld, reckoned, smap, lane, step_toward(d_odo, d_ld, drift_allowance(self.line_rate, since)),
                          msf_yaw=pose.yaw)
-        psi = station_relative_heading(ld, self.ld_dev.existence_threshold, smap, pose, lane)
         if psi is not None and self._check_heading(pose.yaw - smap.lane_point(pose, lane)[1] - psi, lane, "lines"):
             return True
         return self._update(d_msf, d_ld, lane, "lines")
+
+    def _lines_astray(self, d_msf: float, d_ld: float, msf_yaw: float, psi: float | None, reckoned: Pose,
+                      smap: SemanticMap, lane: int) -> str | None:
+        """Why the lines are astray (`lines_gate`): apart from both the MSF and the dead-reckoned pose, across the lane
+        or in heading; None when they are not. Two sources that agree outvote the third, so an MSF attacker cannot
+        have honest lines set aside, and lines that left both are no evidence against the MSF."""
+        gate, heading_gate = self.lines_gate
+        d_odo = float(smap.lane_dev(reckoned, lane))
+        if abs(d_ld - d_msf) > self.detector.cusum.b and abs(d_ld - d_odo) > gate:
+            return f"D_LD={d_ld:.3f} against D_MSF={d_msf:.3f} and odometry D={d_odo:.3f}"
+        if psi is None:
+            return None
+        heading = smap.lane_point(reckoned, lane)[1]
+        msf_rel, odo_rel = wrap_angle(msf_yaw - heading), wrap_angle(reckoned.yaw - heading)
+        if abs(wrap_angle(msf_rel - psi)) > self.heading.b and abs(wrap_angle(odo_rel - psi)) > heading_gate:
+            return f"lines' heading {psi:.3f} against the MSF's {msf_rel:.3f} and odometry's {odo_rel:.3f} (rad)"
+        return None
 
     def _check_heading(self, residual: float, lane: int | None, against: str) -> bool:
         """Feed the heading CUSUM the wrapped heading residual (rad) against `against`'s heading; True (and

@@ -41,7 +41,7 @@ PSource = Literal["constant", "reported"]
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
                               "line_rate", "line_yaw_rate", "yaw_margin", "odometry_bias_span",
-                              "response_gate", "corner_radius"})
+                              "response_gate", "corner_radius", "lines_gate", "lines_heading_gate"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
@@ -115,10 +115,17 @@ class DefenseConfig(Params):
     response_gate: float = Field(0.5, gt=0.0, description="fail-closed response: a source whose deviation is farther "
                                  "than this from the odometry-carried fused deviation is left out (m); the MSF, once "
                                  "so, for the rest of the response")
-    corner_radius: float = Field(20.0, gt=0.0, description="fail-closed: a detection's lines are not compared where "
+    corner_radius: float = Field(30.0, gt=0.0, description="fail-closed: a detection's lines are not compared where "
                                  "the ego lane turns tighter than this radius within 12 m ahead of the dead-reckoned "
                                  "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
                                  "metres off); the MSF is then checked by odometry")
+    lines_gate: float = Field(0.5, gt=0.0, description="fail-closed: a detection's lines farther than this across "
+                              "the lane from the dead-reckoned pose, and beyond b from the MSF, are astray: the MSF is "
+                              "checked by odometry on it, as where lines are absent (m; two sources that agree "
+                              "outvote the third; a large value: never)")
+    lines_heading_gate: float = Field(0.05, gt=0.0, description="fail-closed: the same in heading relative to the "
+                                      "lane: lines farther than this from the dead-reckoned yaw, and beyond heading_b "
+                                      "from the MSF's yaw, are astray (rad; a large value: never)")
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:
