@@ -292,14 +292,16 @@ class LaneConsistencyMonitor:
         or in heading; None when they are not. Two sources that agree outvote the third, so an MSF attacker cannot
         have honest lines set aside, and lines that left both are no evidence against the MSF."""
         gate, heading_gate = self.lines_gate
+        b = self.detector.cusum.b
         d_odo = float(smap.lane_dev(reckoned, lane))
-        if abs(d_ld - d_msf) > self.detector.cusum.b and abs(d_ld - d_odo) > gate:
+        if abs(d_msf - d_odo) <= b and abs(d_ld - d_msf) > b and abs(d_ld - d_odo) > gate:
             return f"D_LD={d_ld:.3f} against D_MSF={d_msf:.3f} and odometry D={d_odo:.3f}"
         if psi is None:
             return None
         heading = smap.lane_point(reckoned, lane)[1]
         msf_rel, odo_rel = wrap_angle(msf_yaw - heading), wrap_angle(reckoned.yaw - heading)
-        if abs(wrap_angle(msf_rel - psi)) > self.heading.b and abs(wrap_angle(odo_rel - psi)) > heading_gate:
+        if (abs(wrap_angle(msf_rel - odo_rel)) <= heading_gate and abs(wrap_angle(msf_rel - psi)) > self.heading.b
+                and abs(wrap_angle(odo_rel - psi)) > heading_gate):
             return f"lines' heading {psi:.3f} against the MSF's {msf_rel:.3f} and odometry's {odo_rel:.3f} (rad)"
         return None
 

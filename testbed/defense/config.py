@@ -119,7 +119,7 @@ class DefenseConfig(Params):
                                  "the ego lane turns tighter than this radius within 12 m ahead of the dead-reckoned "
                                  "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
                                  "metres off); the MSF is then checked by odometry")
-    lines_gate: float = Field(0.5, gt=0.0, description="fail-closed: a detection's lines farther than this across "
+    lines_gate: float = Field(1.0, gt=0.0, description="fail-closed: a detection's lines farther than this across "
                               "the lane from the dead-reckoned pose, and beyond b from the MSF, are astray: the MSF is "
                               "checked by odometry on it, as where lines are absent (m; two sources that agree "
                               "outvote the third; a large value: never)")

@@ -60,7 +60,9 @@ def test_the_paper_weights_without_the_gate_follow_the_msf_held_at_the_centre():
 
 
 def test_lines_moved_by_a_road_patch_are_gated_and_the_pose_left_to_odometry():
-    d = respond(lambda t: 0.0, jump=0.0, ld_shift=lambda t: 1.0 if t >= 1.0 else 0.0)
+    # the lines' vote off, so that the moved lines raise the alarm the response then meets (by default they are
+    # astray and raise nothing: tests/defense/test_lines_astray.py)
+    d = respond(lambda t: 0.0, jump=0.0, ld_shift=lambda t: 1.0 if t >= 1.0 else 0.0, lines_gate=100.0)
     kinds = {r.kind for r in d.fault_records()}
     assert d.mode == "ar" and "msf-disowned" not in kinds and "ld-gated" in kinds
     assert abs(d.monitor.reckoned.y) < 0.05  # the car on the centre line, where odometry carried it
