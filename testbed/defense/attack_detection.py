@@ -13,7 +13,9 @@ the lines' headings relative to the lane and the lane's own: the car heads as th
 road patch bends, slowly or not, do not turn the yaw the response will steer on out of it, nor, with an honest heading
 erring to the same side, past the lane's heading), stands in for the lines where they are absent: inside intersections
 (judged at that pose) and on detections without a valid line the residual is D_MSF − D_odometry, S is never reset, and
-only Alg. 3's memory is cleared after a zone. Where the
+only Alg. 3's memory is cleared after a zone. Lines apart from both the MSF and the dead-reckoned pose where those two
+agree (`lines_gate`, across the lane or in heading) are astray, and that detection is checked as one without lines: two
+sources that agree outvote the third, so honest lines beside an attacked MSF are never set aside. Where the
 MSF disagrees with the lines but the lines agree with the dead-reckoned pose within b, that pose is moved towards
 them at its own station, by no more than `line_rate` allows since its last anchor: an attacker who holds the
 residual just above b cannot leave odometry to drift until the response takes it for the car's place, and an

@@ -120,12 +120,12 @@ class DefenseConfig(Params):
                                  "pose (m; a town corner, where the lines' offset at the car is an extrapolation "
                                  "metres off); the MSF is then checked by odometry")
     lines_gate: float = Field(1.0, gt=0.0, description="fail-closed: a detection's lines farther than this across "
-                              "the lane from the dead-reckoned pose, and beyond b from the MSF, are astray: the MSF is "
-                              "checked by odometry on it, as where lines are absent (m; two sources that agree "
-                              "outvote the third; a large value: never)")
+                              "the lane from the dead-reckoned pose, and beyond b from an MSF pose within b of it, "
+                              "are astray: on that detection the MSF is checked by odometry, as where lines are "
+                              "absent (m; two sources that agree outvote the third; a large value: never)")
     lines_heading_gate: float = Field(0.05, gt=0.0, description="fail-closed: the same in heading relative to the "
                                       "lane: lines farther than this from the dead-reckoned yaw, and beyond heading_b "
-                                      "from the MSF's yaw, are astray (rad; a large value: never)")
+                                      "from an MSF yaw within this of it, are astray (rad; a large value: never)")
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:
