@@ -53,7 +53,8 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               line_yaw_rate=config.line_yaw_rate, yaw_margin=config.yaw_margin,
                                               yaw_agreement=(config.heading_b, config.steer_yaw_tol),
                                               bias_span=config.odometry_bias_span, lever=lever,
-                                              lines_gate=(config.lines_gate, config.lines_heading_gate))
+                                              lines_gate=(config.lines_gate, config.lines_heading_gate,
+                                                          config.lines_heading_gate_in_place))
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""

@@ -135,7 +135,7 @@ class LaneConsistencyMonitor:
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
                  yaw_margin: float = 0.0, yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
-                 lever: float = 0.0, lines_gate: tuple[float, float] = (math.inf, math.inf)) -> None:
+                 lever: float = 0.0, lines_gate: tuple[float, float, float] = (math.inf, math.inf, math.inf)) -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -150,9 +150,10 @@ class LaneConsistencyMonitor:
         """How far outside the interval between the sources' headings the dead-reckoned yaw may sit unturned where
         they disagree that much or more (rad)."""
         self.lines_gate = lines_gate
-        """(m, rad): a detection whose lines disagree with the MSF (beyond b, or beyond the heading check's b) and lie
-        farther than this from the dead-reckoned pose, across the lane or in heading relative to it, is astray: the
-        MSF is checked against odometry on it, as where lines are absent."""
+        """(m, rad, rad): a detection whose lines disagree with the MSF (beyond b, or beyond the heading check's b) and
+        lie farther than this from the dead-reckoned pose, across the lane or in heading relative to it (the third for
+        lines within b of both across the lane), is astray: the MSF is checked against odometry on it, as where lines
+        are absent."""
         self._anchor_time: float | None = None
         self.ld_dev = LdDeviation(existence_threshold)
         self.faults = faults
@@ -291,9 +292,11 @@ class LaneConsistencyMonitor:
     def _lines_astray(self, d_msf: float, d_ld: float, msf_yaw: float, psi: float | None, reckoned: Pose,
                       smap: SemanticMap, lane: int) -> str | None:
         """Why the lines are astray (`lines_gate`): apart from both the MSF and the dead-reckoned pose, across the lane
-        or in heading; None when they are not. Two sources that agree outvote the third, so an MSF attacker cannot
-        have honest lines set aside, and lines that left both are no evidence against the MSF."""
-        gate, heading_gate = self.lines_gate
+        or in heading (beyond the third gate for lines within b of both across the lane: a heading misread; beyond
+        the second for lines also moved across it); None when they are not. Two sources that agree outvote the third,
+        so an MSF attacker cannot have honest lines set aside, and lines that left both are no evidence against the
+        MSF."""
+        gate, heading_gate, in_place_gate = self.lines_gate
         b = self.detector.cusum.b
         d_odo = float(smap.lane_dev(reckoned, lane))
         if abs(d_msf - d_odo) <= b and abs(d_ld - d_msf) > b and abs(d_ld - d_odo) > gate:
@@ -302,8 +305,9 @@ class LaneConsistencyMonitor:
             return None
         heading = smap.lane_point(reckoned, lane)[1]
         msf_rel, odo_rel = wrap_angle(msf_yaw - heading), wrap_angle(reckoned.yaw - heading)
+        limit = in_place_gate if max(abs(d_ld - d_msf), abs(d_ld - d_odo)) <= b else heading_gate
         if (abs(wrap_angle(msf_rel - odo_rel)) <= heading_gate and abs(wrap_angle(msf_rel - psi)) > self.heading.b
-                and abs(wrap_angle(odo_rel - psi)) > heading_gate):
+                and abs(wrap_angle(odo_rel - psi)) > limit):
             return f"lines' heading {psi:.3f} against the MSF's {msf_rel:.3f} and odometry's {odo_rel:.3f} (rad)"
         return None
 
@@ -325,12 +329,13 @@ class LaneConsistencyMonitor:
         from its own to the MSF pose's (all the way for a first anchor), D_LD across the lane, the yaw pulled into the
         interval spanned by the MSF's heading (`msf_yaw`, else `pose`'s), the lines' and the lane's, relative to the
         lane, widened by the two sources' disagreement up to `yaw_margin` (`into_heading_span`), at `line_yaw_rate` at
-        most (the lane heading plus the lines' relative heading for a first anchor, the MSF yaw without lines): against
-        one attacked source the car heads as the other does, so a yaw in that interval stays where the gyro carried it
-        and neither source alone can turn it out of it, however slowly; the margin keeps the honest source's wandering
-        heading from ratcheting it towards the other's. `agreed`: D_MSF and D_LD within b; where the MSF's heading
-        (`pose.yaw`) also agrees with the lines' within `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the
-        lines' heading: an attacker of the lines alone then teaches nothing)."""
+        most (for a first anchor the middle of the MSF's, the lines' and the lane's relative headings, so one source
+        off alone does not set it; the MSF yaw without lines): against one attacked source the car heads as the other
+        does, so a yaw in that interval stays where the gyro carried it and neither source alone can turn it out of it,
+        however slowly; the margin keeps the honest source's wandering heading from ratcheting it towards the other's.
+        `agreed`: D_MSF and D_LD within b; where the MSF's heading (`pose.yaw`) also agrees with the lines' within
+        `yaw_agreement`, the MSF's yaw teaches `yaw_bias` (not the lines' heading: an attacker of the lines alone then
+        teaches nothing)."""
         reckoned = self.reckoned
         if reckoned is not None and self.along_gain < 1.0:
             g = self.along_gain
@@ -342,12 +347,12 @@ class LaneConsistencyMonitor:
         if agreed and off <= self.yaw_agreement[self.yaw_bias.estimated]:
             self.odometry.turn(self.yaw_bias.observe(pose.yaw))
         carried = self.odometry.pose
+        msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
         if psi is None:
             yaw, gain = pose.yaw, 0.0
         elif carried is None or self._anchor_time is None:
-            yaw, gain = heading + psi, ANCHOR_YAW_GAIN
+            yaw, gain = heading + sorted((msf_rel, psi, 0.0))[1], ANCHOR_YAW_GAIN
         else:  # the gyro's yaw turned into the sources' interval by the gain's share, no faster than `line_yaw_rate`
-            msf_rel = wrap_angle((pose.yaw if msf_yaw is None else msf_yaw) - heading)
             own = wrap_angle(carried.yaw - heading)
             turn = ANCHOR_YAW_GAIN * (into_heading_span(own, msf_rel, psi, self.yaw_margin) - own)
             limit = drift_allowance(self.line_yaw_rate, ld.timestamp - self._anchor_time)

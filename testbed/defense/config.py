@@ -41,7 +41,8 @@ PSource = Literal["constant", "reported"]
 
 FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "along_b", "along_tau", "along_gain",
                               "line_rate", "line_yaw_rate", "yaw_margin", "odometry_bias_span",
-                              "response_gate", "corner_radius", "lines_gate", "lines_heading_gate"})
+                              "response_gate", "corner_radius", "lines_gate", "lines_heading_gate",
+                              "lines_heading_gate_in_place"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
 ALWAYS_READ = frozenset({"existence_threshold"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
@@ -126,6 +127,10 @@ class DefenseConfig(Params):
     lines_heading_gate: float = Field(0.05, gt=0.0, description="fail-closed: the same in heading relative to the "
                                       "lane: lines farther than this from the dead-reckoned yaw, and beyond heading_b "
                                       "from an MSF yaw within this of it, are astray (rad; a large value: never)")
+    lines_heading_gate_in_place: float = Field(0.03, gt=0.0, description="fail-closed: lines_heading_gate's bound on "
+                                               "the lines' heading from the dead-reckoned yaw for lines within b of "
+                                               "both the MSF and that pose across the lane (a heading misread; rad; a "
+                                               "large value: never)")
 
     @model_validator(mode="after")
     def _fail_closed_keys_need_fail_closed(self) -> DefenseConfig:

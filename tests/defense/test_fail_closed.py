@@ -483,3 +483,16 @@ def test_the_span_of_two_headings_to_one_side_of_the_lane_reaches_back_to_the_la
     assert into_heading_span(-0.003, 0.005, 0.004, 0.01) == pytest.approx(-0.001)  # turned to the lane's, widened
     assert into_heading_span(0.009, 0.005, 0.004, 0.01) == pytest.approx(0.006)  # the far side as before
     assert into_heading_span(0.003, -0.005, -0.006, 0.0) == 0.0  # the other side of the lane, no margin
+
+
+@pytest.mark.parametrize(("msf_yaw", "slope", "expected"), [
+    (0.0, 0.0, 0.0), (0.02, 0.0, 0.0), (0.0, -0.02, 0.0), (0.02, -0.01, 0.01), (0.01, -0.03, 0.01),
+    (-0.01, -0.02, 0.0)])
+def test_the_first_anchor_takes_the_middle_of_the_msf_s_the_lines_and_the_lane_s_heading(msf_yaw, slope, expected):
+    """The first detection where MSF and lines agree across the lane anchors the dead-reckoned yaw at the middle of
+    the MSF's heading, the lines' (bent by `slope`: −slope relative to the lane) and the lane's: one source off on
+    its own, however far, does not set the yaw the gyro carries from there; two that agree to one side do."""
+    smap = FakeStraightMap()
+    d = Ld3Defense(DefenseConfig(heading_tau=1e9, odometry_bias_span=0.0))
+    Drive(d, smap).run(0.01, yaw=lambda t, x: msf_yaw, slope=slope)
+    assert d.monitor.odometry.pose.yaw == pytest.approx(expected, abs=2e-4)

@@ -1,7 +1,7 @@
-"""LD3's fail-closed vote on the lines (`lines_gate`, `lines_heading_gate`): lines apart from both the MSF and the
-dead-reckoned pose are astray and not compared (the MSF is checked against odometry on that detection); lines that
-agree with either are compared as before, so an MSF attacker cannot have honest lines set aside, and astray lines
-are no cover for an attacked MSF."""
+"""LD3's fail-closed vote on the lines (`lines_gate`, `lines_heading_gate`, `lines_heading_gate_in_place`): lines
+apart from both the MSF and the dead-reckoned pose are astray and not compared (the MSF is checked against odometry
+on that detection); lines that agree with either are compared as before, so an MSF attacker cannot have honest lines
+set aside, and astray lines are no cover for an attacked MSF."""
 
 from __future__ import annotations
 
@@ -104,8 +104,24 @@ def test_lines_turned_away_from_a_true_msf_yaw_are_astray_in_heading():
     d = drive(ld_slope=after(1.0, 0.1))
     assert d.detection_time is None and "lines-astray" in kinds(d)
     assert d.monitor.heading.statistic == 0.0
-    turned = drive(ld_slope=after(1.0, 0.1), lines_heading_gate=100.0)
+    turned = drive(ld_slope=after(1.0, 0.1), lines_heading_gate=100.0, lines_heading_gate_in_place=100.0)
     assert turned.mode == "ar" and turned.monitor.alarm_check == "heading-lines"
+
+
+@pytest.mark.parametrize("slope", [0.04, -0.045])
+def test_lines_turned_just_over_heading_b_where_they_agree_across_the_lane_are_astray(slope):
+    """Lines a detector reads 0.04-0.045 rad turned from the start (a little over heading_b: the neural detector's in
+    rain) but in place across the lane, beside a true MSF: the first anchor takes the MSF's heading (the middle of the
+    three), the lines are turned from both agreeing sources beyond `lines_heading_gate_in_place` and set aside, and
+    nothing alarms (with that gate at `lines_heading_gate`'s 0.05 rad they are compared and the heading check alarms).
+    The same lines also 0.3 m across the lane (beyond b: a road patch that moves them) keep the wider gate, are
+    compared, and raise the alarm."""
+    d = drive(ld_slope=lambda t: slope)
+    assert d.detection_time is None and "lines-astray" in kinds(d) and abs(d.monitor.reckoned.yaw) < 1e-6
+    former = drive(ld_slope=lambda t: slope, lines_heading_gate_in_place=0.05)
+    assert former.mode == "ar" and former.monitor.alarm_check == "heading-lines"
+    moved = drive(ld_slope=lambda t: slope, ld_shift=lambda t: 0.3)
+    assert moved.mode == "ar" and "lines-astray" not in kinds(moved)
 
 
 def test_an_msf_yaw_bias_is_still_judged_by_honest_lines():
