@@ -9,9 +9,10 @@ odometry misses (slip) moves both offsets together, yaw-rate error and road curv
 shared terms, lane-width changes on each offset alone; so one seen line carries the other.
 A present detected line updates the filter with its cubic's values at the `measure_at` distances ahead, noise
 `range_std` divided by its existence probability, replaced by the detector's `left_var` / `right_var` when reported,
-else by the line's running residual variance (floored at `min_offset_std`²): a line that keeps disagreeing with
-the rest, such as worn paint, counts for less. A camera reads a line best some metres ahead, and its fit's offset
-and slope at the car are extrapolations, while the odometry carries what was read ahead to the car. With no
+else by the line's running residual variance at each distance (floored at `min_offset_std`²): a line that keeps
+disagreeing with the rest, such as worn paint, counts for less, and so does a distance the detector reads worse than
+the others. A camera reads a line best some metres ahead, and its fit's offset and slope at the car are
+extrapolations, while the odometry carries what was read ahead to the car. With no
 `measure_at` distances it updates the filter with the cubic's coefficients instead (noise `measurement_std`, c0's
 variance replaced the same way and the others in proportion). A line whose offset innovation (at the first of those
 distances with `measure_at`) exceeds `gate` standard deviations is left out; both lines jumping together is the car
@@ -22,8 +23,9 @@ the lane, which the gyro carries; a line read off the wrong paint seldom does). 
 not count as seen.
 A track starts on one detected line, or on two a lane's width apart (`lane_width_range`).
 Lines are re-associated when the car crosses one (left becomes right, and the next line over is predicted
-one lane width further). A line not seen for `max_coast` seconds is no longer output; an output line carries
-its last detected existence probability, and the filter's c0 variance where the detector reports its own.
+one lane width further), only a line predicted within `cross_margin` of the car. A line not seen for
+`max_coast` seconds is no longer output; an output line carries its last detected existence probability, and the
+filter's c0 variance where the detector reports its own.
 """
 
 from __future__ import annotations
@@ -89,6 +91,9 @@ class TrackerParams:
     range_std: float = 0.08
     """m: std of a detected line's value at each `measure_at` distance at existence probability 1, before the
     reported or residual variance replaces it."""
+    cross_margin: float = 0.5
+    """m: the car crosses a line (left and right re-associated) only where the line's predicted offset at the car is
+    within this of it or past it; a line farther off is not crossed within a frame, whatever a misread suggests."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -107,6 +112,7 @@ class TrackerParams:
                                      and all(math.isfinite(x) for x in self.measure_at)),
              f"measure_at needs at least 2 finite increasing distances >= 0 m, or none (got {list(self.measure_at)})"),
             (self.range_std > 0.0, "range_std must be > 0"),
+            (self.cross_margin >= 0.0, "cross_margin must be >= 0 m"),
             (len(self.lane_width_range) == 2 and 0.0 < self.lane_width_range[0] < self.lane_width_range[1],
              f"lane_width_range needs 0 < min < max m (got {list(self.lane_width_range)})"),
         ]
@@ -165,9 +171,9 @@ class LineMemory:
     existence: float = 0.0
     outliers: int = 0
     reported: bool = False
-    residual_var: float | None = None
-    """Running mean of the squared c0 residual (with `measure_at`: at its first distance) after each update (m²), its
-    first value at most measurement_std[0]² (range_std²): how far the line sits from the rest."""
+    residual_var: np.ndarray | None = None
+    """Running mean of the squared c0 residual (with `measure_at`: of the residual at each distance) after each update
+    (m²), its first value at most measurement_std[0]² (range_std²): how far the line sits from the rest."""
 
 
 class LaneTracker:
@@ -220,8 +226,10 @@ class LaneTracker:
         adapted = self.lines[side].residual_var
         if var is not None and math.isfinite(var) and var > 0:
             r = r * (var / p.measurement_std[0] ** 2)
-        elif adapted is not None:
-            r = r * (max(adapted, p.min_offset_std**2) / r[0])
+        elif adapted is not None and self._ahead is None:
+            r = r * (max(float(adapted[0]), p.min_offset_std**2) / r[0])
+        elif adapted is not None:  # each distance its own: a detector reads some distances better than others
+            r = np.maximum(adapted, p.min_offset_std**2)
         y = z if self._ahead is None else self._ahead @ z
         return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0), y)
 
@@ -267,11 +275,15 @@ class LaneTracker:
 
     def _associate(self, meas: list[Measurement | None]) -> None:
         """Swap the lines when the car has crossed one: by the detections where there are any (the
-        hypothesis whose offsets are nearest them), else by the predicted offsets' signs."""
+        hypothesis whose offsets are nearest them, among the crossings of a line predicted within `cross_margin` of
+        the car), else by the predicted offsets' signs."""
         x = self.kf.x[:, 0]
         if any(m is not None for m in meas):
+            margin = self.params.cross_margin
             costs = {}
             for direction, t in ((0, _E), (1, _SWAP_LEFT), (-1, _SWAP_RIGHT)):
+                if direction * x[LEFT if direction > 0 else RIGHT] > margin:
+                    continue  # that line is too far off the car to have been crossed
                 h = t @ x
                 costs[direction] = sum(abs(m.z[0] - h[side]) for side, m in enumerate(meas) if m is not None)
             best = min(costs, key=costs.get)
@@ -393,14 +405,15 @@ class LaneTracker:
         a = self.params.adapt_rate
         for side in rows:
             line = self.lines[side]
-            row = self._gate_row(side)
-            if row is None:
-                spread = (meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
+            if self._ahead is None:
+                spread = np.array([(meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]])
             else:
-                spread = (meas[side].y[0] - row @ self.kf.x[:, 0]) ** 2 + row @ self.kf.P @ row
+                h_side = self._observe[side]
+                spread = (meas[side].y - h_side @ self.kf.x[:, 0]) ** 2 + np.einsum("ij,jk,ik->i", h_side, self.kf.P,
+                                                                                     h_side)
             if line.residual_var is None:  # one frame cannot say the line is noisier than the nominal model
-                nominal = self.params.measurement_std[0] if row is None else self.params.range_std
-                line.residual_var = min(spread, nominal**2)
+                nominal = self.params.measurement_std[0] if self._ahead is None else self.params.range_std
+                line.residual_var = np.minimum(spread, nominal**2)
             else:
                 line.residual_var = (1 - a) * line.residual_var + a * spread
 

@@ -384,3 +384,25 @@ def test_measured_ahead_a_curves_start_is_followed(curvature_std, follows):
             worst_heading = max(worst_heading, abs(tracked.left[1]))
         scene.step()
     assert (worst_dev < 0.035 and worst_heading < 0.019) == follows
+
+
+def test_a_misread_pair_never_crosses_a_line_far_from_the_car(params):
+    """Out of a curve a detector may read the left line turned away and, labelled right, paint that crosses in front
+    of the car on its left (Town07's S-bend: c0 +2.57 and +1.19 m, headings -0.30 and -0.62 rad). By offsets at the
+    car alone, the car crossing its left line fits them best; the tracked left line is 1.75 m off the car, so it was
+    not crossed, and the lines stay where they are."""
+    scene = Scene()
+    tracker, _ = track(scene, 30, lambda k, s: s.detect(right=False), params)
+
+    def misread(k: int, s: Scene) -> LaneDetection:
+        ld = s.detect()
+        if k >= 4:
+            return ld
+        return LaneDetection(ld.timestamp, np.array([ld.left[0] + 0.8, -0.30, 0.0, 0.0]),
+                             np.array([1.2, -0.62, 0.0, 0.0]), 0.98, 0.74, ld.x_range)
+
+    tracker, out = track(scene, 30, misread, tracker)
+    assert tracker.swaps == 0
+    for tracked, truth, _ in out:
+        assert tracked.left is not None and tracked.left[0] > 1.0
+        assert d_ld(tracked) == pytest.approx(truth, abs=0.05)
