@@ -10,8 +10,10 @@ map cannot place (or not finite) is never taken as the checked pose: the last on
 The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
 turns no faster than `line_yaw_rate` and only into the interval spanned by the MSF's, theirs and the lane's; of the
 lines' heading before odometry has one): a yaw bias the heading check lets through cannot steer the car by more than
-that, nor can lines rotated by a road patch. Every odometry-carried pose moves on the yaw rate less the bias the monitor
-learns where MSF and lines agree (`odometry_bias_span`).
+that, nor can lines rotated by a road patch. Its position is kept within `steer_lateral_tol` of the dead-reckoned pose
+across the lane and `steer_along_tol` along it: a jump of the MSF moves the pose steered on by no more than that in
+the detection updates before the CUSUM alarms. Every odometry-carried pose moves on the yaw rate less the bias the
+monitor learns where MSF and lines agree (`odometry_bias_span`).
 The paper mode steers on every MSF pose.
 
 Fail-closed mode reads no lines where the ego lane turns tighter than `corner_radius` within the lines' near range
@@ -22,6 +24,7 @@ against odometry as where lines are absent."""
 from __future__ import annotations
 
 import logging
+import math
 
 from testbed.defense import line_model
 from testbed.defense.attack_detection import Cusum, LaneConsistencyMonitor
@@ -136,7 +139,29 @@ class Ld3AlarmedDefense(LatchingDefense):
         if ref is not None:
             tol = self.config.steer_yaw_tol
             pose = Pose(pose.x, pose.y, ref + min(max(wrap_angle(pose.yaw - ref), -tol), tol))
+        if reckoned is not None:
+            try:
+                pose = self._held_near(ld.timestamp, pose, reckoned, smap.lane_point(reckoned, lane)[1])
+            except OffMapError as err:
+                self.faults.report("unchecked-msf", ld.timestamp, f"the dead-reckoned pose cannot be placed ({err}); "
+                                                                  f"the last checked pose carried on by odometry")
+                return
         self.checked.anchor(pose)
+
+    def _held_near(self, t: float, pose: Pose, reckoned: Pose, heading: float) -> Pose:
+        """`pose` moved to within `steer_lateral_tol` of the dead-reckoned pose across the lane (of heading `heading`
+        there) and `steer_along_tol` along it, its yaw kept; a fault where it had to move."""
+        c, s = math.cos(heading), math.sin(heading)
+        dx, dy = pose.x - reckoned.x, pose.y - reckoned.y
+        along, across = dx * c + dy * s, -dx * s + dy * c
+        held_along = min(max(along, -self.config.steer_along_tol), self.config.steer_along_tol)
+        held_across = min(max(across, -self.config.steer_lateral_tol), self.config.steer_lateral_tol)
+        if (held_along, held_across) == (along, across):
+            return pose
+        self.faults.report("steer-held", t, f"MSF pose {across:.3f} m across and {along:.3f} m along the lane from "
+                                            f"the dead-reckoned pose; steered within the tolerances", expected=True)
+        return Pose(reckoned.x + held_along * c - held_across * s, reckoned.y + held_along * s + held_across * c,
+                    pose.yaw)
 
     def checked_pose(self, msf: LocalizationEstimate) -> Pose:
         """The pose the controller gets while normal: the last checked MSF pose carried by odometry (fail-closed

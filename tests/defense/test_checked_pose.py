@@ -94,6 +94,36 @@ def test_a_shift_on_detection_ticks_is_what_the_check_sees_and_alarms():
     assert defense.detection_time == pytest.approx(1.0 + 0.05 * 2, abs=0.06)
 
 
+@pytest.mark.parametrize(("across", "along"), [(1.3, 0.0), (-1.3, -8.6), (0.15, 0.4)])
+def test_until_the_alarm_a_jump_of_the_msf_moves_the_steered_pose_no_farther_than_the_tolerances(across, along):
+    """From 1 s the MSF pose jumps `across` the lane and `along` it (the lines and odometry stay with the car): while
+    normal, the pose steered on stays within `steer_lateral_tol` and `steer_along_tol` of the car, a fault says
+    so where it had to be held, and a jump within them is steered on as it is."""
+    config = DefenseConfig(tau=1e9, heading_tau=1e9, along_tau=1e9)
+    defense = Ld3Defense(config)
+    smap = FakeStraightMap()
+    offsets = []
+    for k in range(120):
+        t = k / 40.0
+        x = 50.0 + SPEED * t
+        defense.on_odometry(t, SPEED, 0.0)
+        jumped = t >= 1.0
+        est = LocalizationEstimate(t, Pose(x + (along if jumped else 0.0), across if jumped else 0.0, 0.0),
+                                   np.eye(3) * 0.01)
+        if k % 2 == 0:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        pose = defense.pose_for_control(est, smap)
+        if jumped and k % 2 == 0:
+            offsets.append((pose.x - x, pose.y))
+    assert defense.mode == "normal"
+    held = abs(across) > config.steer_lateral_tol or abs(along) > config.steer_along_tol
+    expected = (max(-config.steer_along_tol, min(config.steer_along_tol, along)),
+                max(-config.steer_lateral_tol, min(config.steer_lateral_tol, across)))
+    for got in offsets:
+        assert got == pytest.approx(expected, abs=1e-6)
+    assert any(r.kind == "steer-held" for r in defense.fault_records()) == held
+
+
 def test_an_unplaceable_msf_pose_is_not_taken_and_the_last_checked_pose_is_carried():
     defense = Ld3Defense(DefenseConfig(tau=1e9))
     smap = FakeStraightMap()

@@ -406,3 +406,4 @@ def test_a_misread_pair_never_crosses_a_line_far_from_the_car(params):
     for tracked, truth, _ in out:
         assert tracked.left is not None and tracked.left[0] > 1.0
         assert d_ld(tracked) == pytest.approx(truth, abs=0.05)
+
