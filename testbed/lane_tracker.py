@@ -9,10 +9,9 @@ odometry misses (slip) moves both offsets together, yaw-rate error and road curv
 shared terms, lane-width changes on each offset alone; so one seen line carries the other.
 A present detected line updates the filter with its cubic's values at the `measure_at` distances ahead, noise
 `range_std` divided by its existence probability, replaced by the detector's `left_var` / `right_var` when reported,
-else by the line's running residual variance at each distance (floored at `min_offset_std`²): a line that keeps
-disagreeing with the rest, such as worn paint, counts for less, and so does a distance the detector reads worse than
-the others. A camera reads a line best some metres ahead, and its fit's offset and slope at the car are
-extrapolations, while the odometry carries what was read ahead to the car. With no
+else by the line's running residual variance (floored at `min_offset_std`²): a line that keeps disagreeing with
+the rest, such as worn paint, counts for less. A camera reads a line best some metres ahead, and its fit's offset
+and slope at the car are extrapolations, while the odometry carries what was read ahead to the car. With no
 `measure_at` distances it updates the filter with the cubic's coefficients instead (noise `measurement_std`, c0's
 variance replaced the same way and the others in proportion). A line whose offset innovation (at the first of those
 distances with `measure_at`) exceeds `gate` standard deviations is left out; both lines jumping together is the car
@@ -171,9 +170,9 @@ class LineMemory:
     existence: float = 0.0
     outliers: int = 0
     reported: bool = False
-    residual_var: np.ndarray | None = None
-    """Running mean of the squared c0 residual (with `measure_at`: of the residual at each distance) after each update
-    (m²), its first value at most measurement_std[0]² (range_std²): how far the line sits from the rest."""
+    residual_var: float | None = None
+    """Running mean of the squared c0 residual (with `measure_at`: at its first distance) after each update (m²), its
+    first value at most measurement_std[0]² (range_std²): how far the line sits from the rest."""
 
 
 class LaneTracker:
@@ -226,10 +225,8 @@ class LaneTracker:
         adapted = self.lines[side].residual_var
         if var is not None and math.isfinite(var) and var > 0:
             r = r * (var / p.measurement_std[0] ** 2)
-        elif adapted is not None and self._ahead is None:
-            r = r * (max(float(adapted[0]), p.min_offset_std**2) / r[0])
-        elif adapted is not None:  # each distance its own: a detector reads some distances better than others
-            r = np.maximum(adapted, p.min_offset_std**2)
+        elif adapted is not None:
+            r = r * (max(adapted, p.min_offset_std**2) / r[0])
         y = z if self._ahead is None else self._ahead @ z
         return Measurement(z, np.diag(r / min(prob, 1.0)), min(prob, 1.0), y)
 
@@ -405,15 +402,14 @@ class LaneTracker:
         a = self.params.adapt_rate
         for side in rows:
             line = self.lines[side]
-            if self._ahead is None:
-                spread = np.array([(meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]])
+            row = self._gate_row(side)
+            if row is None:
+                spread = (meas[side].z[0] - self.kf.x[side, 0]) ** 2 + self.kf.P[side, side]
             else:
-                h_side = self._observe[side]
-                spread = (meas[side].y - h_side @ self.kf.x[:, 0]) ** 2 + np.einsum("ij,jk,ik->i", h_side, self.kf.P,
-                                                                                     h_side)
+                spread = (meas[side].y[0] - row @ self.kf.x[:, 0]) ** 2 + row @ self.kf.P @ row
             if line.residual_var is None:  # one frame cannot say the line is noisier than the nominal model
-                nominal = self.params.measurement_std[0] if self._ahead is None else self.params.range_std
-                line.residual_var = np.minimum(spread, nominal**2)
+                nominal = self.params.measurement_std[0] if row is None else self.params.range_std
+                line.residual_var = min(spread, nominal**2)
             else:
                 line.residual_var = (1 - a) * line.residual_var + a * spread
 
