@@ -146,6 +146,9 @@ class MultiSensorFusion:
                                                                           self._fp, p.lever)
         """`predict`'s propagation compiled (testbed/localization/msf_kernels.pyx), where built; it works on
         `nominal`, F and P in place, so P is only ever updated in place."""
+        self._gated = None if _KERNELS is None else _KERNELS.GatedUpdate(self.nominal, self.P)
+        """The gated update compiled in closed form (testbed/localization/msf_kernels.pyx), where built: equal to
+        the reference to rounding; None: `_updates`."""
         self._updates = None if _solve1 is None else {n: PrefixUpdate(n) for n in (2, 3)}
         """The GNSS (2) and LiDAR (3) updates on preallocated arrays; None: `observed_prefix_update`."""
         self.t: float | None = None
@@ -187,9 +190,11 @@ class MultiSensorFusion:
         propagate_covariance(self.P, f, self._q_dt, self._fp)
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
-        n = len(z)
-        update = None if self._updates is None else self._updates[n]
-        if update is not None:
+        n, gated = len(z), self._gated
+        update = None if gated is not None or self._updates is None else self._updates[n]
+        if gated is not None:
+            d2 = gated.distance(z, r)
+        elif update is not None:
             d2 = update.distance(self.P, z, r)
         else:
             s = self.P[:n, :n] + r
@@ -199,12 +204,15 @@ class MultiSensorFusion:
             if source == "lidar" and t - self._last_accepted[source] > self.params.lidar_reset_after:
                 self._readmit(source, t, z)
             return False
-        if update is not None:
-            dx = update.apply(self.P, z, r)
+        if gated is not None:
+            gated.apply()
         else:
-            dx, self.P[...] = observed_prefix_update(self.P, z, r, s)
-        self.nominal += dx
-        self.nominal[2] = wrap_angle(self.nominal[2])
+            if update is not None:
+                dx = update.apply(self.P, z, r)
+            else:
+                dx, self.P[...] = observed_prefix_update(self.P, z, r, s)
+            self.nominal += dx
+            self.nominal[2] = wrap_angle(self.nominal[2])
         self._last_accepted[source] = t
         return True
 

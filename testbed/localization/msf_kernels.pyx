@@ -1,15 +1,20 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False, cdivision=True
-"""`MultiSensorFusion.predict`'s propagation compiled: the nominal state and F in C, P ← F P Fᵀ + Q dt.
+"""`MultiSensorFusion`'s propagation and gated update compiled.
 
-The same arithmetic as the pure-Python method in `testbed/localization/msf.py`, operation for operation (the
-build turns off multiply-add contraction; the angle is wrapped as Python's float `%` does), and the two
-matrix products through numpy's own `dot`, so the state and covariance are the same to the bit;
-`tests/localization/test_msf_kernels.py` holds them to it.
+`Predictor`: the nominal state and F in C, P ← F P Fᵀ + Q dt, the same arithmetic as the pure-Python `predict`
+in `testbed/localization/msf.py`, operation for operation (the build turns off multiply-add contraction; the
+angle is wrapped as Python's float `%` does), and the two matrix products through numpy's own `dot`, so the
+state and covariance are the same to the bit; `tests/localization/test_msf_kernels.py` holds them to it.
+
+`GatedUpdate`: the gate's distance and the Joseph-form update in closed form on P's leading block (H = [I 0]),
+equal to the reference (`observed_prefix_update`) to rounding, not to the bit: numpy's LAPACK and BLAS sum in
+their own order; `tests/localization/test_msf_kernels.py` bounds the difference and holds the gate's decisions.
 """
 
 from libc.math cimport cos, sin, sqrt
 
 import numpy as np
+from numpy.linalg import LinAlgError
 
 from tracks.angles cimport wrap_angle
 from tracks.float_order cimport py_max
@@ -116,3 +121,114 @@ cdef class ImuPropagation:
         imu.accel_bias, imu.gyro_bias = ab, gb
         if has_last:
             imu._last_t = last_t
+
+
+cdef enum:
+    SIZE = 7  # the error state's dimension
+
+
+cdef class GatedUpdate:
+    """The gated Kalman update of a filter's zero error state whose first n = 2 (GNSS) or 3 (LiDAR) components
+    are measured (H = [I 0]), on the filter's 7-element nominal state and 7 × 7 covariance P in place: S = P[:n, :n]
+    + R inverted by its adjugate, K = P[:, :n] S⁻¹, P ← (P − K P[:n]) with K's columns taken off again on the
+    right (the Joseph form (I − KH) P (I − KH)ᵀ) + K R Kᵀ, and K z added to the nominal state (yaw wrapped)."""
+
+    cdef double[::1] nominal
+    cdef double[:, ::1] p
+    cdef double s_inv[3][3]
+    cdef double z[3]
+    cdef double r[3][3]
+    cdef int n
+
+    def __init__(self, double[::1] nominal, double[:, ::1] p):
+        if nominal.shape[0] != SIZE or p.shape[0] != SIZE or p.shape[1] != SIZE:
+            raise ValueError(f"a {SIZE}-element state and a {SIZE} x {SIZE} covariance are needed")
+        self.nominal, self.p, self.n = nominal, p, 0
+
+    def distance(self, const double[::1] z, const double[:, :] r) -> float:
+        """The innovation z's squared Mahalanobis distance against S = P[:n, :n] + R; S⁻¹, z and R are kept for
+        `apply`. A singular S raises numpy's LinAlgError, as `np.linalg.solve` does."""
+        cdef int n = z.shape[0], i, j
+        cdef double s[3][3]
+        cdef double det, d2 = 0.0, row, cof00, cof01, cof02
+        if not 2 <= n <= 3 or r.shape[0] != n or r.shape[1] != n:
+            raise ValueError(f"2 or 3 measured components with an n x n noise covariance, got {n} and "
+                             f"{r.shape[0]} x {r.shape[1]}")
+        for i in range(n):
+            self.z[i] = z[i]
+            for j in range(n):
+                self.r[i][j] = r[i, j]
+                s[i][j] = self.p[i, j] + r[i, j]
+        if n == 2:
+            det = s[0][0] * s[1][1] - s[0][1] * s[1][0]
+            if det == 0.0:
+                raise LinAlgError("Singular matrix")
+            self.s_inv[0][0], self.s_inv[0][1] = s[1][1] / det, -s[0][1] / det
+            self.s_inv[1][0], self.s_inv[1][1] = -s[1][0] / det, s[0][0] / det
+        else:
+            cof00 = s[1][1] * s[2][2] - s[1][2] * s[2][1]
+            cof01 = s[1][2] * s[2][0] - s[1][0] * s[2][2]
+            cof02 = s[1][0] * s[2][1] - s[1][1] * s[2][0]
+            det = s[0][0] * cof00 + s[0][1] * cof01 + s[0][2] * cof02
+            if det == 0.0:
+                raise LinAlgError("Singular matrix")
+            self.s_inv[0][0], self.s_inv[1][0], self.s_inv[2][0] = cof00 / det, cof01 / det, cof02 / det
+            self.s_inv[0][1] = (s[0][2] * s[2][1] - s[0][1] * s[2][2]) / det
+            self.s_inv[1][1] = (s[0][0] * s[2][2] - s[0][2] * s[2][0]) / det
+            self.s_inv[2][1] = (s[0][1] * s[2][0] - s[0][0] * s[2][1]) / det
+            self.s_inv[0][2] = (s[0][1] * s[1][2] - s[0][2] * s[1][1]) / det
+            self.s_inv[1][2] = (s[0][2] * s[1][0] - s[0][0] * s[1][2]) / det
+            self.s_inv[2][2] = (s[0][0] * s[1][1] - s[0][1] * s[1][0]) / det
+        for i in range(n):
+            row = 0.0
+            for j in range(n):
+                row += self.s_inv[i][j] * self.z[j]
+            d2 += self.z[i] * row
+        self.n = n
+        return d2
+
+    def apply(self) -> None:
+        """The update with the fix `distance` measured last: P (Joseph form) and the nominal state in place."""
+        cdef int n = self.n, i, j, m
+        cdef double[:, ::1] p = self.p
+        cdef double[::1] nominal = self.nominal
+        cdef double k[SIZE][3]
+        cdef double kr[SIZE][3]
+        cdef double left[SIZE][SIZE]
+        cdef double acc, noise
+        if n == 0:
+            raise RuntimeError("apply follows a distance")
+        self.n = 0
+        for i in range(SIZE):
+            for j in range(n):
+                acc = 0.0
+                for m in range(n):
+                    acc += p[i, m] * self.s_inv[m][j]
+                k[i][j] = acc
+        for i in range(SIZE):
+            for j in range(n):
+                acc = 0.0
+                for m in range(n):
+                    acc += k[i][m] * self.r[m][j]
+                kr[i][j] = acc
+        for i in range(SIZE):  # (I − KH) P
+            for j in range(SIZE):
+                acc = p[i, j]
+                for m in range(n):
+                    acc -= k[i][m] * p[m, j]
+                left[i][j] = acc
+        for i in range(SIZE):  # · (I − KH)ᵀ + K R Kᵀ
+            for j in range(SIZE):
+                acc = left[i][j]
+                for m in range(n):
+                    acc -= left[i][m] * k[j][m]
+                noise = 0.0
+                for m in range(n):
+                    noise += kr[i][m] * k[j][m]
+                p[i, j] = acc + noise
+        for i in range(SIZE):
+            acc = 0.0
+            for m in range(n):
+                acc += k[i][m] * self.z[m]
+            nominal[i] = nominal[i] + acc
+        nominal[2] = wrap_angle(nominal[2])
