@@ -10,9 +10,10 @@ map cannot place (or not finite) is never taken as the checked pose: the last on
 The checked pose's yaw is kept within `steer_yaw_tol` of the dead-reckoned yaw (the gyro's, which the lines' heading
 turns no faster than `line_yaw_rate` and only into the interval spanned by the MSF's, theirs and the lane's; of the
 lines' heading before odometry has one): a yaw bias the heading check lets through cannot steer the car by more than
-that, nor can lines rotated by a road patch. Its position is kept within `steer_lateral_tol` of the dead-reckoned pose
-across the lane and `steer_along_tol` along it: a jump of the MSF moves the pose steered on by no more than that in
-the detection updates before the CUSUM alarms. Every odometry-carried pose moves on the yaw rate less the bias the
+that, nor can lines rotated by a road patch. Its offset from the dead-reckoned pose, along the lane and across it,
+moves no faster than `steer_slew`: a jump of the MSF moves the pose steered on by no more than that rate allows in
+the detection updates before the CUSUM alarms, while a slow drift of either source (odometry dragged by attacked
+lines at `line_rate` at most) passes as it is. Every odometry-carried pose moves on the yaw rate less the bias the
 monitor learns where MSF and lines agree (`odometry_bias_span`).
 The paper mode steers on every MSF pose.
 
@@ -61,6 +62,9 @@ class Ld3AlarmedDefense(LatchingDefense):
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""
+        self._offset: tuple[float, float, float] | None = None
+        """(t, along, across): the checked pose's offset from the dead-reckoned pose along and across the lane (m) at
+        the last detection update."""
 
     @property
     def alarm_threshold(self) -> float | None:
@@ -149,17 +153,23 @@ class Ld3AlarmedDefense(LatchingDefense):
         self.checked.anchor(pose)
 
     def _held_near(self, t: float, pose: Pose, reckoned: Pose, heading: float) -> Pose:
-        """`pose` moved to within `steer_lateral_tol` of the dead-reckoned pose across the lane (of heading `heading`
-        there) and `steer_along_tol` along it, its yaw kept; a fault where it had to move."""
+        """`pose` with its offset from the dead-reckoned pose, along and across the lane (of heading `heading` there),
+        moved from the last one at `steer_slew` at most, its yaw kept; a fault where it had to be held."""
         c, s = math.cos(heading), math.sin(heading)
         dx, dy = pose.x - reckoned.x, pose.y - reckoned.y
         along, across = dx * c + dy * s, -dx * s + dy * c
-        held_along = min(max(along, -self.config.steer_along_tol), self.config.steer_along_tol)
-        held_across = min(max(across, -self.config.steer_lateral_tol), self.config.steer_lateral_tol)
+        last, self._offset = self._offset, (t, along, across)
+        if last is None:
+            return pose
+        step = self.config.steer_slew * max(0.0, t - last[0])
+        held_along = last[1] + min(max(along - last[1], -step), step)
+        held_across = last[2] + min(max(across - last[2], -step), step)
         if (held_along, held_across) == (along, across):
             return pose
-        self.faults.report("steer-held", t, f"MSF pose {across:.3f} m across and {along:.3f} m along the lane from "
-                                            f"the dead-reckoned pose; steered within the tolerances", expected=True)
+        self._offset = (t, held_along, held_across)
+        self.faults.report("steer-held", t, f"MSF pose {across:.3f} m across and {along:.3f} m along the lane from the "
+                                            f"dead-reckoned pose; steered {held_across:.3f} and {held_along:.3f} m",
+                           expected=True)
         return Pose(reckoned.x + held_along * c - held_across * s, reckoned.y + held_along * s + held_across * c,
                     pose.yaw)
 

@@ -39,7 +39,7 @@ PSource = Literal["constant", "reported"]
 """Alg. 4's P: the constants p_msf / p_ld, or the MSF's lateral variance and the detector's c0 variance."""
 
 
-FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "steer_lateral_tol", "steer_along_tol",
+FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "steer_slew",
                               "along_b", "along_tau", "along_gain", "line_rate", "line_yaw_rate", "yaw_margin",
                               "odometry_bias_span",
                               "response_gate", "corner_radius", "lines_gate", "lines_heading_gate",
@@ -93,10 +93,10 @@ class DefenseConfig(Params):
                                  "keeps its yaw within this of the dead-reckoned yaw (of the lines' heading before "
                                  "odometry has one), rad; within it of the lines' the MSF's yaw teaches odometry's "
                                  "bias once estimated")
-    steer_lateral_tol: float = Field(0.2, gt=0.0, description="fail-closed: the pose the controller steers on keeps "
-                                     "its position within this of the dead-reckoned pose across the lane (m): an MSF "
-                                     "jump steers the car by no more than this until the CUSUM alarms")
-    steer_along_tol: float = Field(0.5, gt=0.0, description="fail-closed: the same along the lane (m)")
+    steer_slew: float = Field(0.5, gt=0.0, description="fail-closed: how fast the pose the controller steers on may "
+                              "move away from the dead-reckoned pose, along and across the lane (m/s; a road "
+                              "vehicle's lateral speed in a lane change is about 1): an MSF jump steers the car by no "
+                              "more than this allows until the CUSUM alarms, while slow drifts pass")
     along_b: float = Field(0.5, ge=0.0, description="fail-closed along-lane check: CUSUM weight on the MSF pose's "
                            "distance along the lane from the dead-reckoned pose (m)")
     along_tau: float = Field(2.0, ge=0.0, description="fail-closed along-lane check: CUSUM threshold (m)")

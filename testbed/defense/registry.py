@@ -24,7 +24,7 @@ from testbed.params import Params, ParamsError
 from testbed.registry import Capability, Component, Registry
 
 _DETECTION = frozenset({"b", "tau", "existence_threshold", "fail_closed", "heading_b", "heading_tau",
-                        "steer_yaw_tol", "steer_lateral_tol", "steer_along_tol", "along_b", "along_tau", "along_gain",
+                        "steer_yaw_tol", "steer_slew", "along_b", "along_tau", "along_gain",
                         "line_rate", "line_yaw_rate",
                         "yaw_margin", "odometry_bias_span", "corner_radius", "lines_gate", "lines_heading_gate",
                         "lines_heading_gate_in_place"})
