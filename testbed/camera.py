@@ -18,7 +18,7 @@ import numpy as np
 import pybullet as pb
 
 from testbed.conditions import Condition
-from testbed.ground import OPEN_GROUND_RGBA, GroundCanvas
+from testbed.ground import OPEN_GROUND_RGBA, GroundCanvas, without_ipp
 from testbed.lane_detection import CameraFrame
 from testbed.tiny_boxes import TinyBoxes
 from tracks.pose import Pose
@@ -149,6 +149,7 @@ class FrontCamera:
             self._empty_scene = (rgba.copy(), empty)
         return rgba, empty
 
+    @without_ipp
     def render(self, pose: Pose) -> np.ndarray:
         rgba, empty = self.scene(pose)
         below = self.effects.below_horizon

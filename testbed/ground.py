@@ -7,7 +7,8 @@ draws from the same textured mesh, at a fraction of the cost. Lighting is TinyRe
 (ambient + diffuse·max(0, n·l)·light colour) for the surface normal +z, one gain per colour channel,
 applied when a tile is composited. Pixels beyond the tiles are open ground (`OPEN_GROUND_RGB`). The canvas
 holds four channels (RGB and an unused fourth): OpenCV warps four-channel pixels with the same per-channel
-arithmetic as three-channel ones, and faster.
+arithmetic as three-channel ones, and faster. Every OpenCV call that draws runs with Intel IPP off
+(`without_ipp`): IPP's warps round differently from OpenCV's own code and pick their code by CPU.
 
 Tile i covers the arc-length band [s_i, s_i+1); its texture is straight in (s, t) and the road's
 curvature lives in the mesh. Each mesh segment (a quad between two cross sections `spacing` m apart) is
@@ -18,8 +19,11 @@ lane lines where the map has them.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ParamSpec, TypeVar
 
 import cv2
 import numpy as np
@@ -35,6 +39,24 @@ MAX_WARP_ERROR_M = 0.005  # m: largest lateral misplacement of the road texture 
 BUFFER_HEADROOM = 1.25
 """A canvas buffer holds this much more than the canvas it is made for, so that the buffer it leaves at the next
 recentre still fits the one after (a canvas grows by a tenth or so once the road ahead bends): no fresh pages."""
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def without_ipp(draw: Callable[P, R]) -> Callable[P, R]:
+    """`draw` run with OpenCV's Intel IPP paths off on the calling thread (OpenCV keeps the switch per thread), its
+    previous setting restored after: the bytes are OpenCV's own code's, whatever code IPP would pick on the CPU
+    (IPP's warps differ from OpenCV's by ±1 in about one pixel in a thousand)."""
+    @functools.wraps(draw)
+    def drawn(*args: P.args, **kwargs: P.kwargs) -> R:
+        used = cv2.ipp.useIPP()
+        cv2.ipp.setUseIPP(False)
+        try:
+            return draw(*args, **kwargs)
+        finally:
+            cv2.ipp.setUseIPP(used)
+    return drawn
 
 
 @dataclass(frozen=True)
@@ -52,6 +74,7 @@ class Lighting:
         return self.ambient + self.diffuse * cos_inc * np.asarray(self.colour, dtype=float)
 
 
+@without_ipp
 def lit_levels(gain: np.ndarray) -> np.ndarray:
     """The lit value of every byte in each channel, (1, 256, 3) uint8 for `cv2.LUT`: `cv2.transform` by the diagonal
     gain, whose -0.5 offset turns cv2's rounding into TinyRenderer's truncation of the lit colour. A channel's lit
@@ -94,6 +117,7 @@ class GroundCanvas:
         h, w = self.image.shape[:2]
         return bool(np.all(c >= 0) and np.all(c[:, 0] <= w - 1) and np.all(c[:, 1] <= h - 1))
 
+    @without_ipp
     def set_tiles(self, wanted: set[int]) -> None:
         """Make the canvas hold exactly the `wanted` tiles."""
         if wanted == self.tiles and self.image.size:
@@ -199,6 +223,7 @@ class GroundCanvas:
                                      borderMode=cv2.BORDER_REPLICATE)
         cv2.copyTo(warped, mask, roi)
 
+    @without_ipp
     def view(self, rig: CameraRig, pose: Pose, top_row: int = 0) -> np.ndarray:
         """The canvas as the rig sees it from `pose`: image rows `top_row`.. (RGBA uint8, alpha unused). Only
         pixels below the horizon mean anything; rows above the first such row need not be drawn."""

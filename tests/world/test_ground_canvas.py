@@ -115,3 +115,23 @@ def test_lit_levels_light_a_tile_as_the_diagonal_transform(condition):
     for width in (*range(1, 40), 241, 397, 586):
         img = rng.integers(0, 256, (23, width, 3), dtype=np.uint8)
         assert np.array_equal(cv2.LUT(img, lit_levels(gain)), cv2.transform(img, light)), width
+
+
+def test_canvas_and_camera_draw_with_opencv_ipp_off_and_restore_it(monkeypatch):
+    """Every OpenCV call the canvas and the camera make to draw runs with IPP off (its warps round differently
+    and are taken or not by CPU), on whichever thread draws; the thread's own setting is back after."""
+    seen: list[tuple[str, bool]] = []
+
+    def spy(name: str, real):
+        def call(*args, **kwargs):
+            seen.append((name, cv2.ipp.useIPP()))
+            return real(*args, **kwargs)
+        return call
+
+    for name in ("warpPerspective", "fillConvexPoly", "LUT", "transform", "cvtColor", "copyTo", "scaleAdd"):
+        monkeypatch.setattr(cv2, name, spy(name, getattr(cv2, name)))
+    before = cv2.ipp.useIPP()
+    frames = _frames("urban-curvy", "night", "canvas", [8.0, 140.0])
+    assert len(frames) == 2 and cv2.ipp.useIPP() == before
+    assert {name for name, _ in seen} >= {"warpPerspective", "fillConvexPoly", "LUT", "cvtColor", "scaleAdd"}
+    assert not any(used for _, used in seen)
