@@ -17,6 +17,7 @@ import numpy as np
 
 from testbed.attacks.pulse import IdentificationPulse
 from testbed.control.attack_bound import MeasuredLoop
+from testbed.defense.config import DefenseConfig
 from testbed.errors import UserError
 from testbed.eval.run.runner import SimRun
 from testbed.eval.run.scenario import END_MARGIN_M, Scenario
@@ -29,7 +30,8 @@ SETTLE_S = 8.0
 RAMP_MPS2 = 0.8
 """Less than the planner's acceleration to its cruise speed: the run is long enough to reach it."""
 OFFSET_PULSE_M = 0.1
-"""Half the default b: the lateral CUSUM does not move."""
+"""Half the default b: the lateral CUSUM does not move; smaller where the steered pose's slew would hold it
+(`offset_pulse`)."""
 YAW_PULSE_RAD = 0.004
 """Under the default steer_yaw_tol (0.01 rad), so the steering pose's yaw clamp does not act."""
 
@@ -51,6 +53,13 @@ def identification_scenario(sc: Scenario, speed: float, horizon_s: float) -> Sce
                       traffic=TrafficConfig(), stop_at=None)
 
 
+def offset_pulse(sc: Scenario) -> float:
+    """The offset pulse (m): OFFSET_PULSE_M, or half of what `steer_slew` lets the steered pose move in one camera
+    period where that is less, so that neither the lateral CUSUM nor the slew acts on it."""
+    period = sc.rates.camera_every * sc.rates.control_dt
+    return min(OFFSET_PULSE_M, 0.5 * DefenseConfig.from_dict(sc.defense_params).steer_slew * period)
+
+
 def _deviation(sc: Scenario, pulse: IdentificationPulse) -> tuple[np.ndarray, np.ndarray]:
     sim = SimRun(sc, attack=pulse)
     try:
@@ -69,8 +78,9 @@ def identify(sc: Scenario, speed: float, horizon_s: float) -> Identified:
     if needed > track_length:
         raise UserError(f"identifying the loop at {speed:g} m/s needs {needed:.0f} m of straight road, "
                         f"{IDENTIFICATION_TRACK} has {track_length:.0f} m: a lower speed")
+    size = offset_pulse(run)
     pulses = [IdentificationPulse(SETTLE_S, SETTLE_S + 1.0, speed, offset, yaw)
-              for offset, yaw in ((0.0, 0.0), (OFFSET_PULSE_M, 0.0), (0.0, YAW_PULSE_RAD))]
+              for offset, yaw in ((0.0, 0.0), (size, 0.0), (0.0, YAW_PULSE_RAD))]
     (t, plain), (_, offset), (_, yaw) = (_deviation(run, p) for p in pulses)
     times = {p.pulse_time for p in pulses}
     if len(times) != 1 or None in times:
@@ -80,6 +90,6 @@ def identify(sc: Scenario, speed: float, horizon_s: float) -> Identified:
     if k0 + ticks > len(t):
         raise RuntimeError(f"the identification run ended {len(t) - k0} ticks after its pulse, {ticks} needed")
     window = slice(k0, k0 + ticks)
-    loop = MeasuredLoop((offset[window] - plain[window]) / OFFSET_PULSE_M,
+    loop = MeasuredLoop((offset[window] - plain[window]) / size,
                         (yaw[window] - plain[window]) / YAW_PULSE_RAD, sc.rates.camera_every, sc.rates.control_dt)
     return Identified(loop, float(t[k0]))
