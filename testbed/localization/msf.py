@@ -191,7 +191,7 @@ class MultiSensorFusion:
 
     def _gated_update(self, source: str, t: float, z: np.ndarray, r: np.ndarray) -> bool:
         n, gated = len(z), self._gated
-        update = None if gated is not None or self._updates is None else self._updates[n]
+        update = None if self._updates is None else self._updates[n]
         if gated is not None:
             d2 = gated.distance(z, r)
         elif update is not None:

@@ -94,6 +94,24 @@ def test_a_shift_on_detection_ticks_is_what_the_check_sees_and_alarms():
     assert defense.detection_time == pytest.approx(1.0 + 0.05 * 2, abs=0.06)
 
 
+def steered_on_detections(defense: Ld3AlarmedDefense, msf_pose) -> list[tuple[float, float, Pose, Pose]]:
+    """3 s at 40 Hz on the straight with the lines centred and the MSF pose at `msf_pose(t, x)` (x the car's), a
+    detection every second tick; per detection update (t, the car's x, the MSF pose, the pose steered on)."""
+    smap = FakeStraightMap()
+    out = []
+    for k in range(120):
+        t = k / 40.0
+        x = 50.0 + SPEED * t
+        defense.on_odometry(t, SPEED, 0.0)
+        est = LocalizationEstimate(t, msf_pose(t, x), np.eye(3) * 0.01)
+        if k % 2 == 0:
+            defense.on_lane_detection(lines(t, 0.0), est, smap)
+        pose = defense.pose_for_control(est, smap)
+        if k % 2 == 0:
+            out.append((t, x, est.pose, pose))
+    return out
+
+
 @pytest.mark.parametrize(("across", "along"), [(1.3, 0.0), (-1.3, -8.6)])
 def test_until_the_alarm_a_jump_of_the_msf_moves_the_steered_pose_no_faster_than_the_slew(across, along):
     """From 1 s the MSF pose jumps `across` the lane and `along` it (the lines and odometry stay with the car): while
@@ -101,20 +119,9 @@ def test_until_the_alarm_a_jump_of_the_msf_moves_the_steered_pose_no_faster_than
     direction, and a fault says it was held."""
     config = DefenseConfig(tau=1e9, heading_tau=1e9, along_tau=1e9)
     defense = Ld3Defense(config)
-    smap = FakeStraightMap()
-    offsets = []
-    for k in range(120):
-        t = k / 40.0
-        x = 50.0 + SPEED * t
-        defense.on_odometry(t, SPEED, 0.0)
-        jumped = t >= 1.0
-        est = LocalizationEstimate(t, Pose(x + (along if jumped else 0.0), across if jumped else 0.0, 0.0),
-                                   np.eye(3) * 0.01)
-        if k % 2 == 0:
-            defense.on_lane_detection(lines(t, 0.0), est, smap)
-        pose = defense.pose_for_control(est, smap)
-        if jumped and k % 2 == 0:
-            offsets.append((pose.x - x, pose.y))
+    jumped = steered_on_detections(defense, lambda t, x: Pose(x + along, across, 0.0) if t >= 1.0
+                                   else Pose(x, 0.0, 0.0))
+    offsets = [(pose.x - x, pose.y) for t, x, _, pose in jumped if t >= 1.0]
     assert defense.mode == "normal"
     for n, (got_along, got_across) in enumerate(offsets, start=1):
         reach = config.steer_slew * 0.05 * n
@@ -127,16 +134,9 @@ def test_a_drift_of_the_msf_slower_than_the_slew_is_steered_on_as_it_is():
     """An MSF pose drifting 0.3 m/s across the lane (under `steer_slew`, 0.5 m/s), as a source dragged slowly does: the
     pose steered on is the MSF's, never held."""
     defense = Ld3Defense(DefenseConfig(tau=1e9, heading_tau=1e9, along_tau=1e9))
-    smap = FakeStraightMap()
-    for k in range(120):
-        t = k / 40.0
-        x = 50.0 + SPEED * t
-        defense.on_odometry(t, SPEED, 0.0)
-        est = LocalizationEstimate(t, Pose(x, 0.3 * max(0.0, t - 1.0), 0.0), np.eye(3) * 0.01)
-        if k % 2 == 0:
-            defense.on_lane_detection(lines(t, 0.0), est, smap)
-            pose = defense.pose_for_control(est, smap)
-            assert pose.y == pytest.approx(est.pose.y, abs=1e-9) and pose.x == pytest.approx(x, abs=1e-9)
+    updates = steered_on_detections(defense, lambda t, x: Pose(x, 0.3 * max(0.0, t - 1.0), 0.0))
+    for _, x, msf, pose in updates:
+        assert pose.y == pytest.approx(msf.y, abs=1e-9) and pose.x == pytest.approx(x, abs=1e-9)
     assert not any(r.kind == "steer-held" for r in defense.fault_records())
 
 
