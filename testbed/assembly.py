@@ -144,6 +144,7 @@ def assemble(settings: LoopSettings, chassis: ChassisPort, sensors: SensorPorts,
                                           max_lat_accel=settings.control.steer_lat_accel),
         SpeedController(max_accel=params.max_accel, max_decel=params.max_decel),
         planned_stop=lane.planned_stop, follow=lane.follow)
-    perception = PerceptionPorts(detector, settings.defense.existence_threshold, on_frame, tracker)
+    perception = PerceptionPorts(detector, settings.defense.existence_threshold, on_frame, tracker,
+                                 settings.defense.ld_lines)
     loop = ControlLoop(chassis, sensors, perception, defense, driving, attack=attack, rates=rates)
     return LoopRun(loop, settings.duration_s)

@@ -20,7 +20,7 @@ from testbed.control.lateral import LqrLateralController
 from testbed.control.longitudinal import SpeedController
 from testbed.control.planner import LanePlanner
 from testbed.defense.base import Defense, DefenseStatus
-from testbed.defense.ld_deviation import LdDeviation
+from testbed.defense.ld_deviation import LdDeviation, LdLines
 from testbed.lane_detection import CameraFrame, LaneDetection, LaneDetector
 from testbed.lane_tracker import LaneTracker
 from testbed.localization.estimate import LocalizationEstimate
@@ -84,13 +84,15 @@ class SensorPorts:
 @dataclass(frozen=True)
 class PerceptionPorts:
     """The lane detector (None: no lane detections), the existence probability a line needs to count, a hook
-    that sees every frame with its detection (video, recording), and the tracker of the detected lines (run
-    after an LD-side attacker's tamper, predicted with the chassis odometry)."""
+    that sees every frame with its detection (video, recording), the tracker of the detected lines (run
+    after an LD-side attacker's tamper, predicted with the chassis odometry), and the lines the logged D_LD
+    comes from (Alg. 3's `LdLines`)."""
 
     detector: LaneDetector | None = None
     existence_threshold: float = 0.5
     on_frame: Callable[[CameraFrame, LaneDetection], None] | None = None
     tracker: LaneTracker | None = None
+    ld_lines: LdLines = "nearer"
 
 
 @dataclass(frozen=True)
@@ -125,7 +127,7 @@ class ControlLoop:
         self.lane = driving.lane
         self.dt = rates.control_dt
         self.ticks = 0
-        self.ld_dev = LdDeviation(perception.existence_threshold)
+        self.ld_dev = LdDeviation(perception.existence_threshold, perception.ld_lines)
         self.last_ld_dev: float | None = None
         self.stopping = False
         self.last_state: ChassisState | None = None

@@ -58,7 +58,8 @@ class Ld3AlarmedDefense(LatchingDefense):
                                               yaw_agreement=(config.heading_b, config.steer_yaw_tol),
                                               bias_span=config.odometry_bias_span, lever=lever,
                                               lines_gate=(config.lines_gate, config.lines_heading_gate,
-                                                          config.lines_heading_gate_in_place))
+                                                          config.lines_heading_gate_in_place),
+                                              ld_lines=config.ld_lines)
         self.detection_time: float | None = None
         self.checked = DeadReckoning(lever)
         """The MSF pose of the last detection update, carried by odometry (fail-closed mode)."""

@@ -42,7 +42,7 @@ from collections.abc import Iterable
 from testbed.defense.faults import FaultLog
 from testbed.defense.fused_heading import station_relative_heading
 from testbed.defense.fusion import pose_on_lane
-from testbed.defense.ld_deviation import LdDeviation
+from testbed.defense.ld_deviation import LdDeviation, LdLines
 from testbed.defense.odometry import (
     CurvatureBias,
     DeadReckoning,
@@ -135,7 +135,8 @@ class LaneConsistencyMonitor:
                  fail_closed: bool, heading: Cusum | None = None, along: Cusum | None = None,
                  along_gain: float = 1.0, line_rate: float = math.inf, line_yaw_rate: float = math.inf,
                  yaw_margin: float = 0.0, yaw_agreement: tuple[float, float] = (0.0, 0.0), bias_span: float = 0.0,
-                 lever: float = 0.0, lines_gate: tuple[float, float, float] = (math.inf, math.inf, math.inf)) -> None:
+                 lever: float = 0.0, lines_gate: tuple[float, float, float] = (math.inf, math.inf, math.inf),
+                 ld_lines: LdLines = "nearer") -> None:
         self.detector = Ld3Detector(b, tau)
         self.heading = heading if heading is not None else Cusum(0.0, math.inf)
         """The fail-closed heading check's CUSUM on |ψ_MSF − ψ_lines| (rad); never alarms when not given."""
@@ -155,7 +156,7 @@ class LaneConsistencyMonitor:
         lines within b of both across the lane), is astray: the MSF is checked against odometry on it, as where lines
         are absent."""
         self._anchor_time: float | None = None
-        self.ld_dev = LdDeviation(existence_threshold)
+        self.ld_dev = LdDeviation(existence_threshold, ld_lines)
         self.faults = faults
         self.fail_closed = fail_closed
         self.odometry = DeadReckoning(lever)

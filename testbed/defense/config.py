@@ -29,6 +29,7 @@ from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
+from testbed.defense.ld_deviation import LdLines
 from testbed.params import Params, validate_params
 
 Heading = Literal["msf", "lane", "ld", "fused"]
@@ -45,7 +46,7 @@ FAIL_CLOSED_KEYS = frozenset({"heading_b", "heading_tau", "steer_yaw_tol", "stee
                               "response_gate", "corner_radius", "lines_gate", "lines_heading_gate",
                               "lines_heading_gate_in_place"})
 """The `[defense]` keys only the fail-closed default reads (the paper mode refuses them)."""
-ALWAYS_READ = frozenset({"existence_threshold"})
+ALWAYS_READ = frozenset({"existence_threshold", "ld_lines"})
 """`[defense]` keys the loop itself reads (the logged D_LD), whatever the defense."""
 
 
@@ -80,6 +81,11 @@ class DefenseConfig(Params):
                                                      "lower bound")
     existence_threshold: float = Field(0.5, ge=0.0, le=1.0, description="a detected lane line with existence "
                                        "probability below this is not valid")
+    ld_lines: LdLines = Field("nearer", description="Alg. 3's D_LD where both lines are valid: from the nearer "
+                              "line with the map's lane width (nearer: the paper's), or the car's offset from their "
+                              "midpoint where they lie within 0.5 m of the map's lane width apart (both: neither the "
+                              "map's width nor one misread line moves it by more than half their error; lines "
+                              "attacked move the car less far, docs/decisions.md)")
     fail_closed: bool = Field(True, description="LD3 fails closed: an MSF pose the map cannot place feeds the "
                               "CUSUM a lane width; where lines are absent (intersections, no valid line) the MSF "
                               "is checked against a pose dead-reckoned from odometry and S is kept; in the "
@@ -181,7 +187,7 @@ PAPER_CUSUM: dict[str, float] = {"b": 0.6, "tau": 0.1}
 """LD3's CUSUM weight and threshold as the paper sets them (§5.2)."""
 
 PAPER_MODE: dict[str, Any] = {**PAPER_CUSUM, "heading": "msf", "window": 20, "p_source": "constant", "r_power": 1.0,
-                              "fail_closed": False}
+                              "fail_closed": False, "ld_lines": "nearer"}
 """The `[defense]` overrides that give LD3 as the paper specifies it: its CUSUM (b, τ), Alg. 2 with the MSF yaw,
-Alg. 4 with constant P and f to the first power, over a 1-s window, and Alg. 1's skipped updates and
-intersection resets."""
+Alg. 3 on the nearer line, Alg. 4 with constant P and f to the first power, over a 1-s window, and Alg. 1's skipped
+updates and intersection resets."""

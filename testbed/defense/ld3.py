@@ -216,11 +216,15 @@ class Ld3Defense(Ld3AlarmedDefense):
         return msf.lateral_variance(lane_heading), p_ld
 
     def _ld_uncertainty(self, ld: LaneDetection) -> float:
-        """P^LD: the constant, or the detector's c0 variance of the line Alg. 3 used (kept while D is reused)."""
+        """P^LD: the constant, or the detector's c0 variance of the line Alg. 3 used, of the midpoint where it used
+        both (kept while D is reused)."""
         if self.config.p_source == "constant":
             return self.config.p_ld
         side = self.monitor.ld_dev.side
-        var = ld.left_var if side == "left" else ld.right_var if side == "right" else None
+        if side == "both":  # the midpoint of two lines read apart
+            var = None if ld.left_var is None or ld.right_var is None else 0.25 * (ld.left_var + ld.right_var)
+        else:
+            var = ld.left_var if side == "left" else ld.right_var if side == "right" else None
         if var is not None and not self.monitor.ld_dev.reused:
             self._p_ld = var
         return self._p_ld

@@ -28,6 +28,7 @@ import numpy as np
 from testbed.defense.attack_detection import LaneConsistencyMonitor, Ld3Detector
 from testbed.defense.base import DefenseStatus
 from testbed.defense.faults import FaultLog
+from testbed.defense.ld_deviation import LdLines
 from testbed.defense.no_defense import NoDefense
 from testbed.lane_detection import LaneDetection
 from testbed.localization.estimate import LocalizationEstimate
@@ -85,11 +86,11 @@ def load_detection_log(path: Path) -> dict[str, np.ndarray]:
 class DetectionRecorder(NoDefense):
     """Observes like LD3 and SAVIOR, logs their detector inputs, drives like no defense."""
 
-    def __init__(self, existence_threshold: float = 0.5) -> None:
+    def __init__(self, existence_threshold: float = 0.5, ld_lines: LdLines = "nearer") -> None:
         self.log = DetectionLog()
         self._clock = [math.nan]
         self.monitor = LaneConsistencyMonitor(0.0, math.inf, existence_threshold, FaultLog(logger),
-                                              fail_closed=False)
+                                              fail_closed=False, ld_lines=ld_lines)
         self.monitor.detector = _LoggingDetector(self.log, self._clock)
 
     def on_lane_detection(self, ld: LaneDetection, msf: LocalizationEstimate, smap: SemanticMap) -> None:

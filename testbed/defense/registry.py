@@ -23,7 +23,7 @@ from testbed.defense.savior import SaviorConfig, SaviorDefense
 from testbed.params import Params, ParamsError
 from testbed.registry import Capability, Component, Registry
 
-_DETECTION = frozenset({"b", "tau", "existence_threshold", "fail_closed", "heading_b", "heading_tau",
+_DETECTION = frozenset({"b", "tau", "existence_threshold", "ld_lines", "fail_closed", "heading_b", "heading_tau",
                         "steer_yaw_tol", "steer_slew", "along_b", "along_tau", "along_gain",
                         "line_rate", "line_yaw_rate",
                         "yaw_margin", "odometry_bias_span", "corner_radius", "lines_gate", "lines_heading_gate",

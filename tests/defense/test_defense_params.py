@@ -67,7 +67,7 @@ def test_the_recorded_table_keeps_every_builtin_key_in_its_old_order(gentle):
     savior = resolved_table(*defense_settings("savior", {"ar_decel": 3.0, "savior_b": 2.0}))
     assert list(savior) == list(table) and savior["ar_decel"] == 3.0 and savior["savior_b"] == 2.0
     assert resolved_table(*defense_settings("gentle", {}))["patience"] == 2.0
-    assert declared_table("savior", table) == {"existence_threshold": 0.5, "ar_decel": 4.0,
+    assert declared_table("savior", table) == {"existence_threshold": 0.5, "ld_lines": "nearer", "ar_decel": 4.0,
                                                **{k: SaviorConfig().model_dump()[k] for k in SAVIOR_KEYS}}
 
 
@@ -79,3 +79,28 @@ def test_a_recorded_table_reads_back_as_the_settings_the_run_had(given):
     defaults (a paper-mode run records heading_clamp and the fail-closed keys it does not run)."""
     settings = defense_settings("ld3", dict(given))
     assert defense_settings("ld3", declared_table("ld3", resolved_table(*settings))) == settings
+
+
+def test_the_lines_alg3_uses_reach_the_defense_and_the_loops_logged_deviation():
+    """`ld_lines` sets Alg. 3 in LD3's and NaiveAR's detection and in the loop's logged D_LD, whatever the defense;
+    the paper mode keeps the nearer line; another value is refused."""
+    from testbed.eval.run.runner import SimRun
+    from testbed.eval.run.scenario import load_scenario
+
+    assert DefenseConfig().ld_lines == "nearer" and DefenseConfig.from_dict(PAPER_MODE).ld_lines == "nearer"
+    both = DefenseConfig.from_dict({"ld_lines": "both"})
+    for name in ("ld3", "ld3-naive-ar"):
+        assert DEFENSES.get(name).factory(both, None).monitor.ld_dev.lines == "both"
+    assert defense_settings("savior", {"ld_lines": "both"})[0].ld_lines == "both"
+    with pytest.raises(ParamsError, match="ld_lines"):
+        DefenseConfig.from_dict({"ld_lines": "middle"})
+    for defense in ("ld3", "none"):
+        sc = load_scenario("urban-straight").with_overrides(duration=0.5, detector="oracle", defense=defense,
+                                                            defense_params={"ld_lines": "both"})
+        sim = SimRun(sc, render=False)
+        try:
+            assert sim.loop.ld_dev.lines == "both"
+            if defense == "ld3":
+                assert sim.loop.defense.monitor.ld_dev.lines == "both"
+        finally:
+            sim.close()

@@ -80,3 +80,44 @@ def test_ideal_detection_recovers_the_deviation(share, width):
         (0.0, 40.0),
     )
     assert LdDeviation(0.5).update(ld, width) == pytest.approx(dev, abs=1e-9)
+
+
+def test_both_lines_give_their_midpoint_whatever_the_map_width():
+    # lines painted 3.2 m apart where the map says 3.5: the car 0.1 m left of their midpoint reads +0.1 from both,
+    # where the nearer line with the map's width gives 1.75 - 1.5 = +0.25
+    assert LdDeviation(0.5, "both").update(det(1.5, -1.7), LW) == pytest.approx(0.1)
+    assert LdDeviation(0.5, "nearer").update(det(1.5, -1.7), LW) == pytest.approx(0.25)
+
+
+def test_one_misread_line_moves_the_midpoint_by_half_its_error():
+    # the car 0.2 m left of centre, its left line read 0.4 m too far out
+    true, misread = det(1.55, -1.95), det(1.95, -1.95)
+    assert LdDeviation(0.5, "both").update(true, LW) == pytest.approx(0.2)
+    assert LdDeviation(0.5, "both").update(misread, LW) == pytest.approx(0.0)
+    assert LdDeviation(0.5, "nearer").update(misread, LW) == pytest.approx(-0.2)
+
+
+def test_lines_no_lane_apart_fall_back_to_the_nearer_line():
+    # a turn lane opening (the right line on the turn lane's edge, 5.5 m from the left): Alg. 3's nearer line, as in
+    # the paper mode, not the midpoint 1.15 m off
+    ld_dev = LdDeviation(0.5, "both")
+    assert ld_dev.update(det(1.6, -3.9), LW) == pytest.approx(0.15)
+    assert ld_dev.side == "left"
+    assert ld_dev.update(det(1.6, -1.9), LW) == pytest.approx(0.15)
+    assert ld_dev.side == "both"
+
+
+def test_one_valid_line_is_alg3_in_either_mode():
+    for lines in ("nearer", "both"):
+        assert LdDeviation(0.5, lines).update(det(None, -1.9), LW) == pytest.approx(0.15)
+        assert LdDeviation(0.5, lines).update(det(1.0, -1.9, left_prob=0.3), LW) == pytest.approx(0.15)
+
+
+@given(share=st.floats(-0.99, 0.99), width=st.floats(2.7, 4.0), paint=st.floats(-0.3, 0.3))
+@settings(max_examples=60, deadline=None)
+def test_both_lines_recover_the_deviation_when_the_paint_is_not_the_map_width(share, width, paint):
+    dev = share * width / 2
+    painted = width + paint
+    ld = LaneDetection(0.0, np.array([painted / 2 - dev, 0, 0, 0.0]), np.array([-painted / 2 - dev, 0, 0, 0.0]),
+                       0.9, 0.9, (0.0, 40.0))
+    assert LdDeviation(0.5, "both").update(ld, width) == pytest.approx(dev, abs=1e-9)

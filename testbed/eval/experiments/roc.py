@@ -67,7 +67,7 @@ def record_detection_run(run: CampaignRun, run_dir: Path) -> RunSummary:
 
     prepare_out_dir(run_dir)
     config = DefenseConfig.from_dict(run.scenario.defense_params)
-    recorder = DetectionRecorder(config.existence_threshold)
+    recorder = DetectionRecorder(config.existence_threshold, config.ld_lines)
     sim = SimRun(run.scenario, defense=recorder)
     try:
         result = sim.run()
