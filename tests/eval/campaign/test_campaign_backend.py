@@ -266,7 +266,7 @@ def test_the_ray_backend_records_failures_timeouts_and_dead_workers_and_goes_on(
 @pytest.mark.slow
 def test_a_ray_task_deaf_to_its_alarm_is_cancelled_after_the_start_allowance(tmp_path, monkeypatch):
     pytest.importorskip("ray")
-    from testbed.eval.campaign.driver import ray_backend
+    from testbed.eval.campaign import ray_backend
 
     monkeypatch.setattr(ray_backend, "START_ALLOWANCE_S", 30.0)
     sc = load_scenario("slr")
